@@ -1,0 +1,230 @@
+/* sdf.h - the public API of libsdf, the geometry core of sdfd.
+ *
+ * libsdf loads triangle meshes (OBJ, PLY, STL, OFF) into an immutable, shareable index and
+ * answers batched point queries against it: exact unsigned and signed distance, closest
+ * point, closest triangle with barycentric coordinates, and the distance gradient.
+ *
+ * Anything not declared here is not API.
+ *
+ * Conventions (see DESIGN.md):
+ *  - Every function that can fail returns int: 0 (SDF_OK) or a negative SDF_E* code.
+ *    sdf_strerror() names it. Bad input never aborts the process.
+ *  - Handles are opaque. A loaded sdf_mesh is immutable and may be queried from any number
+ *    of threads at once; sdf_mesh_retain/sdf_mesh_release share it between owners.
+ *  - Batch calls take caller-owned arrays; only *_create/_load functions allocate.
+ *  - A zeroed options struct (or a NULL pointer to one) means defaults.
+ *  - No global state: two meshes, or two threads, never interfere.
+ */
+#ifndef SDF_SDF_H
+#define SDF_SDF_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SDF_VERSION_MAJOR 0
+#define SDF_VERSION_MINOR 1
+#define SDF_VERSION_PATCH 0
+
+/* ---------------------------------------------------------------------------------------
+ * Errors. One table makes the enum, the names, the messages and the HTTP statuses.
+ * X(NAME, value, http_status, message)
+ * ------------------------------------------------------------------------------------- */
+#define SDF_ERRNO_MAP(X)                                                                  \
+    X(EINVAL, -1, 400, "invalid argument")                                                \
+    X(ENOMEM, -2, 503, "out of memory")                                                   \
+    X(EIO, -3, 500, "cannot read file")                                                   \
+    X(EFORMAT, -4, 415, "unknown or unsupported file format")                             \
+    X(EPARSE, -5, 422, "malformed data")                                                  \
+    X(ETRUNC, -6, 422, "truncated data")                                                  \
+    X(ELIMIT, -7, 413, "size limit exceeded")                                             \
+    X(EEMPTY, -8, 422, "mesh has no triangles")                                           \
+    X(ENONFINITE, -9, 422, "non-finite coordinate (NaN or Inf)")                          \
+    X(EINDEX, -10, 422, "index out of range")                                             \
+    X(EBVH, -11, 500, "BVH library (Embree) error")                                       \
+    X(ENOTFOUND, -12, 404, "not found")
+
+typedef enum sdf_error {
+    SDF_OK = 0,
+#define SDF__ERRNO_ENUM(name, value, http, msg) SDF_##name = (value),
+    SDF_ERRNO_MAP(SDF__ERRNO_ENUM)
+#undef SDF__ERRNO_ENUM
+} sdf_error;
+
+/* A static, human-readable message for an error code ("unknown error" for others). */
+const char *sdf_strerror(int err);
+/* The code's name without prefix, e.g. "EPARSE"; "OK" for 0, "EUNKNOWN" for others. */
+const char *sdf_errname(int err);
+/* The HTTP status that reports this code (200 for SDF_OK, 500 for unknown codes). */
+int sdf_http_status(int err);
+
+/* Where and why an input was rejected. Filled by functions that take an sdf_diag * (NULL
+ * is allowed). `message` is self-contained, e.g. "OFF line 7: face 2 has vertex index 9,
+ * but the file declares 8 vertices". */
+typedef struct sdf_diag {
+    int code;           /* the same code the function returned */
+    long line;          /* 1-based line in a text format; 0 when not applicable */
+    long long offset;   /* byte offset into the input; -1 when not applicable */
+    char message[256];
+} sdf_diag;
+
+/* ---------------------------------------------------------------------------------------
+ * Meshes
+ * ------------------------------------------------------------------------------------- */
+typedef enum sdf_format {
+    SDF_FORMAT_AUTO = 0, /* from the file name's extension, else sniffed from the bytes */
+    SDF_FORMAT_OBJ,
+    SDF_FORMAT_PLY,
+    SDF_FORMAT_STL,
+    SDF_FORMAT_OFF,
+} sdf_format;
+
+/* "obj", "ply", "stl", "off" (case-insensitive) -> format; SDF_EINVAL otherwise. */
+int sdf_format_from_name(const char *name, sdf_format *out);
+const char *sdf_format_name(sdf_format format); /* "auto", "obj", ... */
+
+typedef enum sdf_sign_method {
+    SDF_SIGN_AUTO = 0,     /* pseudonormal for closed edge-manifold meshes, else winding */
+    SDF_SIGN_PSEUDONORMAL, /* angle-weighted pseudonormals (Baerentzen & Aanaes 2005) */
+    SDF_SIGN_WINDING,      /* fast generalized winding numbers (Barill et al. 2018) */
+    SDF_SIGN_RAYCAST,      /* parity of ray crossings, majority over jittered rays */
+    SDF_SIGN_NONE,         /* unsigned distance */
+} sdf_sign_method;
+
+/* "auto", "pseudonormal", "winding", "raycast", "none" -> method; SDF_EINVAL otherwise. */
+int sdf_sign_from_name(const char *name, sdf_sign_method *out);
+const char *sdf_sign_name(sdf_sign_method method);
+
+#define SDF_DEFAULT_MAX_TRIANGLES ((size_t)1 << 24)      /* 16.7 M */
+#define SDF_DEFAULT_MAX_FILE_BYTES ((size_t)1 << 31)     /* 2 GiB  */
+
+typedef struct sdf_mesh_options {
+    sdf_format format;      /* SDF_FORMAT_AUTO: by extension, else sniffed */
+    size_t max_triangles;   /* after fan triangulation; 0 = SDF_DEFAULT_MAX_TRIANGLES */
+    size_t max_file_bytes;  /* sdf_mesh_load_file only; 0 = SDF_DEFAULT_MAX_FILE_BYTES */
+} sdf_mesh_options;
+
+typedef struct sdf_mesh sdf_mesh;
+
+/* What loading found out about a mesh. Counts are after welding exactly coincident
+ * vertices; triangles keep the file's order (fan-triangulated polygons in place). */
+typedef struct sdf_mesh_report {
+    sdf_format format;           /* the format that was parsed (AUTO for in-memory arrays) */
+    size_t input_vertices;       /* vertices as stored in the file */
+    size_t vertices;             /* after welding */
+    size_t triangles;
+    float bbox_min[3], bbox_max[3];
+    double diagonal;             /* |bbox_max - bbox_min| */
+    int closed;                  /* every edge shared by exactly two consistently oriented triangles */
+    int edge_manifold;           /* no edge shared by more than two triangles */
+    int flipped;                 /* closed with negative volume: orientation was reversed */
+    size_t degenerate_triangles; /* zero area, or a repeated vertex */
+    size_t boundary_edges;       /* edges with one triangle */
+    size_t nonmanifold_edges;    /* edges with three or more triangles */
+    size_t misoriented_edges;    /* two triangles traversing the edge in the same direction */
+    double volume;               /* enclosed (signed) volume, after any flip */
+    sdf_sign_method auto_sign;   /* what SDF_SIGN_AUTO resolves to for this mesh */
+    size_t index_bytes;          /* memory of the BVHs and sign data */
+    double build_seconds;        /* welding, topology, BVHs and sign data */
+} sdf_mesh_report;
+
+/* Load a mesh file and build its index. On success *out holds a mesh with one reference.
+ * On failure *out is NULL, the code is returned and `diag` (may be NULL) says where.
+ * Thread-safe. */
+int sdf_mesh_load_file(const char *path, const sdf_mesh_options *opts, sdf_mesh **out,
+                       sdf_diag *diag);
+
+/* As sdf_mesh_load_file, from `size` bytes at `data` (not retained). With
+ * SDF_FORMAT_AUTO the format is sniffed from the bytes. */
+int sdf_mesh_load_memory(const void *data, size_t size, const sdf_mesh_options *opts,
+                         sdf_mesh **out, sdf_diag *diag);
+
+/* Build a mesh from arrays: `vertex_count` xyz float triples and `triangle_count` index
+ * triples (copied). Indices must be < vertex_count. */
+int sdf_mesh_create(const float *vertices, size_t vertex_count, const uint32_t *triangles,
+                    size_t triangle_count, const sdf_mesh_options *opts, sdf_mesh **out,
+                    sdf_diag *diag);
+
+/* The built-in demo mesh: a closed, manifold tube around a (2,3) torus knot (a trefoil),
+ * generated in code, about 3 units across, 12,288 triangles. */
+int sdf_mesh_create_demo(sdf_mesh **out);
+
+/* Add a reference; returns `mesh`. Thread-safe. */
+sdf_mesh *sdf_mesh_retain(sdf_mesh *mesh);
+/* Drop a reference; the last one frees the mesh. NULL is a no-op. Thread-safe. */
+void sdf_mesh_release(sdf_mesh *mesh);
+
+/* Copy the mesh's report into *out. */
+void sdf_mesh_get_report(const sdf_mesh *mesh, sdf_mesh_report *out);
+
+/* The welded geometry the queries see, valid while the mesh lives: 3 floats per vertex,
+ * 3 indices per triangle (counts in the report). Triangle ids returned by queries index
+ * this array and follow the file's order. */
+const float *sdf_mesh_vertices(const sdf_mesh *mesh);
+const uint32_t *sdf_mesh_triangles(const sdf_mesh *mesh);
+
+/* ---------------------------------------------------------------------------------------
+ * Batched queries
+ * ------------------------------------------------------------------------------------- */
+typedef struct sdf_query_options {
+    sdf_sign_method sign; /* SDF_SIGN_AUTO by default */
+    int threads;          /* worker threads; 0 = all online CPUs */
+    size_t point_stride;  /* bytes between consecutive points; 0 = 12 (packed xyz) */
+} sdf_query_options;
+
+/* Caller-owned outputs of sdf_query; any pointer may be NULL when not wanted. */
+typedef struct sdf_query_result {
+    float *distance;     /* [n] signed distance, negative inside (unsigned with SIGN_NONE) */
+    float *gradient;     /* [3n] unit gradient of `distance`: sign * (p - c) / |p - c|; on the
+                            surface, the closest feature's pseudonormal */
+    float *closest;      /* [3n] closest point on the mesh */
+    uint32_t *triangle;  /* [n] id of the triangle holding the closest point */
+    float *barycentric;  /* [3n] weights of that triangle's vertices 0, 1, 2 at the point */
+    size_t bad_index;    /* out: the first non-finite point when SDF_ENONFINITE is returned */
+} sdf_query_result;
+
+/* Answer `count` point queries. `points` holds xyz float triples `point_stride` bytes apart.
+ * Returns SDF_ENONFINITE (and sets out->bad_index) if any coordinate is NaN or Inf, before
+ * writing any output; SDF_EINVAL for a bad argument.
+ * Results do not depend on the thread count. Thread-safe on a shared mesh. */
+int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
+              const sdf_query_options *opts, sdf_query_result *out);
+
+/* Generalized winding number (Jacobson et al. 2013) at each point, evaluated
+ * hierarchically (Barill et al. 2018): ~1 inside, ~0 outside a closed mesh; fractional
+ * near holes. Same argument rules as sdf_query; writes `count` floats to `winding`. */
+int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
+                        const sdf_query_options *opts, float *winding, size_t *bad_index);
+
+/* ---------------------------------------------------------------------------------------
+ * NumPy .npy arrays (version 1.0/2.0/3.0 headers; little-endian float32 or float64; C order)
+ * ------------------------------------------------------------------------------------- */
+typedef enum sdf_npy_dtype { SDF_NPY_F32 = 4, SDF_NPY_F64 = 8 } sdf_npy_dtype;
+
+#define SDF_NPY_MAX_DIMS 4
+
+typedef struct sdf_npy_info {
+    sdf_npy_dtype dtype;
+    int ndim;
+    size_t shape[SDF_NPY_MAX_DIMS];
+    size_t data_offset; /* bytes before the array data */
+    size_t data_bytes;  /* product(shape) * dtype size */
+} sdf_npy_info;
+
+/* Parse and check a complete .npy file held in `size` bytes: the header and that exactly
+ * data_bytes follow it. Big-endian, Fortran-order, object or other dtypes are refused
+ * (SDF_EFORMAT); a short file is SDF_ETRUNC; `diag` says where. */
+int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *diag);
+
+/* Write a version 1.0 header for a little-endian float32 C-order array of `ndim` (1..4)
+ * dimensions into `dst` (`cap` bytes). Returns the header's length (a multiple of 64),
+ * or a negative SDF_E* code (SDF_ELIMIT if `cap` is too small; 128 bytes always suffice). */
+long sdf_npy_write_header(char *dst, size_t cap, int ndim, const size_t *shape);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SDF_SDF_H */

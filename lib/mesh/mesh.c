@@ -1,0 +1,139 @@
+/* mesh.c - the sdf_mesh handle: building the index from a triangle soup, sharing it
+ * (retain/release) and reporting on it.
+ *
+ * The build is a fixed sequence of named steps: weld, analyse the edges, orient (flip a
+ * closed inside-out mesh), build Embree's scene, the pseudonormals and the winding-number
+ * tree. Every step is always done, so any sign method can be asked for on any mesh and the
+ * mesh is immutable (hence lock-free) once built. */
+#include "mesh/mesh.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <time.h>
+
+#include "bvh/embree.h"
+#include "core/diag.h"
+#include "mesh/topology.h"
+#include "sign/pseudonormal.h"
+#include "sign/winding.h"
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void mesh_free(sdf_mesh *m)
+{
+    sdf__winding_destroy(m->winding);
+    sdf__pseudonormals_destroy(m->normals);
+    sdf__bvh_destroy(m->bvh);
+    free(m->edge_of);
+    free(m->triangles);
+    free(m->positions);
+    free(m);
+}
+
+static int step_weld(sdf_mesh *m, float *soup, size_t soup_vertices)
+{
+    m->report.input_vertices = soup_vertices;
+    return sdf__weld(soup, soup_vertices, m->triangles, m->report.triangles, &m->positions,
+                     &m->report.vertices);
+}
+
+static int step_orient(sdf_mesh *m)
+{
+    sdf_mesh_report *r = &m->report;
+    int rc = sdf__analyse(m->positions, m->triangles, r->triangles, &m->edge_of, &m->edge_count, r);
+    if (rc)
+        return rc;
+    if (r->closed && r->volume < 0) {
+        sdf__flip(m->triangles, m->edge_of, r->triangles);
+        r->volume = -r->volume;
+        r->flipped = 1;
+    }
+    r->auto_sign = r->closed ? SDF_SIGN_PSEUDONORMAL : SDF_SIGN_WINDING;
+    /* "On the surface": within a few float ulps of the mesh's largest coordinate. */
+    float extent = 0;
+    for (int i = 0; i < 3; i++) {
+        extent = fabsf(r->bbox_min[i]) > extent ? fabsf(r->bbox_min[i]) : extent;
+        extent = fabsf(r->bbox_max[i]) > extent ? fabsf(r->bbox_max[i]) : extent;
+    }
+    m->surface_epsilon = 4 * FLT_EPSILON * (extent > 0 ? extent : 1);
+    return 0;
+}
+
+static int step_index(sdf_mesh *m, sdf_diag *diag)
+{
+    sdf_mesh_report *r = &m->report;
+    int rc = sdf__bvh_create(m->positions, r->vertices, m->triangles, r->triangles, &m->bvh, diag);
+    if (rc)
+        return rc;
+    rc = sdf__pseudonormals_create(m->positions, r->vertices, m->triangles, m->edge_of,
+                                   r->triangles, m->edge_count, &m->normals);
+    if (rc)
+        return sdf__diag_set(diag, rc, 0, -1, "out of memory for pseudonormals");
+    rc = sdf__winding_create(sdf__bvh_device(m->bvh), m->positions, m->triangles, r->triangles,
+                             &m->winding);
+    if (!rc)
+        rc = sdf__bvh_check(m->bvh, diag);
+    if (rc)
+        return sdf__diag_set(diag, rc, 0, -1, "building the winding-number tree failed: %s",
+                             sdf_strerror(rc));
+    r->index_bytes = sdf__bvh_memory(m->bvh) + m->normals->bytes +
+                     sdf__winding_bytes(m->winding) + 3 * r->triangles * sizeof(uint32_t);
+    return 0;
+}
+
+int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
+                    size_t triangle_count, sdf_format format, sdf_mesh **out, sdf_diag *diag)
+{
+    double start = now_seconds();
+    *out = NULL;
+    sdf_mesh *m = calloc(1, sizeof *m);
+    if (!m) {
+        free(positions);
+        free(triangles);
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory");
+    }
+    atomic_init(&m->refs, 1);
+    m->triangles = triangles;
+    m->report.triangles = triangle_count;
+    m->report.format = format;
+    int rc = step_weld(m, positions, vertex_count);
+    free(positions);
+    if (!rc)
+        rc = step_orient(m);
+    if (rc == SDF_ENOMEM)
+        sdf__diag_set(diag, rc, 0, -1, "out of memory for %zu triangles", triangle_count);
+    if (!rc)
+        rc = step_index(m, diag);
+    if (rc) {
+        mesh_free(m);
+        return rc;
+    }
+    m->report.build_seconds = now_seconds() - start;
+    *out = m;
+    return 0;
+}
+
+sdf_mesh *sdf_mesh_retain(sdf_mesh *mesh)
+{
+    if (mesh)
+        atomic_fetch_add(&mesh->refs, 1);
+    return mesh;
+}
+
+void sdf_mesh_release(sdf_mesh *mesh)
+{
+    if (mesh && atomic_fetch_sub(&mesh->refs, 1) == 1)
+        mesh_free(mesh);
+}
+
+void sdf_mesh_get_report(const sdf_mesh *mesh, sdf_mesh_report *out) { *out = mesh->report; }
+
+const float *sdf_mesh_vertices(const sdf_mesh *mesh) { return mesh->positions; }
+
+const uint32_t *sdf_mesh_triangles(const sdf_mesh *mesh) { return mesh->triangles; }

@@ -1,0 +1,210 @@
+/* topology.c - welding and edge analysis (see topology.h). */
+#include "mesh/topology.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static size_t table_size(size_t n)
+{
+    size_t cap = 16;
+    while (cap < 2 * n)
+        cap *= 2;
+    return cap;
+}
+
+static uint64_t mix(uint64_t k)
+{
+    k ^= k >> 33;
+    k *= 0xff51afd7ed558ccdULL;
+    k ^= k >> 33;
+    k *= 0xc4ceb9fe1a85ec53ULL;
+    return k ^ (k >> 33);
+}
+
+/* ---- welding --------------------------------------------------------------------------- */
+
+static void position_bits(const float *p, uint32_t out[3])
+{
+    for (int i = 0; i < 3; i++) {
+        float f = p[i] == 0.0f ? 0.0f : p[i]; /* -0 == +0 */
+        memcpy(&out[i], &f, 4);
+    }
+}
+
+int sdf__weld(const float *positions, size_t vertex_count, uint32_t *triangles,
+              size_t triangle_count, float **out, size_t *out_count)
+{
+    size_t cap = table_size(vertex_count);
+    uint32_t *slot = malloc(cap * sizeof *slot);
+    uint32_t *remap = malloc((vertex_count ? vertex_count : 1) * sizeof *remap);
+    float *welded = malloc((3 * vertex_count + 1) * sizeof *welded);
+    if (!slot || !remap || !welded) {
+        free(slot);
+        free(remap);
+        free(welded);
+        return SDF_ENOMEM;
+    }
+    memset(slot, 0xff, cap * sizeof *slot);
+    size_t n = 0;
+    for (size_t v = 0; v < vertex_count; v++) {
+        uint32_t key[3];
+        position_bits(positions + 3 * v, key);
+        size_t h = mix((uint64_t)key[0] * 73856093u ^ (uint64_t)key[1] << 21 ^
+                       (uint64_t)key[2] << 42 ^ key[2]) & (cap - 1);
+        for (;; h = (h + 1) & (cap - 1)) {
+            if (slot[h] == UINT32_MAX) {
+                slot[h] = (uint32_t)n;
+                memcpy(welded + 3 * n, positions + 3 * v, 3 * sizeof(float));
+                remap[v] = (uint32_t)n++;
+                break;
+            }
+            uint32_t other[3];
+            position_bits(welded + 3 * slot[h], other);
+            if (!memcmp(key, other, sizeof key)) {
+                remap[v] = slot[h];
+                break;
+            }
+        }
+    }
+    for (size_t i = 0; i < 3 * triangle_count; i++)
+        triangles[i] = remap[triangles[i]];
+    welded[3 * n] = 0.0f; /* padding Embree may read */
+    free(slot);
+    free(remap);
+    *out = welded;
+    *out_count = n;
+    return 0;
+}
+
+/* ---- edges ----------------------------------------------------------------------------- */
+
+typedef struct edge_slot {
+    uint64_t key;     /* lo << 32 | hi, or UINT64_MAX when empty */
+    uint32_t id;
+    uint32_t uses;    /* triangles using the edge */
+    int32_t balance;  /* +1 per use lo->hi, -1 per use hi->lo */
+} edge_slot;
+
+static int has_repeated_corner(const uint32_t *t)
+{
+    return t[0] == t[1] || t[1] == t[2] || t[2] == t[0];
+}
+
+static double triangle_area2(const float *pos, const uint32_t *t)
+{
+    const float *a = pos + 3 * t[0], *b = pos + 3 * t[1], *c = pos + 3 * t[2];
+    double u[3], v[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = (double)b[i] - a[i];
+        v[i] = (double)c[i] - a[i];
+    }
+    double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2],
+           z = u[0] * v[1] - u[1] * v[0];
+    return x * x + y * y + z * z;
+}
+
+/* Signed volume of the tetrahedron (origin, a, b, c); their sum is the enclosed volume. */
+static double signed_volume(const float *pos, const uint32_t *t)
+{
+    const float *a = pos + 3 * t[0], *b = pos + 3 * t[1], *c = pos + 3 * t[2];
+    double cx = (double)b[1] * c[2] - (double)b[2] * c[1];
+    double cy = (double)b[2] * c[0] - (double)b[0] * c[2];
+    double cz = (double)b[0] * c[1] - (double)b[1] * c[0];
+    return (a[0] * cx + a[1] * cy + a[2] * cz) / 6.0;
+}
+
+static void geometry_summary(const float *pos, const uint32_t *tris, size_t nt,
+                             sdf_mesh_report *r)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double volume = 0;
+    size_t degenerate = 0;
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *tri = tris + 3 * t;
+        for (int k = 0; k < 3; k++) {
+            for (int i = 0; i < 3; i++) {
+                double x = pos[3 * tri[k] + i];
+                lo[i] = x < lo[i] ? x : lo[i];
+                hi[i] = x > hi[i] ? x : hi[i];
+            }
+        }
+        if (has_repeated_corner(tri) || triangle_area2(pos, tri) == 0.0)
+            degenerate++;
+        volume += signed_volume(pos, tri);
+    }
+    double d2 = 0;
+    for (int i = 0; i < 3; i++) {
+        r->bbox_min[i] = (float)lo[i];
+        r->bbox_max[i] = (float)hi[i];
+        d2 += (hi[i] - lo[i]) * (hi[i] - lo[i]);
+    }
+    r->diagonal = sqrt(d2);
+    r->volume = volume;
+    r->degenerate_triangles = degenerate;
+}
+
+int sdf__analyse(const float *positions, const uint32_t *triangles, size_t triangle_count,
+                 uint32_t **edge_of_out, size_t *edge_count, sdf_mesh_report *r)
+{
+    size_t cap = table_size(3 * triangle_count / 2 + 1);
+    edge_slot *table = malloc(cap * sizeof *table);
+    uint32_t *edge_of = malloc(3 * triangle_count * sizeof *edge_of);
+    if (!table || !edge_of) {
+        free(table);
+        free(edge_of);
+        return SDF_ENOMEM;
+    }
+    for (size_t i = 0; i < cap; i++)
+        table[i].key = UINT64_MAX;
+    uint32_t edges = 0;
+    for (size_t t = 0; t < triangle_count; t++) {
+        const uint32_t *tri = triangles + 3 * t;
+        int skip = has_repeated_corner(tri);
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = tri[k], b = tri[(k + 1) % 3];
+            if (skip) {
+                edge_of[3 * t + k] = SDF__NO_EDGE;
+                continue;
+            }
+            uint64_t key = a < b ? (uint64_t)a << 32 | b : (uint64_t)b << 32 | a;
+            size_t h = mix(key) & (cap - 1);
+            while (table[h].key != UINT64_MAX && table[h].key != key)
+                h = (h + 1) & (cap - 1);
+            if (table[h].key == UINT64_MAX)
+                table[h] = (edge_slot){key, edges++, 0, 0};
+            table[h].uses++;
+            table[h].balance += a < b ? 1 : -1;
+            edge_of[3 * t + k] = table[h].id;
+        }
+    }
+    size_t boundary = 0, nonmanifold = 0, misoriented = 0;
+    for (size_t i = 0; i < cap; i++) {
+        if (table[i].key == UINT64_MAX)
+            continue;
+        boundary += table[i].uses == 1;
+        nonmanifold += table[i].uses > 2;
+        misoriented += table[i].uses == 2 && table[i].balance != 0;
+    }
+    free(table);
+    r->boundary_edges = boundary;
+    r->nonmanifold_edges = nonmanifold;
+    r->misoriented_edges = misoriented;
+    r->edge_manifold = nonmanifold == 0;
+    r->closed = boundary == 0 && nonmanifold == 0 && misoriented == 0 && edges > 0;
+    geometry_summary(positions, triangles, triangle_count, r);
+    *edge_of_out = edge_of;
+    *edge_count = edges;
+    return 0;
+}
+
+void sdf__flip(uint32_t *triangles, uint32_t *edge_of, size_t triangle_count)
+{
+    /* Corners (0,1,2) become (0,2,1): edge 0 (0->1) is now edge 2 (1->0) reversed, edge 2
+     * (2->0) is now edge 0, edge 1 (1->2) stays edge 1. */
+    for (size_t t = 0; t < triangle_count; t++) {
+        uint32_t *tri = triangles + 3 * t, *e = edge_of + 3 * t, tmp;
+        tmp = tri[1], tri[1] = tri[2], tri[2] = tmp;
+        tmp = e[0], e[0] = e[2], e[2] = tmp;
+    }
+}

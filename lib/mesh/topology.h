@@ -1,0 +1,34 @@
+/* topology.h - what a triangle list's connectivity says about it.
+ *
+ * Welding merges vertices with bit-identical coordinates (STL stores every triangle's
+ * corners separately, so without it no edge would be shared). The edge analysis then finds
+ * every undirected edge and how many triangles use it in which direction: that yields
+ * closedness, edge-manifoldness and consistent orientation, and the per-triangle edge ids
+ * the pseudonormal sign needs. Both use open-addressing hash tables, linear in size. */
+#ifndef SDF_MESH_TOPOLOGY_H
+#define SDF_MESH_TOPOLOGY_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "sdf/sdf.h"
+
+#define SDF__NO_EDGE UINT32_MAX
+
+/* Merge bit-identical vertices (+0 and -0 are equal). Rewrites `triangles` in place and
+ * returns a new position array in *out (3 floats per vertex plus one float of padding, as
+ * Embree reads 16 bytes per vertex). Returns 0 or SDF_ENOMEM. */
+int sdf__weld(const float *positions, size_t vertex_count, uint32_t *triangles,
+              size_t triangle_count, float **out, size_t *out_count);
+
+/* Find the edges; fills report fields closed, edge_manifold, boundary_edges,
+ * nonmanifold_edges, misoriented_edges and degenerate_triangles, volume, bbox, diagonal.
+ * *edge_of receives 3 edge ids per triangle (edge k runs from corner k to corner k+1;
+ * SDF__NO_EDGE for a triangle with a repeated corner). Returns 0 or SDF_ENOMEM. */
+int sdf__analyse(const float *positions, const uint32_t *triangles, size_t triangle_count,
+                 uint32_t **edge_of, size_t *edge_count, sdf_mesh_report *report);
+
+/* Reverse every triangle's orientation, keeping edge_of consistent. */
+void sdf__flip(uint32_t *triangles, uint32_t *edge_of, size_t triangle_count);
+
+#endif

@@ -1,0 +1,23 @@
+/* triangle.h - exact closest point on one triangle, in double precision, with the feature
+ * (face interior, one of the 3 edges, one of the 3 corners) it lies on. The feature picks
+ * the pseudonormal for the sign (Baerentzen & Aanaes 2005), so it must be exact: the
+ * Voronoi-region tests of Ericson (Real-Time Collision Detection, sec. 5.1.5) give it
+ * directly. Zero-area triangles are handled as their three segments. */
+#ifndef SDF_QUERY_TRIANGLE_H
+#define SDF_QUERY_TRIANGLE_H
+
+/* Features of triangle (v0, v1, v2). Edge k runs from corner k to corner (k+1) % 3. */
+enum sdf__feature {
+    SDF__FACE = 0,
+    SDF__EDGE0 = 1, SDF__EDGE1 = 2, SDF__EDGE2 = 3,
+    SDF__VERT0 = 4, SDF__VERT1 = 5, SDF__VERT2 = 6,
+};
+
+/* Closest point to p on triangle (a, b, c): writes it to `closest`, the weights of a, b, c
+ * to `bary` (summing to 1), and returns the squared distance; *feature receives an
+ * sdf__feature. */
+double sdf__closest_on_triangle(const double p[3], const double a[3], const double b[3],
+                                const double c[3], double closest[3], double bary[3],
+                                int *feature);
+
+#endif

@@ -1,0 +1,143 @@
+/* pseudonormal.c - angle-weighted pseudonormals (see pseudonormal.h). */
+#include "sign/pseudonormal.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+#include "mesh/topology.h"
+#include "query/triangle.h"
+#include "sdf/sdf.h"
+
+static void load(const float *positions, uint32_t v, double out[3])
+{
+    for (int i = 0; i < 3; i++)
+        out[i] = positions[3 * v + i];
+}
+
+static double normalize(double v[3])
+{
+    double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (len > 0)
+        for (int i = 0; i < 3; i++)
+            v[i] /= len;
+    return len;
+}
+
+/* Interior angle at corner `a` of triangle (a, b, c). */
+static double corner_angle(const double a[3], const double b[3], const double c[3])
+{
+    double u[3], v[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = b[i] - a[i];
+        v[i] = c[i] - a[i];
+    }
+    if (normalize(u) == 0 || normalize(v) == 0)
+        return 0;
+    double cross[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                       u[0] * v[1] - u[1] * v[0]};
+    double s = sqrt(cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]);
+    return atan2(s, u[0] * v[0] + u[1] * v[1] + u[2] * v[2]); /* stable for all angles */
+}
+
+static void store_unit(float *dst, double v[3])
+{
+    normalize(v);
+    for (int i = 0; i < 3; i++)
+        dst[i] = (float)v[i];
+}
+
+int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
+                              const uint32_t *triangles, const uint32_t *edge_of,
+                              size_t triangle_count, size_t edge_count,
+                              sdf__pseudonormals **out)
+{
+    sdf__pseudonormals *pn = calloc(1, sizeof *pn);
+    double *edge_sum = calloc(3 * edge_count + 1, sizeof *edge_sum);
+    double *vertex_sum = calloc(3 * vertex_count + 1, sizeof *vertex_sum);
+    if (pn) {
+        pn->face = malloc(3 * triangle_count * sizeof(float));
+        pn->edge = malloc((3 * edge_count + 1) * sizeof(float));
+        pn->vertex = malloc((3 * vertex_count + 1) * sizeof(float));
+    }
+    if (!pn || !edge_sum || !vertex_sum || !pn->face || !pn->edge || !pn->vertex) {
+        free(edge_sum);
+        free(vertex_sum);
+        sdf__pseudonormals_destroy(pn);
+        return SDF_ENOMEM;
+    }
+    for (size_t t = 0; t < triangle_count; t++) {
+        const uint32_t *tri = triangles + 3 * t;
+        double p[3][3], n[3];
+        for (int k = 0; k < 3; k++)
+            load(positions, tri[k], p[k]);
+        double u[3], v[3];
+        for (int i = 0; i < 3; i++) {
+            u[i] = p[1][i] - p[0][i];
+            v[i] = p[2][i] - p[0][i];
+        }
+        n[0] = u[1] * v[2] - u[2] * v[1];
+        n[1] = u[2] * v[0] - u[0] * v[2];
+        n[2] = u[0] * v[1] - u[1] * v[0];
+        if (normalize(n) == 0) {
+            pn->face[3 * t] = pn->face[3 * t + 1] = pn->face[3 * t + 2] = 0;
+            continue;
+        }
+        for (int i = 0; i < 3; i++)
+            pn->face[3 * t + i] = (float)n[i];
+        for (int k = 0; k < 3; k++) {
+            double angle = corner_angle(p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
+            uint32_t e = edge_of[3 * t + k];
+            for (int i = 0; i < 3; i++) {
+                vertex_sum[3 * tri[k] + i] += angle * n[i];
+                if (e != SDF__NO_EDGE)
+                    edge_sum[3 * e + i] += n[i]; /* the weight pi is common to all: dropped */
+            }
+        }
+    }
+    for (size_t e = 0; e < edge_count; e++)
+        store_unit(pn->edge + 3 * e, edge_sum + 3 * e);
+    for (size_t v = 0; v < vertex_count; v++)
+        store_unit(pn->vertex + 3 * v, vertex_sum + 3 * v);
+    free(edge_sum);
+    free(vertex_sum);
+    pn->bytes = (3 * triangle_count + 3 * edge_count + 3 * vertex_count) * sizeof(float);
+    *out = pn;
+    return 0;
+}
+
+void sdf__pseudonormals_destroy(sdf__pseudonormals *pn)
+{
+    if (!pn)
+        return;
+    free(pn->face);
+    free(pn->edge);
+    free(pn->vertex);
+    free(pn);
+}
+
+static int copy_if_nonzero(const float *src, float n[3])
+{
+    if (src[0] == 0 && src[1] == 0 && src[2] == 0)
+        return 0;
+    n[0] = src[0], n[1] = src[1], n[2] = src[2];
+    return 1;
+}
+
+void sdf__pseudonormal(const sdf__pseudonormals *pn, const uint32_t *triangles,
+                       const uint32_t *edge_of, uint32_t tri, int feature, float n[3])
+{
+    const uint32_t *t = triangles + 3 * (size_t)tri;
+    if (feature >= SDF__VERT0 && copy_if_nonzero(pn->vertex + 3 * (size_t)t[feature - SDF__VERT0], n))
+        return;
+    if (feature >= SDF__EDGE0 && feature <= SDF__EDGE2) {
+        uint32_t e = edge_of[3 * (size_t)tri + (feature - SDF__EDGE0)];
+        if (e != SDF__NO_EDGE && copy_if_nonzero(pn->edge + 3 * (size_t)e, n))
+            return;
+    }
+    if (copy_if_nonzero(pn->face + 3 * (size_t)tri, n))
+        return;
+    for (int k = 0; k < 3; k++)
+        if (copy_if_nonzero(pn->vertex + 3 * (size_t)t[k], n))
+            return;
+    n[0] = n[1] = n[2] = 0;
+}

@@ -1,0 +1,34 @@
+/* pseudonormal.h - angle-weighted pseudonormals (Baerentzen & Aanaes 2005, cited in sec. 3
+ * of the convolution paper): for a closed, manifold, non-self-intersecting mesh, p is
+ * outside exactly when (p - c) . N > 0, where c is the closest point and N the pseudonormal
+ * of the feature c lies on:
+ *   face:   the face normal;
+ *   edge:   the sum of the two adjacent face normals (each weighted by pi);
+ *   vertex: sum over incident faces of (angle at the vertex) * (face normal).
+ * Zero-area triangles have no normal and contribute nothing. */
+#ifndef SDF_SIGN_PSEUDONORMAL_H
+#define SDF_SIGN_PSEUDONORMAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+typedef struct sdf__pseudonormals {
+    float *face;   /* 3 per triangle, unit (or zero) */
+    float *edge;   /* 3 per edge, unit (or zero) */
+    float *vertex; /* 3 per vertex, unit (or zero) */
+    size_t bytes;
+} sdf__pseudonormals;
+
+int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
+                              const uint32_t *triangles, const uint32_t *edge_of,
+                              size_t triangle_count, size_t edge_count,
+                              sdf__pseudonormals **out);
+void sdf__pseudonormals_destroy(sdf__pseudonormals *pn);
+
+/* The unit pseudonormal of `feature` (enum sdf__feature) of triangle `tri`. Falls back to
+ * the face normal, then to a corner's normal, when a feature has none (degenerate
+ * neighbourhoods); all zero only if the whole neighbourhood is degenerate. */
+void sdf__pseudonormal(const sdf__pseudonormals *pn, const uint32_t *triangles,
+                       const uint32_t *edge_of, uint32_t tri, int feature, float n[3]);
+
+#endif

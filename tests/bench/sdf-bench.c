@@ -1,0 +1,233 @@
+/* sdf-bench - throughput of batched queries on one mesh, for side-by-side runs with the
+ * peer (../shared/tools/peer_bench.py) on the same points. Not a test: it asserts nothing.
+ *
+ *   sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid --n N --seed S]
+ *             [--mode distance|signed|gradient|closest] [--sign auto|pseudonormal|winding|raycast|none]
+ *             [--threads N] [--repeat R] [--out OUT.npy]
+ *
+ * Points come from POINTS.npy (float32 or float64, shape (N, 3)) or are generated
+ * (--workload, default band, 1,000,000 points). The batch is timed R times (default 2) after
+ * a warm-up, best run reported, like the peer script. --out writes float32 results:
+ * distance/signed (N,); gradient (N, 4) = distance, gradient xyz; closest (N, 4) = distance,
+ * closest point xyz. The last line printed is always `throughput: X Mq/s`. */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "../common/workload.h"
+#include "sdf/sdf.h"
+
+typedef struct args {
+    const char *mesh, *points, *out, *workload, *mode;
+    size_t n;
+    uint64_t seed;
+    sdf_sign_method sign;
+    int threads, repeat;
+} args;
+
+static void usage(void)
+{
+    fprintf(stderr,
+            "usage: sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid] [--n N] [--seed S]\n"
+            "                 [--mode distance|signed|gradient|closest]\n"
+            "                 [--sign auto|pseudonormal|winding|raycast|none]\n"
+            "                 [--threads N] [--repeat R] [--out OUT.npy]\n");
+    exit(2);
+}
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static long parse_long(const char *s, const char *flag)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || *end || v < 0) {
+        fprintf(stderr, "sdf-bench: %s needs a non-negative integer, got '%s'\n", flag, s);
+        exit(2);
+    }
+    return v;
+}
+
+static args parse_args(int argc, char **argv)
+{
+    args a = {.workload = "band", .mode = "signed", .n = 1000000, .seed = 7, .repeat = 2};
+    for (int i = 1; i < argc; i++) {
+        const char *s = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (s[0] != '-') {
+            if (!a.mesh)
+                a.mesh = s;
+            else if (!a.points)
+                a.points = s;
+            else
+                usage();
+            continue;
+        }
+        if (!v)
+            usage();
+        i++;
+        if (!strcmp(s, "--workload")) a.workload = v;
+        else if (!strcmp(s, "--n")) a.n = (size_t)parse_long(v, s);
+        else if (!strcmp(s, "--seed")) a.seed = (uint64_t)parse_long(v, s);
+        else if (!strcmp(s, "--mode")) a.mode = v;
+        else if (!strcmp(s, "--threads")) a.threads = (int)parse_long(v, s);
+        else if (!strcmp(s, "--repeat")) a.repeat = (int)parse_long(v, s);
+        else if (!strcmp(s, "--out")) a.out = v;
+        else if (!strcmp(s, "--sign")) {
+            if (sdf_sign_from_name(v, &a.sign)) {
+                fprintf(stderr, "sdf-bench: unknown sign method '%s'\n", v);
+                exit(2);
+            }
+        } else usage();
+    }
+    if (!a.mesh || a.repeat < 1)
+        usage();
+    if (strcmp(a.mode, "distance") && strcmp(a.mode, "signed") && strcmp(a.mode, "gradient") &&
+        strcmp(a.mode, "closest")) {
+        fprintf(stderr, "sdf-bench: unknown mode '%s'\n", a.mode);
+        exit(2);
+    }
+    if (!strcmp(a.mode, "distance"))
+        a.sign = SDF_SIGN_NONE;
+    return a;
+}
+
+static void *read_all(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    void *buf = len >= 0 ? malloc((size_t)len + 1) : NULL;
+    if (buf && fread(buf, 1, (size_t)len, f) != (size_t)len) {
+        free(buf);
+        buf = NULL;
+    }
+    fclose(f);
+    *size = (size_t)len;
+    return buf;
+}
+
+/* Load an (N, 3) float32/float64 .npy into a new float array. */
+static float *load_points(const char *path, size_t *n)
+{
+    size_t size;
+    unsigned char *data = read_all(path, &size);
+    if (!data) {
+        fprintf(stderr, "sdf-bench: cannot read %s: %s\n", path, strerror(errno));
+        exit(1);
+    }
+    sdf_npy_info info;
+    sdf_diag diag;
+    if (sdf_npy_parse(data, size, &info, &diag)) {
+        fprintf(stderr, "sdf-bench: %s: %s\n", path, diag.message);
+        exit(1);
+    }
+    if (info.ndim != 2 || info.shape[1] != 3) {
+        fprintf(stderr, "sdf-bench: %s: expected shape (N, 3)\n", path);
+        exit(1);
+    }
+    *n = info.shape[0];
+    float *p = malloc((3 * *n + 1) * sizeof *p);
+    for (size_t i = 0; i < 3 * *n; i++) {
+        if (info.dtype == SDF_NPY_F32)
+            memcpy(&p[i], data + info.data_offset + 4 * i, 4);
+        else {
+            double d;
+            memcpy(&d, data + info.data_offset + 8 * i, 8);
+            p[i] = (float)d;
+        }
+    }
+    free(data);
+    return p;
+}
+
+static void write_out(const char *path, size_t n, int cols, const float *dist, const float *vec3)
+{
+    FILE *f = fopen(path, "wb");
+    if (!f) {
+        fprintf(stderr, "sdf-bench: cannot write %s: %s\n", path, strerror(errno));
+        exit(1);
+    }
+    char header[128];
+    size_t shape[2] = {n, (size_t)cols};
+    long len = sdf_npy_write_header(header, sizeof header, cols == 1 ? 1 : 2, shape);
+    fwrite(header, 1, (size_t)len, f);
+    for (size_t i = 0; i < n; i++) {
+        fwrite(&dist[i], 4, 1, f);
+        if (cols == 4)
+            fwrite(&vec3[3 * i], 4, 3, f);
+    }
+    fclose(f);
+}
+
+int main(int argc, char **argv)
+{
+    args a = parse_args(argc, argv);
+    sdf_mesh *mesh = NULL;
+    sdf_diag diag = {0};
+    int rc = !strcmp(a.mesh, "demo") ? sdf_mesh_create_demo(&mesh)
+                                     : sdf_mesh_load_file(a.mesh, NULL, &mesh, &diag);
+    if (rc) {
+        fprintf(stderr, "sdf-bench: %s: %s\n", a.mesh, rc && diag.code ? diag.message : sdf_strerror(rc));
+        return 1;
+    }
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    size_t n = a.n;
+    float *points;
+    if (a.points) {
+        points = load_points(a.points, &n);
+    } else {
+        points = malloc((3 * n + 1) * sizeof *points);
+        if (sdf_workload(mesh, a.workload, &n, a.seed, points)) {
+            fprintf(stderr, "sdf-bench: unknown workload '%s'\n", a.workload);
+            return 2;
+        }
+    }
+    int gradient = !strcmp(a.mode, "gradient"), closest = !strcmp(a.mode, "closest");
+    float *dist = malloc((n + 1) * sizeof *dist);
+    float *vec3 = gradient || closest ? malloc((3 * n + 1) * sizeof *vec3) : NULL;
+    uint32_t *tri = closest ? malloc((n + 1) * sizeof *tri) : NULL;
+    sdf_query_result out = {.distance = dist, .gradient = gradient ? vec3 : NULL,
+                            .closest = closest ? vec3 : NULL, .triangle = tri};
+    sdf_query_options opts = {.sign = a.sign, .threads = a.threads};
+    printf("mesh: %s triangles: %zu vertices: %zu closed: %d manifold: %d flipped: %d "
+           "auto sign: %s index: %.1f MB build: %.3f s\n",
+           a.mesh, r.triangles, r.vertices, r.closed, r.edge_manifold, r.flipped,
+           sdf_sign_name(r.auto_sign), r.index_bytes / 1e6, r.build_seconds);
+    printf("points: %zu source: %s mode: %s sign: %s threads: %d\n", n,
+           a.points ? a.points : a.workload, a.mode,
+           sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads);
+    rc = sdf_query(mesh, points, n < 1000 ? n : 1000, &opts, &out); /* warm-up */
+    double best = 1e300;
+    for (int i = 0; !rc && i < a.repeat; i++) {
+        double t0 = now();
+        rc = sdf_query(mesh, points, n, &opts, &out);
+        double t = now() - t0;
+        best = t < best ? t : best;
+    }
+    if (rc) {
+        fprintf(stderr, "sdf-bench: query failed: %s (point %zu)\n", sdf_strerror(rc), out.bad_index);
+        return 1;
+    }
+    if (a.out)
+        write_out(a.out, n, gradient || closest ? 4 : 1, dist, vec3);
+    printf("seconds: %.4f\n", best);
+    printf("throughput: %.4f Mq/s\n", (double)n / best / 1e6);
+    free(points);
+    free(dist);
+    free(vec3);
+    free(tri);
+    sdf_mesh_release(mesh);
+    return 0;
+}
