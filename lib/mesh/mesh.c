@@ -2,8 +2,9 @@
  * (retain/release) and reporting on it.
  *
  * The build is a fixed sequence of named steps: weld, analyse the edges, orient (flip a
- * closed inside-out mesh), build Embree's scene, the pseudonormals and the winding-number
- * tree. Every step is always done, so any sign method can be asked for on any mesh and the
+ * closed inside-out mesh), build Embree's scene and our own tree, look for
+ * self-intersections (they decide what `auto` signs with), then the pseudonormals and the
+ * winding-number moments. Every step is always done, so any sign method can be asked for on any mesh and the
  * mesh is immutable (hence lock-free) once built. */
 #include "mesh/mesh.h"
 
@@ -14,6 +15,7 @@
 
 #include "bvh/embree.h"
 #include "core/diag.h"
+#include "mesh/intersect.h"
 #include "mesh/topology.h"
 #include "sign/pseudonormal.h"
 #include "sign/winding.h"
@@ -29,6 +31,7 @@ static void mesh_free(sdf_mesh *m)
 {
     sdf__winding_destroy(m->winding);
     sdf__pseudonormals_destroy(m->normals);
+    sdf__tree_free(&m->tree);
     sdf__bvh_destroy(m->bvh);
     free(m->edge_of);
     free(m->triangles);
@@ -54,7 +57,6 @@ static int step_orient(sdf_mesh *m)
         r->volume = -r->volume;
         r->flipped = 1;
     }
-    r->auto_sign = r->closed ? SDF_SIGN_PSEUDONORMAL : SDF_SIGN_WINDING;
     /* "On the surface": within a few float ulps of the mesh's largest coordinate. */
     float extent = 0;
     for (int i = 0; i < 3; i++) {
@@ -65,25 +67,48 @@ static int step_orient(sdf_mesh *m)
     return 0;
 }
 
-static int step_index(sdf_mesh *m, sdf_diag *diag)
+static int step_trees(sdf_mesh *m, sdf_diag *diag)
 {
     sdf_mesh_report *r = &m->report;
     int rc = sdf__bvh_create(m->positions, r->vertices, m->triangles, r->triangles, &m->bvh, diag);
     if (rc)
         return rc;
-    rc = sdf__pseudonormals_create(m->positions, r->vertices, m->triangles, m->edge_of,
-                                   r->triangles, m->edge_count, &m->normals);
-    if (rc)
-        return sdf__diag_set(diag, rc, 0, -1, "out of memory for pseudonormals");
-    rc = sdf__winding_create(sdf__bvh_device(m->bvh), m->positions, m->triangles, r->triangles,
-                             &m->winding);
+    rc = sdf__tree_build(sdf__bvh_device(m->bvh), m->positions, m->triangles, r->triangles, 8,
+                         &m->tree);
     if (!rc)
         rc = sdf__bvh_check(m->bvh, diag);
     if (rc)
-        return sdf__diag_set(diag, rc, 0, -1, "building the winding-number tree failed: %s",
-                             sdf_strerror(rc));
+        return sdf__diag_set(diag, rc, 0, -1, "building the BVH failed: %s", sdf_strerror(rc));
+    return 0;
+}
+
+/* Pseudonormals are only a valid sign on closed meshes that do not cross themselves. */
+static int step_choose_sign(sdf_mesh *m, sdf_diag *diag)
+{
+    sdf_mesh_report *r = &m->report;
+    if (r->closed) {
+        int found = sdf__self_intersects(&m->tree, m->positions, m->triangles);
+        if (found < 0)
+            return sdf__diag_set(diag, found, 0, -1, "out of memory searching self-intersections");
+        r->self_intersecting = found;
+    }
+    r->auto_sign = r->closed && !r->self_intersecting ? SDF_SIGN_PSEUDONORMAL : SDF_SIGN_WINDING;
+    return 0;
+}
+
+static int step_sign_data(sdf_mesh *m, sdf_diag *diag)
+{
+    sdf_mesh_report *r = &m->report;
+    int rc = sdf__pseudonormals_create(m->positions, r->vertices, m->triangles, m->edge_of,
+                                       r->triangles, m->edge_count, &m->normals);
+    if (!rc)
+        rc = sdf__winding_create(&m->tree, m->positions, m->triangles, &m->winding);
+    if (rc)
+        return sdf__diag_set(diag, rc, 0, -1, "out of memory for the sign data");
     r->index_bytes = sdf__bvh_memory(m->bvh) + m->normals->bytes +
-                     sdf__winding_bytes(m->winding) + 3 * r->triangles * sizeof(uint32_t);
+                     sdf__winding_bytes(m->winding) + 3 * r->triangles * sizeof(uint32_t) +
+                     m->tree.node_count * sizeof(sdf__tree_node) +
+                     m->tree.prim_count * sizeof(uint32_t);
     return 0;
 }
 
@@ -109,7 +134,11 @@ int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
     if (rc == SDF_ENOMEM)
         sdf__diag_set(diag, rc, 0, -1, "out of memory for %zu triangles", triangle_count);
     if (!rc)
-        rc = step_index(m, diag);
+        rc = step_trees(m, diag);
+    if (!rc)
+        rc = step_choose_sign(m, diag);
+    if (!rc)
+        rc = step_sign_data(m, diag);
     if (rc) {
         mesh_free(m);
         return rc;

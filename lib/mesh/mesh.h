@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "bvh/tree.h"
 #include "sdf/sdf.h"
 
 struct sdf__bvh;
@@ -21,7 +22,8 @@ struct sdf_mesh {
     size_t edge_count;
     sdf_mesh_report report;
     float surface_epsilon; /* float resolution at the mesh's scale: "on the surface" */
-    struct sdf__bvh *bvh;
+    struct sdf__bvh *bvh;  /* Embree's scene: closest points and rays */
+    sdf__tree tree;        /* our own BVH: winding numbers, self-intersection */
     struct sdf__pseudonormals *normals;
     struct sdf__winding *winding;
 };

@@ -175,13 +175,14 @@ static int parse_header(sdf__text *t, sdf__builder *b, ply_header *h)
 static int find_elements(sdf__builder *b, const ply_header *h, int *vi, int *fi)
 {
     *vi = *fi = -1;
+    b->line = 0; /* whole-file problems: no location */
+    b->offset = -1;
     for (int i = 0; i < h->nelems; i++) {
         if (!strcmp(h->elems[i].name, "vertex"))
             *vi = i;
         if (!strcmp(h->elems[i].name, "face"))
             *fi = i;
     }
-    b->line = 0;
     if (*vi < 0)
         return sdf__builder_fail(b, SDF_EPARSE, "no vertex element");
     int roles = 0;

@@ -23,7 +23,7 @@ typedef struct moments {
 } moments;
 
 struct sdf__winding {
-    sdf__tree tree;
+    const sdf__tree *tree;
     moments *moments;
     const float *positions;
     const uint32_t *triangles;
@@ -45,7 +45,7 @@ static void leaf_moments(const sdf__winding *w, const sdf__tree_node *node, mome
     double centroid_sum[3] = {0, 0, 0};
     for (uint32_t i = 0; i < node->count; i++) {
         double p[3][3];
-        corners(w, w->tree.prims[node->first + i], p);
+        corners(w, w->tree->prims[node->first + i], p);
         double u[3], v[3], a[3];
         for (int k = 0; k < 3; k++) {
             u[k] = p[1][k] - p[0][k];
@@ -68,7 +68,7 @@ static void leaf_moments(const sdf__winding *w, const sdf__tree_node *node, mome
                                      : 0.5 * ((double)node->lo[k] + node->hi[k]);
     for (uint32_t i = 0; i < node->count; i++) {
         double p[3][3];
-        corners(w, w->tree.prims[node->first + i], p);
+        corners(w, w->tree->prims[node->first + i], p);
         double u[3], v[3], a[3], d[3];
         for (int k = 0; k < 3; k++) {
             u[k] = p[1][k] - p[0][k];
@@ -113,26 +113,22 @@ static void merge_moments(const moments *l, const moments *r, moments *mo)
     }
 }
 
-int sdf__winding_create(RTCDevice device, const float *positions, const uint32_t *triangles,
-                        size_t triangle_count, sdf__winding **out)
+int sdf__winding_create(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                        sdf__winding **out)
 {
     sdf__winding *w = calloc(1, sizeof *w);
-    if (!w)
+    if (w)
+        w->moments = malloc(tree->node_count * sizeof *w->moments);
+    if (!w || !w->moments) {
+        sdf__winding_destroy(w);
         return SDF_ENOMEM;
+    }
+    w->tree = tree;
     w->positions = positions;
     w->triangles = triangles;
-    int rc = sdf__tree_build(device, positions, triangles, triangle_count, 8, &w->tree);
-    if (!rc) {
-        w->moments = malloc(w->tree.node_count * sizeof *w->moments);
-        rc = w->moments ? 0 : SDF_ENOMEM;
-    }
-    if (rc) {
-        sdf__winding_destroy(w);
-        return rc;
-    }
     /* Children follow their parent in the array: a reverse sweep sees them first. */
-    for (size_t i = w->tree.node_count; i-- > 0;) {
-        const sdf__tree_node *node = &w->tree.nodes[i];
+    for (size_t i = w->tree->node_count; i-- > 0;) {
+        const sdf__tree_node *node = &w->tree->nodes[i];
         if (node->count)
             leaf_moments(w, node, &w->moments[i]);
         else
@@ -146,15 +142,13 @@ void sdf__winding_destroy(sdf__winding *w)
 {
     if (!w)
         return;
-    sdf__tree_free(&w->tree);
     free(w->moments);
     free(w);
 }
 
 size_t sdf__winding_bytes(const sdf__winding *w)
 {
-    return w->tree.node_count * (sizeof(sdf__tree_node) + sizeof(moments)) +
-           w->tree.prim_count * sizeof(uint32_t);
+    return w->tree->node_count * sizeof(moments);
 }
 
 double sdf__solid_angle(const double q[3], const double a[3], const double b[3],
@@ -198,7 +192,7 @@ double sdf__winding_number(const sdf__winding *w, const double q[3])
     double omega = 0;
     while (top > 0) {
         uint32_t i = stack[--top];
-        const sdf__tree_node *node = &w->tree.nodes[i];
+        const sdf__tree_node *node = &w->tree->nodes[i];
         const moments *mo = &w->moments[i];
         double r[3] = {mo->center[0] - q[0], mo->center[1] - q[1], mo->center[2] - q[2]};
         double d = length(r);
@@ -207,7 +201,7 @@ double sdf__winding_number(const sdf__winding *w, const double q[3])
         } else if (node->count) {
             for (uint32_t k = 0; k < node->count; k++) {
                 double p[3][3];
-                corners(w, w->tree.prims[node->first + k], p);
+                corners(w, w->tree->prims[node->first + k], p);
                 omega += sdf__solid_angle(q, p[0], p[1], p[2]);
             }
         } else {

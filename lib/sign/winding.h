@@ -6,7 +6,7 @@
  * open and defective meshes usable ("inside" = w > 1/2).
  *
  * Evaluated hierarchically after Barill et al. 2018 ("Fast winding numbers for soups and
- * clouds"): over our BVH (tree.h), a node whose expansion centre p~ is farther than
+ * clouds"): over the mesh's BVH (tree.h), a node whose expansion centre p~ is farther than
  * beta * r from q (r bounds the node's extent around p~) contributes its multipole expansion
  * instead of its triangles, so a query costs O(log n) instead of O(n). We keep the first two
  * terms of the expansion of (x - q)/|x - q|^3 about p~ (see far_field in winding.c). */
@@ -16,13 +16,14 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include <embree3/rtcore.h>
+#include "bvh/tree.h"
 
 typedef struct sdf__winding sdf__winding;
 
-/* Build the tree and its moments. `positions` and `triangles` must outlive it. */
-int sdf__winding_create(RTCDevice device, const float *positions, const uint32_t *triangles,
-                        size_t triangle_count, sdf__winding **out);
+/* Compute the moments of every node of `tree`. The tree, `positions` and `triangles` must
+ * outlive the result. Returns 0 or SDF_ENOMEM. */
+int sdf__winding_create(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                        sdf__winding **out);
 void sdf__winding_destroy(sdf__winding *w);
 size_t sdf__winding_bytes(const sdf__winding *w);
 

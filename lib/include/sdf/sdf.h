@@ -87,7 +87,8 @@ int sdf_format_from_name(const char *name, sdf_format *out);
 const char *sdf_format_name(sdf_format format); /* "auto", "obj", ... */
 
 typedef enum sdf_sign_method {
-    SDF_SIGN_AUTO = 0,     /* pseudonormal for closed edge-manifold meshes, else winding */
+    SDF_SIGN_AUTO = 0,     /* pseudonormal for closed meshes that do not intersect
+                              themselves, else winding */
     SDF_SIGN_PSEUDONORMAL, /* angle-weighted pseudonormals (Baerentzen & Aanaes 2005) */
     SDF_SIGN_WINDING,      /* fast generalized winding numbers (Barill et al. 2018) */
     SDF_SIGN_RAYCAST,      /* parity of ray crossings, majority over jittered rays */
@@ -121,6 +122,8 @@ typedef struct sdf_mesh_report {
     int closed;                  /* every edge shared by exactly two consistently oriented triangles */
     int edge_manifold;           /* no edge shared by more than two triangles */
     int flipped;                 /* closed with negative volume: orientation was reversed */
+    int self_intersecting;       /* closed, but two triangles sharing no vertex cross (only
+                                    searched for closed meshes: it decides auto_sign) */
     size_t degenerate_triangles; /* zero area, or a repeated vertex */
     size_t boundary_edges;       /* edges with one triangle */
     size_t nonmanifold_edges;    /* edges with three or more triangles */

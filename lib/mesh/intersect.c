@@ -1,0 +1,157 @@
+/* intersect.c - self-intersection search (see intersect.h). */
+#include "mesh/intersect.h"
+
+#include <stdlib.h>
+
+#include "sdf/sdf.h"
+
+typedef struct tri {
+    double v[3][3];
+    float lo[3], hi[3];
+    const uint32_t *idx;
+} tri;
+
+static void load_tri(const float *pos, const uint32_t *triangles, uint32_t t, tri *out)
+{
+    out->idx = triangles + 3 * (size_t)t;
+    for (int i = 0; i < 3; i++) {
+        out->lo[i] = out->hi[i] = pos[3 * out->idx[0] + i];
+        for (int k = 0; k < 3; k++) {
+            float x = pos[3 * out->idx[k] + i];
+            out->v[k][i] = x;
+            out->lo[i] = x < out->lo[i] ? x : out->lo[i];
+            out->hi[i] = x > out->hi[i] ? x : out->hi[i];
+        }
+    }
+}
+
+/* Sign of the volume of tetrahedron (a, b, c, d): which side of plane abc d lies on. */
+static int orient(const double a[3], const double b[3], const double c[3], const double d[3])
+{
+    double u[3], v[3], w[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = b[i] - a[i];
+        v[i] = c[i] - a[i];
+        w[i] = d[i] - a[i];
+    }
+    double det = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) +
+                 u[2] * (v[0] * w[1] - v[1] * w[0]);
+    return (det > 0) - (det < 0);
+}
+
+/* Does segment pq cross the interior of triangle t (strictly)? */
+static int segment_crosses(const double p[3], const double q[3], const tri *t)
+{
+    const double *a = t->v[0], *b = t->v[1], *c = t->v[2];
+    int sp = orient(a, b, c, p), sq = orient(a, b, c, q);
+    if (sp == 0 || sq == 0 || sp == sq)
+        return 0;
+    int s1 = orient(p, q, a, b), s2 = orient(p, q, b, c), s3 = orient(p, q, c, a);
+    return s1 != 0 && s1 == s2 && s2 == s3;
+}
+
+static int shares_vertex(const tri *a, const tri *b)
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (a->idx[i] == b->idx[j])
+                return 1;
+    return 0;
+}
+
+static int triangles_intersect(const tri *a, const tri *b)
+{
+    for (int i = 0; i < 3; i++)
+        if (a->hi[i] < b->lo[i] || b->hi[i] < a->lo[i])
+            return 0;
+    if (shares_vertex(a, b))
+        return 0;
+    for (int k = 0; k < 3; k++) {
+        if (segment_crosses(a->v[k], a->v[(k + 1) % 3], b) ||
+            segment_crosses(b->v[k], b->v[(k + 1) % 3], a))
+            return 1;
+    }
+    return 0;
+}
+
+static int leaves_intersect(const sdf__tree *tree, const float *pos, const uint32_t *triangles,
+                            const sdf__tree_node *x, const sdf__tree_node *y)
+{
+    for (uint32_t i = 0; i < x->count; i++) {
+        tri a, b;
+        load_tri(pos, triangles, tree->prims[x->first + i], &a);
+        for (uint32_t j = x == y ? i + 1 : 0; j < y->count; j++) {
+            load_tri(pos, triangles, tree->prims[y->first + j], &b);
+            if (triangles_intersect(&a, &b))
+                return 1;
+        }
+    }
+    return 0;
+}
+
+static int boxes_overlap(const sdf__tree_node *a, const sdf__tree_node *b)
+{
+    for (int i = 0; i < 3; i++)
+        if (a->hi[i] < b->lo[i] || b->hi[i] < a->lo[i])
+            return 0;
+    return 1;
+}
+
+typedef struct pair {
+    uint32_t a, b;
+} pair;
+
+typedef struct pair_stack {
+    pair *items;
+    size_t count, cap;
+} pair_stack;
+
+static int push(pair_stack *s, uint32_t a, uint32_t b)
+{
+    if (s->count == s->cap) {
+        size_t cap = s->cap ? 2 * s->cap : 256;
+        pair *items = realloc(s->items, cap * sizeof *items);
+        if (!items)
+            return SDF_ENOMEM;
+        s->items = items;
+        s->cap = cap;
+    }
+    s->items[s->count++] = (pair){a, b};
+    return 0;
+}
+
+/* Expand one pair into the pairs of children that still need a look. */
+static int expand(pair_stack *s, const sdf__tree *tree, pair p)
+{
+    const sdf__tree_node *x = &tree->nodes[p.a], *y = &tree->nodes[p.b];
+    if (p.a == p.b) { /* a node against itself: both children, and them against each other */
+        uint32_t l = x->first, r = x->first + 1;
+        return push(s, l, l) || push(s, r, r) || push(s, l, r) ? SDF_ENOMEM : 0;
+    }
+    /* Split the inner node, or the bigger one when both are inner. */
+    int split_a = y->count || (!x->count && (x->hi[0] - x->lo[0]) + (x->hi[1] - x->lo[1]) +
+                                                    (x->hi[2] - x->lo[2]) >=
+                                                (y->hi[0] - y->lo[0]) + (y->hi[1] - y->lo[1]) +
+                                                    (y->hi[2] - y->lo[2]));
+    uint32_t inner = split_a ? p.a : p.b, other = split_a ? p.b : p.a;
+    uint32_t first = tree->nodes[inner].first;
+    return push(s, first, other) || push(s, first + 1, other) ? SDF_ENOMEM : 0;
+}
+
+int sdf__self_intersects(const sdf__tree *tree, const float *positions, const uint32_t *triangles)
+{
+    pair_stack s = {0};
+    int found = push(&s, 0, 0);
+    while (!found && s.count) {
+        pair p = s.items[--s.count];
+        const sdf__tree_node *x = &tree->nodes[p.a], *y = &tree->nodes[p.b];
+        if (p.a != p.b && !boxes_overlap(x, y))
+            continue;
+        if (x->count && y->count)
+            found = leaves_intersect(tree, positions, triangles, x, y);
+        else
+            found = expand(&s, tree, p);
+    }
+    free(s.items);
+    return found;
+}

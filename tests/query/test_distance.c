@@ -1,0 +1,142 @@
+/* test_distance.c - differential test of distance, closest point, triangle id and
+ * barycentric coordinates against the brute-force double-precision reference, on real
+ * meshes and near-surface, uniform-box and far points. Tolerance: 1e-5 x the bbox diagonal.
+ * Also: results are identical for 1 and 2 threads and for a strided point layout, and a
+ * NaN point is reported by index before any output is written. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/check.h"
+#include "../common/reference.h"
+#include "../common/workload.h"
+
+static double dist3(const double a[3], const float b[3])
+{
+    double d2 = 0;
+    for (int i = 0; i < 3; i++)
+        d2 += (a[i] - b[i]) * (a[i] - b[i]);
+    return sqrt(d2);
+}
+
+/* Every output for one point agrees with the reference: the distance, the closest point
+ * being that far from p and lying on the reported triangle, and the barycentric weights
+ * reproducing it. (Ties may pick another triangle, so the point is not compared directly.) */
+static void check_point(const sdf_mesh *mesh, const float *p, float d, const float *c,
+                        uint32_t tri, const float *w, double tol, const char *what)
+{
+    ref_hit ref;
+    ref_closest(mesh, p, &ref);
+    const float *v = sdf_mesh_vertices(mesh);
+    const uint32_t *t = sdf_mesh_triangles(mesh);
+    double pd[3] = {p[0], p[1], p[2]}, corner[3][3], on[3], cd[3] = {c[0], c[1], c[2]};
+    for (int k = 0; k < 3; k++)
+        for (int i = 0; i < 3; i++)
+            corner[k][i] = v[3 * t[3 * tri + k] + i];
+    double err_d = fabs(d - ref.dist);
+    double err_c = fabs(dist3(pd, c) - ref.dist);
+    double off_tri = ref_point_triangle(cd, corner[0], corner[1], corner[2], on);
+    double err_w = 0, wsum = w[0] + w[1] + w[2];
+    for (int i = 0; i < 3; i++) {
+        double x = w[0] * corner[0][i] + w[1] * corner[1][i] + w[2] * corner[2][i];
+        err_w = fmax(err_w, fabs(x - c[i]));
+    }
+    CHECK(err_d <= tol, "%s: distance %.9g vs reference %.9g", what, d, ref.dist);
+    CHECK(err_c <= tol, "%s: closest point is %.9g away, reference distance %.9g", what,
+          dist3(pd, c), ref.dist);
+    CHECK(off_tri <= tol, "%s: closest point lies %.3g off its triangle %u", what, off_tri, tri);
+    CHECK(err_w <= tol && fabs(wsum - 1) < 1e-5 && w[0] >= -1e-6 && w[1] >= -1e-6 && w[2] >= -1e-6,
+          "%s: barycentric (%g %g %g) do not reproduce the closest point (err %g)", what, w[0],
+          w[1], w[2], err_w);
+}
+
+static void test_mesh(const char *name, sdf_mesh *mesh)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    const double tol = 1e-5 * r.diagonal;
+    const char *kinds[] = {"band", "box", "far"};
+    const size_t counts[] = {1200, 1200, 300};
+    for (int k = 0; k < 3; k++) {
+        size_t n = counts[k];
+        float *p = malloc(3 * n * sizeof *p), *d = malloc(n * sizeof *d);
+        float *c = malloc(3 * n * sizeof *c), *w = malloc(3 * n * sizeof *w);
+        uint32_t *t = malloc(n * sizeof *t);
+        CHECK(sdf_workload(mesh, kinds[k], &n, 11 + (uint64_t)k, p) == 0, "workload");
+        sdf_query_options o = {.sign = SDF_SIGN_NONE, .threads = 2};
+        sdf_query_result res = {.distance = d, .closest = c, .triangle = t, .barycentric = w};
+        CHECK(sdf_query(mesh, p, n, &o, &res) == 0, "query");
+        int before = check_failures;
+        char what[96];
+        for (size_t i = 0; i < n && check_failures - before < 5; i++) {
+            snprintf(what, sizeof what, "%s %s point %zu", name, kinds[k], i);
+            check_point(mesh, p + 3 * i, d[i], c + 3 * i, t[i], w + 3 * i, tol, what);
+        }
+        free(p), free(d), free(c), free(w), free(t);
+    }
+}
+
+/* Same answers, bit for bit, whatever the thread count and point layout. */
+static void test_threads_and_stride(sdf_mesh *mesh)
+{
+    size_t n = 5000;
+    float *p = malloc(3 * n * sizeof *p), *strided = malloc(4 * n * sizeof *strided);
+    float *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b), *s = malloc(n * sizeof *s);
+    sdf_workload(mesh, "box", &n, 5, p);
+    for (size_t i = 0; i < n; i++) {
+        memcpy(strided + 4 * i, p + 3 * i, 3 * sizeof(float));
+        strided[4 * i + 3] = NAN; /* padding must never be read */
+    }
+    sdf_query_options one = {.threads = 1}, two = {.threads = 2},
+                      stride = {.threads = 2, .point_stride = 16};
+    sdf_query_result ra = {.distance = a}, rb = {.distance = b}, rs = {.distance = s};
+    CHECK(sdf_query(mesh, p, n, &one, &ra) == 0, "1 thread");
+    CHECK(sdf_query(mesh, p, n, &two, &rb) == 0, "2 threads");
+    CHECK(sdf_query(mesh, strided, n, &stride, &rs) == 0, "strided");
+    CHECK(!memcmp(a, b, n * sizeof *a), "1 and 2 threads differ");
+    CHECK(!memcmp(a, s, n * sizeof *a), "strided layout differs");
+    free(p), free(strided), free(a), free(b), free(s);
+}
+
+static void test_bad_points(sdf_mesh *mesh)
+{
+    float p[12] = {0, 0, 0, 1, 1, 1, 2, NAN, 2, INFINITY, 0, 0};
+    float d[4] = {7, 7, 7, 7};
+    sdf_query_result res = {.distance = d};
+    CHECK(sdf_query(mesh, p, 4, NULL, &res) == SDF_ENONFINITE, "NaN accepted");
+    CHECK(res.bad_index == 2, "bad index %zu, expected 2", res.bad_index);
+    CHECK(d[0] == 7 && d[1] == 7, "output written before the batch was checked");
+    float w[4];
+    size_t bad = 0;
+    CHECK(sdf_winding_numbers(mesh, p, 4, NULL, w, &bad) == SDF_ENONFINITE && bad == 2,
+          "winding: NaN not reported at 2 (%zu)", bad);
+    sdf_query_options o = {.sign = (sdf_sign_method)42};
+    CHECK(sdf_query(mesh, p, 1, &o, &res) == SDF_EINVAL, "bad sign method accepted");
+    o = (sdf_query_options){.point_stride = 8};
+    CHECK(sdf_query(mesh, p, 1, &o, &res) == SDF_EINVAL, "stride below 12 accepted");
+    CHECK(sdf_query(NULL, p, 1, NULL, &res) == SDF_EINVAL, "NULL mesh accepted");
+    CHECK(sdf_query(mesh, NULL, 0, NULL, &res) == 0, "empty batch refused");
+}
+
+int main(void)
+{
+    const char *files[] = {"fandisk.off", "knot1.off", "cow.off", "elephant-with-holes.off",
+                           "mech-holes-shark.off", "Spider_binary.stl", "spider.obj"};
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
+        sdf_mesh *mesh;
+        sdf_diag diag;
+        int rc = sdf_mesh_load_file(data_path(files[i]), NULL, &mesh, &diag);
+        CHECK(rc == 0, "%s: %s", files[i], diag.message);
+        if (rc)
+            continue;
+        test_mesh(files[i], mesh);
+        sdf_mesh_release(mesh);
+    }
+    sdf_mesh *demo;
+    CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
+    test_mesh("demo", demo);
+    test_threads_and_stride(demo);
+    test_bad_points(demo);
+    sdf_mesh_release(demo);
+    return check_finish("test_distance");
+}
