@@ -1,6 +1,7 @@
 /* intersect.c - self-intersection search (see intersect.h). */
 #include "mesh/intersect.h"
 
+#include <math.h>
 #include <stdlib.h>
 
 #include "sdf/sdf.h"
@@ -25,29 +26,43 @@ static void load_tri(const float *pos, const uint32_t *triangles, uint32_t t, tr
     }
 }
 
-/* Sign of the volume of tetrahedron (a, b, c, d): which side of plane abc d lies on. */
+/* Sign of the volume of tetrahedron (a, b, c, d): which side of plane abc d lies on; 0 when
+ * double precision cannot tell. Shewchuk's orient3d with his static error bound
+ * ("Adaptive Precision Floating-Point Arithmetic and Fast Robust Geometric Predicates",
+ * 1997): a determinant within (7 + 56 eps) eps times the permanent of its terms may have
+ * the wrong sign, so it counts as coplanar. Without this, flat CAD regions full of
+ * coplanar triangles report rounding noise as crossings. */
 static int orient(const double a[3], const double b[3], const double c[3], const double d[3])
 {
-    double u[3], v[3], w[3];
-    for (int i = 0; i < 3; i++) {
-        u[i] = b[i] - a[i];
-        v[i] = c[i] - a[i];
-        w[i] = d[i] - a[i];
-    }
-    double det = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) +
-                 u[2] * (v[0] * w[1] - v[1] * w[0]);
-    return (det > 0) - (det < 0);
+    const double eps = 0x1p-53, bound = (7.0 + 56.0 * eps) * eps;
+    double adx = a[0] - d[0], ady = a[1] - d[1], adz = a[2] - d[2];
+    double bdx = b[0] - d[0], bdy = b[1] - d[1], bdz = b[2] - d[2];
+    double cdx = c[0] - d[0], cdy = c[1] - d[1], cdz = c[2] - d[2];
+    double bc = bdx * cdy - cdx * bdy, ca = cdx * ady - adx * cdy, ab = adx * bdy - bdx * ady;
+    double det = adz * bc + bdz * ca + cdz * ab;
+    double permanent = (fabs(bdx * cdy) + fabs(cdx * bdy)) * fabs(adz) +
+                       (fabs(cdx * ady) + fabs(adx * cdy)) * fabs(bdz) +
+                       (fabs(adx * bdy) + fabs(bdx * ady)) * fabs(cdz);
+    if (det > bound * permanent)
+        return 1;
+    if (-det > bound * permanent)
+        return -1;
+    return 0;
 }
 
-/* Does segment pq cross the interior of triangle t (strictly)? */
+/* Does segment pq meet triangle t? Touching counts (an edge through another triangle's edge
+ * or vertex): for the sign, a contact breaks pseudonormals as surely as a crossing. A
+ * segment lying in the triangle's plane is not reported. */
 static int segment_crosses(const double p[3], const double q[3], const tri *t)
 {
     const double *a = t->v[0], *b = t->v[1], *c = t->v[2];
     int sp = orient(a, b, c, p), sq = orient(a, b, c, q);
-    if (sp == 0 || sq == 0 || sp == sq)
+    if (sp == sq) /* same side, or coplanar */
         return 0;
     int s1 = orient(p, q, a, b), s2 = orient(p, q, b, c), s3 = orient(p, q, c, a);
-    return s1 != 0 && s1 == s2 && s2 == s3;
+    int lo = s1 < s2 ? (s1 < s3 ? s1 : s3) : (s2 < s3 ? s2 : s3);
+    int hi = s1 > s2 ? (s1 > s3 ? s1 : s3) : (s2 > s3 ? s2 : s3);
+    return (lo >= 0 || hi <= 0) && (lo != 0 || hi != 0);
 }
 
 static int shares_vertex(const tri *a, const tri *b)

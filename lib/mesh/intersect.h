@@ -4,8 +4,9 @@
  * (Baerentzen & Aanaes 2005); real "closed" files such as cow.off do, and pseudonormals then
  * get whole regions wrong. So `auto` needs this answer at load time. A dual traversal of
  * the BVH visits pairs of overlapping nodes; in overlapping leaves, two triangles that share
- * no vertex intersect exactly when an edge of one crosses the other (orientation tests in
- * double precision). Coplanar overlaps and pairs sharing a vertex are not reported. The
+ * no vertex intersect exactly when an edge of one meets the other (orientation tests in
+ * double precision; touching counts). Coplanar overlaps and pairs sharing a vertex are not
+ * reported. The
  * search stops at the first intersection found. */
 #ifndef SDF_MESH_INTERSECT_H
 #define SDF_MESH_INTERSECT_H

@@ -3,7 +3,10 @@
 #ifndef SDF_TESTS_CHECK_H
 #define SDF_TESTS_CHECK_H
 
+#include <stdint.h>
 #include <stdio.h>
+
+#include "sdf/sdf.h"
 
 extern int check_failures;
 extern int check_count;
