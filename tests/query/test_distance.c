@@ -1,9 +1,11 @@
 /* test_distance.c - differential test of distance, closest point, triangle id and
  * barycentric coordinates against the brute-force double-precision reference, on real
  * meshes and near-surface, uniform-box and far points. Tolerance: 1e-5 x the bbox diagonal.
- * Also: results are identical for 1 and 2 threads and for a strided point layout, and a
- * NaN point is reported by index before any output is written. */
+ * Also: results are identical for 1 and 2 threads, for a strided point layout, and for
+ * several caller threads sharing one mesh; a NaN point is reported by index before any
+ * output is written. */
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -98,6 +100,57 @@ static void test_threads_and_stride(sdf_mesh *mesh)
     free(p), free(strided), free(a), free(b), free(s);
 }
 
+/* Several caller threads query one shared mesh at once, each with all sign methods and
+ * outputs; every answer must equal the single-threaded one bit for bit. */
+typedef struct concurrent_job {
+    sdf_mesh *mesh;
+    const float *points;
+    size_t n;
+    float *distance; /* 4 sign methods x n */
+} concurrent_job;
+
+static void run_all_signs(sdf_mesh *mesh, const float *p, size_t n, float *out)
+{
+    const sdf_sign_method signs[] = {SDF_SIGN_PSEUDONORMAL, SDF_SIGN_WINDING, SDF_SIGN_RAYCAST,
+                                     SDF_SIGN_NONE};
+    for (int s = 0; s < 4; s++) {
+        sdf_query_options o = {.sign = signs[s], .threads = 1};
+        sdf_query_result r = {.distance = out + s * n};
+        sdf_query(mesh, p, n, &o, &r);
+    }
+}
+
+static void *concurrent_worker(void *arg)
+{
+    concurrent_job *j = arg;
+    sdf_mesh *mine = sdf_mesh_retain(j->mesh);
+    run_all_signs(mine, j->points, j->n, j->distance);
+    sdf_mesh_release(mine);
+    return NULL;
+}
+
+static void test_concurrent_callers(sdf_mesh *mesh)
+{
+    enum { THREADS = 4 };
+    size_t n = 2000;
+    float *p = malloc(3 * n * sizeof *p), *expect = malloc(4 * n * sizeof *expect);
+    sdf_workload(mesh, "band", &n, 9, p);
+    run_all_signs(mesh, p, n, expect);
+    pthread_t tid[THREADS];
+    concurrent_job jobs[THREADS];
+    for (int i = 0; i < THREADS; i++) {
+        jobs[i] = (concurrent_job){mesh, p, n, malloc(4 * n * sizeof(float))};
+        CHECK(pthread_create(&tid[i], NULL, concurrent_worker, &jobs[i]) == 0, "thread");
+    }
+    for (int i = 0; i < THREADS; i++) {
+        pthread_join(tid[i], NULL);
+        CHECK(!memcmp(jobs[i].distance, expect, 4 * n * sizeof(float)),
+              "caller thread %d got different answers", i);
+        free(jobs[i].distance);
+    }
+    free(p), free(expect);
+}
+
 static void test_bad_points(sdf_mesh *mesh)
 {
     float p[12] = {0, 0, 0, 1, 1, 1, 2, NAN, 2, INFINITY, 0, 0};
@@ -136,6 +189,7 @@ int main(void)
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
     test_mesh("demo", demo);
     test_threads_and_stride(demo);
+    test_concurrent_callers(demo);
     test_bad_points(demo);
     sdf_mesh_release(demo);
     return check_finish("test_distance");
