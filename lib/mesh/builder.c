@@ -8,6 +8,7 @@
 #include <stdlib.h>
 
 #include "core/diag.h"
+#include "core/grow.h"
 
 void sdf__builder_init(sdf__builder *b, const char *format, size_t max_triangles, sdf_diag *diag)
 {
@@ -46,29 +47,11 @@ int sdf__builder_fail(sdf__builder *b, int code, const char *fmt, ...)
     return sdf__diag_set(b->diag, code, 0, -1, "%s: %s", b->format, detail);
 }
 
-/* Grow `*arr` (elements of `elem` bytes) so that `need` fit; doubles to amortise. */
-static int grow(void **arr, size_t *cap, size_t need, size_t elem)
-{
-    if (need <= *cap)
-        return 0;
-    size_t n = *cap ? *cap : 1024;
-    while (n < need)
-        n = n > SIZE_MAX / 2 ? need : n * 2;
-    if (n > SIZE_MAX / elem)
-        return SDF_ENOMEM;
-    void *p = realloc(*arr, n * elem);
-    if (!p)
-        return SDF_ENOMEM;
-    *arr = p;
-    *cap = n;
-    return 0;
-}
-
 static int ensure_vertices(sdf__builder *b, size_t more)
 {
     if (more > b->max_vertices - b->vertex_count)
         return sdf__builder_fail(b, SDF_ELIMIT, "more than %zu vertices (limit)", b->max_vertices);
-    if (grow((void **)&b->positions, &b->vertex_cap, b->vertex_count + more, 3 * sizeof(float)))
+    if (sdf__grow((void **)&b->positions, &b->vertex_cap, b->vertex_count + more, 3 * sizeof(float)))
         return sdf__builder_fail(b, SDF_ENOMEM, "out of memory for %zu vertices",
                                  b->vertex_count + more);
     return 0;
@@ -79,7 +62,7 @@ static int ensure_triangles(sdf__builder *b, size_t more)
     if (more > b->max_triangles - b->triangle_count)
         return sdf__builder_fail(b, SDF_ELIMIT, "more than %zu triangles (limit)",
                                  b->max_triangles);
-    if (grow((void **)&b->triangles, &b->triangle_cap, b->triangle_count + more,
+    if (sdf__grow((void **)&b->triangles, &b->triangle_cap, b->triangle_count + more,
              3 * sizeof(uint32_t)))
         return sdf__builder_fail(b, SDF_ENOMEM, "out of memory for %zu triangles",
                                  b->triangle_count + more);

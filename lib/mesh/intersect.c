@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "core/grow.h"
 #include "sdf/sdf.h"
 
 typedef struct tri {
@@ -123,14 +124,8 @@ typedef struct pair_stack {
 
 static int push(pair_stack *s, uint32_t a, uint32_t b)
 {
-    if (s->count == s->cap) {
-        size_t cap = s->cap ? 2 * s->cap : 256;
-        pair *items = realloc(s->items, cap * sizeof *items);
-        if (!items)
-            return SDF_ENOMEM;
-        s->items = items;
-        s->cap = cap;
-    }
+    if (sdf__grow((void **)&s->items, &s->cap, s->count + 1, sizeof *s->items))
+        return SDF_ENOMEM;
     s->items[s->count++] = (pair){a, b};
     return 0;
 }

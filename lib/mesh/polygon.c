@@ -1,18 +1,13 @@
 /* polygon.c - the corner list the parsers gather a polygon in (see parsers.h). */
 #include <stdlib.h>
 
+#include "core/grow.h"
 #include "mesh/parsers.h"
 
 int sdf__polygon_push(sdf__polygon *poly, uint32_t index)
 {
-    if (poly->count == poly->cap) {
-        size_t cap = poly->cap ? 2 * poly->cap : 16;
-        uint32_t *idx = realloc(poly->idx, cap * sizeof *idx);
-        if (!idx)
-            return SDF_ENOMEM;
-        poly->idx = idx;
-        poly->cap = cap;
-    }
+    if (sdf__grow((void **)&poly->idx, &poly->cap, poly->count + 1, sizeof *poly->idx))
+        return SDF_ENOMEM;
     poly->idx[poly->count++] = index;
     return 0;
 }

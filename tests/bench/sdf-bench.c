@@ -16,6 +16,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "../common/files.h"
 #include "../common/workload.h"
 #include "sdf/sdf.h"
 
@@ -99,29 +100,11 @@ static args parse_args(int argc, char **argv)
     return a;
 }
 
-static void *read_all(const char *path, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long len = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    void *buf = len >= 0 ? malloc((size_t)len + 1) : NULL;
-    if (buf && fread(buf, 1, (size_t)len, f) != (size_t)len) {
-        free(buf);
-        buf = NULL;
-    }
-    fclose(f);
-    *size = (size_t)len;
-    return buf;
-}
-
 /* Load an (N, 3) float32/float64 .npy into a new float array. */
 static float *load_points(const char *path, size_t *n)
 {
     size_t size;
-    unsigned char *data = read_all(path, &size);
+    unsigned char *data = (unsigned char *)read_whole_file(path, &size);
     if (!data) {
         fprintf(stderr, "sdf-bench: cannot read %s: %s\n", path, strerror(errno));
         exit(1);

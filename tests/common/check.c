@@ -16,3 +16,12 @@ const char *data_path(const char *file)
     snprintf(path, sizeof path, "%s/%s", SDF_TEST_DATA, file);
     return path;
 }
+
+sdf_mesh *load_data_mesh(const char *file)
+{
+    sdf_mesh *mesh = NULL;
+    sdf_diag diag;
+    int rc = sdf_mesh_load_file(data_path(file), NULL, &mesh, &diag);
+    CHECK(rc == 0, "%s: %s", file, diag.message);
+    return rc ? NULL : mesh;
+}

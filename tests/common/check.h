@@ -28,4 +28,7 @@ int check_finish(const char *name);
 /* Path of a file in tests/data (static buffer). */
 const char *data_path(const char *file);
 
+/* Load tests/data/`file`, failing a CHECK (and returning NULL) if it does not load. */
+sdf_mesh *load_data_mesh(const char *file);
+
 #endif

@@ -7,29 +7,13 @@
 #include <string.h>
 
 #include "../common/check.h"
+#include "../common/files.h"
 #include "../common/workload.h"
 #include "writers.h"
 
-static char *read_file(const char *path, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *data = malloc((size_t)n + 1);
-    *size = fread(data, 1, (size_t)n, f);
-    fclose(f);
-    return data;
-}
-
 static sdf_mesh *load(const char *file, sdf_mesh_report *r)
 {
-    sdf_mesh *m = NULL;
-    sdf_diag diag;
-    int rc = sdf_mesh_load_file(data_path(file), NULL, &m, &diag);
-    CHECK(rc == 0, "%s: %s", file, diag.message);
+    sdf_mesh *m = load_data_mesh(file);
     if (m && r)
         sdf_mesh_get_report(m, r);
     return m;
@@ -98,12 +82,12 @@ static void expect_reject(const char *what, const char *data, size_t size, sdf_f
 static void test_odd_shared_files(void)
 {
     size_t size;
-    char *data = read_file(data_path("number_formats.obj"), &size);
+    char *data = read_whole_file(data_path("number_formats.obj"), &size);
     /* "v 1e+2 2.e+1 3.1+e2": 3.1+e2 is not a number; strtod would silently read 3.1. */
     expect_reject("number_formats.obj", data, size, SDF_FORMAT_OBJ, SDF_EPARSE, 11, -1,
                   "malformed number");
     free(data);
-    data = read_file(data_path("issue623.ply"), &size);
+    data = read_whole_file(data_path("issue623.ply"), &size);
     /* A list property inside the vertex element, no face element: not a mesh. */
     expect_reject("issue623.ply", data, size, SDF_FORMAT_PLY, SDF_EEMPTY, 0, -1, "no face element");
     free(data);
@@ -223,11 +207,11 @@ static void every_prefix_fails(const char *what, const char *data, size_t size, 
 static void test_truncation(void)
 {
     size_t size;
-    char *data = read_file(data_path("Spider_binary.stl"), &size);
+    char *data = read_whole_file(data_path("Spider_binary.stl"), &size);
     every_prefix_fails("Spider_binary.stl", data, size, SDF_FORMAT_STL);
     every_prefix_fails("Spider_binary.stl (sniffed)", data, size, SDF_FORMAT_AUTO);
     free(data);
-    data = read_file(data_path("cube_binary.ply"), &size);
+    data = read_whole_file(data_path("cube_binary.ply"), &size);
     every_prefix_fails("cube_binary.ply", data, size, SDF_FORMAT_PLY);
     free(data);
     /* A binary PLY with lists and extra elements, both byte orders. */
@@ -358,7 +342,7 @@ static void test_limits(void)
           "missing file: %s", diag.message);
     o = (sdf_mesh_options){.format = SDF_FORMAT_STL};
     size_t size;
-    char *data = read_file(data_path("fandisk.off"), &size);
+    char *data = read_whole_file(data_path("fandisk.off"), &size);
     CHECK(sdf_mesh_load_memory(data, size, &o, &m, &diag) != 0,
           "an OFF file parsed as STL was accepted");
     free(data);

@@ -176,11 +176,8 @@ int main(void)
     const char *files[] = {"fandisk.off", "knot1.off", "cow.off", "elephant-with-holes.off",
                            "mech-holes-shark.off", "Spider_binary.stl", "spider.obj"};
     for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
-        sdf_mesh *mesh;
-        sdf_diag diag;
-        int rc = sdf_mesh_load_file(data_path(files[i]), NULL, &mesh, &diag);
-        CHECK(rc == 0, "%s: %s", files[i], diag.message);
-        if (rc)
+        sdf_mesh *mesh = load_data_mesh(files[i]);
+        if (!mesh)
             continue;
         test_mesh(files[i], mesh);
         sdf_mesh_release(mesh);

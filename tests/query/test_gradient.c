@@ -111,9 +111,9 @@ int main(void)
 {
     const char *files[] = {"fandisk.off", "knot1.off"};
     for (int i = 0; i < 2; i++) {
-        sdf_mesh *mesh;
-        sdf_diag diag;
-        CHECK(sdf_mesh_load_file(data_path(files[i]), NULL, &mesh, &diag) == 0, "%s", diag.message);
+        sdf_mesh *mesh = load_data_mesh(files[i]);
+        if (!mesh)
+            continue;
         test_central_differences(files[i], mesh);
         test_on_surface(files[i], mesh);
         sdf_mesh_release(mesh);

@@ -130,21 +130,12 @@ static void test_winding_values(const char *name, sdf_mesh *mesh)
     free_sample(&s);
 }
 
-static sdf_mesh *load(const char *file)
-{
-    sdf_mesh *mesh = NULL;
-    sdf_diag diag;
-    CHECK(sdf_mesh_load_file(data_path(file), NULL, &mesh, &diag) == 0, "%s: %s", file,
-          diag.message);
-    return mesh;
-}
-
 int main(void)
 {
     const char *closed[] = {"fandisk.off", "knot1.off"};
     const char *open[] = {"elephant-with-holes.off", "mech-holes-shark.off", "cow.off"};
     for (int i = 0; i < 2; i++) {
-        sdf_mesh *m = load(closed[i]);
+        sdf_mesh *m = load_data_mesh(closed[i]);
         if (m) {
             test_closed(closed[i], m);
             test_winding_values(closed[i], m);
@@ -156,7 +147,7 @@ int main(void)
     test_closed("demo", demo);
     sdf_mesh_release(demo);
     for (int i = 0; i < 3; i++) {
-        sdf_mesh *m = load(open[i]);
+        sdf_mesh *m = load_data_mesh(open[i]);
         if (m) {
             test_open(open[i], m);
             test_winding_values(open[i], m);
