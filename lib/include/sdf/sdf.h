@@ -30,7 +30,8 @@ extern "C" {
 #define SDF_VERSION_PATCH 0
 
 /* ---------------------------------------------------------------------------------------
- * Errors. One table makes the enum, the names, the messages and the HTTP statuses.
+ * Errors. One table makes the enum, the names, the messages and the HTTP statuses, for the
+ * library and for the server built on it (whose binary protocol sends name and status).
  * X(NAME, value, http_status, message)
  * ------------------------------------------------------------------------------------- */
 #define SDF_ERRNO_MAP(X)                                                                  \
@@ -45,7 +46,13 @@ extern "C" {
     X(ENONFINITE, -9, 422, "non-finite coordinate (NaN or Inf)")                          \
     X(EINDEX, -10, 422, "index out of range")                                             \
     X(EBVH, -11, 500, "BVH library (Embree) error")                                       \
-    X(ENOTFOUND, -12, 404, "not found")
+    X(ENOTFOUND, -12, 404, "not found")                                                   \
+    X(EPROTO, -13, 400, "protocol error")                                                 \
+    X(EUNAUTHORIZED, -14, 401, "missing or wrong bearer token")                           \
+    X(EMETHOD, -15, 405, "method not allowed")                                            \
+    X(ELENGTH, -16, 411, "Content-Length required")                                       \
+    X(EBUSY, -17, 429, "too many requests")                                               \
+    X(EUNAVAILABLE, -18, 503, "service unavailable (loading or shutting down)")
 
 typedef enum sdf_error {
     SDF_OK = 0,

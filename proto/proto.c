@@ -1,0 +1,339 @@
+/* proto.c - the binary protocol codec (see proto.h and PROTOCOL.md). Little-endian access
+ * goes through byte helpers, so the codec is correct on any host and never reads unaligned
+ * words. Every decoder checks lengths before it reads. */
+#include "proto.h"
+
+#include <string.h>
+
+static const unsigned char magic[4] = {'S', 'D', 'F', 'P'};
+
+static uint16_t get16(const unsigned char *p) { return (uint16_t)(p[0] | p[1] << 8); }
+
+static uint32_t get32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint64_t get64(const unsigned char *p) { return get32(p) | (uint64_t)get32(p + 4) << 32; }
+
+static void put16(unsigned char *p, uint16_t v)
+{
+    p[0] = (unsigned char)v;
+    p[1] = (unsigned char)(v >> 8);
+}
+
+static void put32(unsigned char *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (unsigned char)(v >> (8 * i));
+}
+
+static void put64(unsigned char *p, uint64_t v)
+{
+    put32(p, (uint32_t)v);
+    put32(p + 4, (uint32_t)(v >> 32));
+}
+
+static size_t pad4(size_t n) { return (n + 3) & ~(size_t)3; }
+
+static int fail(const char **reason, int code, const char *why)
+{
+    if (reason)
+        *reason = why;
+    return code;
+}
+
+static const char *const mode_names[] = {"signed", "distance", "gradient", "closest"};
+
+int sdf_proto_mode_from_name(const char *name, sdf_proto_mode *out)
+{
+    for (int m = 0; m < 4 && name; m++) {
+        if (!strcmp(name, mode_names[m])) {
+            *out = (sdf_proto_mode)m;
+            return 0;
+        }
+    }
+    return SDF_EINVAL;
+}
+
+const char *sdf_proto_mode_name(sdf_proto_mode mode)
+{
+    return mode <= SDF_MODE_CLOSEST ? mode_names[mode] : "?";
+}
+
+unsigned sdf_proto_words(sdf_proto_mode mode)
+{
+    static const unsigned words[] = {1, 1, 4, 5};
+    return mode <= SDF_MODE_CLOSEST ? words[mode] : 0;
+}
+
+/* ---- header ------------------------------------------------------------------------------ */
+
+int sdf_proto_decode_header(const void *buf, size_t size, uint32_t max_payload,
+                            sdf_proto_header *h, const char **reason)
+{
+    const unsigned char *p = buf;
+    if (size < SDF_PROTO_HEADER_SIZE)
+        return fail(reason, SDF_ETRUNC, "frame header is shorter than 16 bytes");
+    if (memcmp(p, magic, 4))
+        return fail(reason, SDF_EPROTO, "bad magic (expected \"SDFP\")");
+    h->version = p[4];
+    h->type = p[5];
+    h->flags = get16(p + 6);
+    h->request_id = get32(p + 8);
+    h->length = get32(p + 12);
+    if (h->version != SDF_PROTO_VERSION)
+        return fail(reason, SDF_EPROTO, "unsupported protocol version (this server speaks 1)");
+    if (h->length > max_payload)
+        return fail(reason, SDF_ELIMIT, "frame payload is larger than max_payload");
+    return 0;
+}
+
+void sdf_proto_encode_header(void *dst, uint8_t type, uint32_t request_id, uint32_t length)
+{
+    unsigned char *p = dst;
+    memcpy(p, magic, 4);
+    p[4] = SDF_PROTO_VERSION;
+    p[5] = type;
+    put16(p + 6, 0);
+    put32(p + 8, request_id);
+    put32(p + 12, length);
+}
+
+/* ---- QUERY ------------------------------------------------------------------------------- */
+
+size_t sdf_proto_query_size(size_t name_len, uint32_t count)
+{
+    if (name_len == 0 || name_len > SDF_PROTO_MAX_NAME)
+        return 0;
+    return 8 + pad4(name_len) + 12 * (size_t)count;
+}
+
+int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points,
+                           sdf_proto_query *q, const char **reason)
+{
+    const unsigned char *p = payload;
+    if (size < 8)
+        return fail(reason, SDF_EPROTO, "QUERY payload is shorter than its 8-byte prefix");
+    q->mode = (sdf_proto_mode)p[0];
+    q->sign = (sdf_sign_method)p[1];
+    q->name_len = get16(p + 2);
+    q->count = get32(p + 4);
+    if (p[0] > SDF_MODE_CLOSEST)
+        return fail(reason, SDF_EINVAL, "unknown mode (0 signed, 1 distance, 2 gradient, 3 closest)");
+    if (p[1] > SDF_SIGN_NONE)
+        return fail(reason, SDF_EINVAL,
+                    "unknown sign (0 auto, 1 pseudonormal, 2 winding, 3 raycast, 4 none)");
+    if (q->name_len == 0 || q->name_len > SDF_PROTO_MAX_NAME)
+        return fail(reason, SDF_EPROTO, "mesh name length must be 1..255");
+    if (q->count > max_points)
+        return fail(reason, SDF_ELIMIT, "more points than max_points");
+    if (size != sdf_proto_query_size(q->name_len, q->count))
+        return fail(reason, SDF_EPROTO,
+                    "QUERY payload length is not 8 + pad4(name_length) + 12 * count");
+    q->name = (const char *)p + 8;
+    q->points = p + 8 + pad4(q->name_len);
+    return 0;
+}
+
+size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const sdf_proto_query *q)
+{
+    size_t payload = sdf_proto_query_size(q->name_len, q->count);
+    if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
+        return 0;
+    unsigned char *p = dst;
+    sdf_proto_encode_header(p, SDF_PROTO_QUERY, request_id, (uint32_t)payload);
+    p += SDF_PROTO_HEADER_SIZE;
+    p[0] = (unsigned char)q->mode;
+    p[1] = (unsigned char)q->sign;
+    put16(p + 2, (uint16_t)q->name_len);
+    put32(p + 4, q->count);
+    memset(p + 8, 0, pad4(q->name_len));
+    memcpy(p + 8, q->name, q->name_len);
+    memcpy(p + 8 + pad4(q->name_len), q->points, 12 * (size_t)q->count);
+    return SDF_PROTO_HEADER_SIZE + payload;
+}
+
+/* ---- RESULT ------------------------------------------------------------------------------ */
+
+size_t sdf_proto_encode_result_head(void *dst, uint32_t request_id, sdf_proto_mode mode,
+                                    uint32_t count)
+{
+    unsigned char *p = dst;
+    unsigned words = sdf_proto_words(mode);
+    uint64_t payload = SDF_PROTO_RESULT_PREFIX + 4ull * words * count;
+    sdf_proto_encode_header(p, SDF_PROTO_RESULT, request_id, (uint32_t)payload);
+    p += SDF_PROTO_HEADER_SIZE;
+    p[0] = (unsigned char)mode;
+    p[1] = (unsigned char)words;
+    put16(p + 2, 0);
+    put32(p + 4, count);
+    return SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX;
+}
+
+int sdf_proto_decode_result(const void *payload, size_t size, sdf_proto_result *r,
+                            const char **reason)
+{
+    const unsigned char *p = payload;
+    if (size < SDF_PROTO_RESULT_PREFIX)
+        return fail(reason, SDF_EPROTO, "RESULT payload is shorter than its 8-byte prefix");
+    r->mode = (sdf_proto_mode)p[0];
+    r->words = p[1];
+    r->count = get32(p + 4);
+    if (p[0] > SDF_MODE_CLOSEST || r->words != sdf_proto_words(r->mode))
+        return fail(reason, SDF_EPROTO, "RESULT mode and words per point disagree");
+    if ((size - SDF_PROTO_RESULT_PREFIX) / 4 / r->words != r->count ||
+        (size - SDF_PROTO_RESULT_PREFIX) % (4 * r->words))
+        return fail(reason, SDF_EPROTO, "RESULT payload length does not match its count");
+    r->data = p + SDF_PROTO_RESULT_PREFIX;
+    return 0;
+}
+
+/* ---- ERROR ------------------------------------------------------------------------------- */
+
+size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, int err,
+                              const char *message)
+{
+    const char *code = sdf_errname(err);
+    size_t code_len = strlen(code), msg_len = message ? strlen(message) : 0;
+    size_t fixed = SDF_PROTO_HEADER_SIZE + 2 + 2 + code_len + 2;
+    if (cap < fixed)
+        return 0;
+    if (msg_len > cap - fixed)
+        msg_len = cap - fixed;
+    if (msg_len > UINT16_MAX)
+        msg_len = UINT16_MAX;
+    unsigned char *p = dst;
+    sdf_proto_encode_header(p, SDF_PROTO_ERROR, request_id,
+                            (uint32_t)(fixed + msg_len - SDF_PROTO_HEADER_SIZE));
+    p += SDF_PROTO_HEADER_SIZE;
+    put16(p, (uint16_t)sdf_http_status(err));
+    put16(p + 2, (uint16_t)code_len);
+    memcpy(p + 4, code, code_len);
+    put16(p + 4 + code_len, (uint16_t)msg_len);
+    if (msg_len)
+        memcpy(p + 6 + code_len, message, msg_len);
+    return fixed + msg_len;
+}
+
+/* Read a u16-length-prefixed string at *off. */
+static int get_string(const unsigned char *p, size_t size, size_t *off, const char **s,
+                      size_t *len)
+{
+    if (size - *off < 2)
+        return -1;
+    *len = get16(p + *off);
+    if (size - *off - 2 < *len)
+        return -1;
+    *s = (const char *)p + *off + 2;
+    *off += 2 + *len;
+    return 0;
+}
+
+int sdf_proto_decode_error(const void *payload, size_t size, sdf_proto_error *e,
+                           const char **reason)
+{
+    const unsigned char *p = payload;
+    size_t off = 2;
+    if (size < 2)
+        return fail(reason, SDF_EPROTO, "ERROR payload is shorter than its status");
+    e->status = get16(p);
+    if (get_string(p, size, &off, &e->code, &e->code_len) ||
+        get_string(p, size, &off, &e->message, &e->message_len) || off != size)
+        return fail(reason, SDF_EPROTO, "ERROR payload strings do not fit its length");
+    return 0;
+}
+
+/* ---- HELLO_OK ---------------------------------------------------------------------------- */
+
+size_t sdf_proto_encode_hello_ok(void *dst, size_t cap, uint32_t request_id,
+                                 const sdf_proto_hello *h)
+{
+    size_t payload = 12 + 2 + h->server_len;
+    if (h->server_len > UINT16_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
+        return 0;
+    unsigned char *p = dst;
+    sdf_proto_encode_header(p, SDF_PROTO_HELLO_OK, request_id, (uint32_t)payload);
+    p += SDF_PROTO_HEADER_SIZE;
+    put16(p, h->version);
+    put16(p + 2, 0);
+    put32(p + 4, h->max_payload);
+    put32(p + 8, h->max_points);
+    put16(p + 12, (uint16_t)h->server_len);
+    memcpy(p + 14, h->server, h->server_len);
+    return SDF_PROTO_HEADER_SIZE + payload;
+}
+
+int sdf_proto_decode_hello_ok(const void *payload, size_t size, sdf_proto_hello *h,
+                              const char **reason)
+{
+    const unsigned char *p = payload;
+    size_t off = 12;
+    if (size < 12)
+        return fail(reason, SDF_EPROTO, "HELLO_OK payload is too short");
+    h->version = get16(p);
+    h->max_payload = get32(p + 4);
+    h->max_points = get32(p + 8);
+    if (get_string(p, size, &off, &h->server, &h->server_len) || off != size)
+        return fail(reason, SDF_EPROTO, "HELLO_OK server string does not fit its length");
+    return 0;
+}
+
+/* ---- MESHES ------------------------------------------------------------------------------ */
+
+size_t sdf_proto_meshes_size(const sdf_proto_mesh_entry *entries, size_t count)
+{
+    size_t size = SDF_PROTO_HEADER_SIZE + 4;
+    for (size_t i = 0; i < count; i++)
+        size += 2 + entries[i].name_len + 8 + 2;
+    return size;
+}
+
+size_t sdf_proto_encode_meshes(void *dst, size_t cap, uint32_t request_id,
+                               const sdf_proto_mesh_entry *entries, size_t count)
+{
+    size_t size = sdf_proto_meshes_size(entries, count);
+    if (size > cap || size > UINT32_MAX || count > UINT32_MAX)
+        return 0;
+    unsigned char *p = dst;
+    sdf_proto_encode_header(p, SDF_PROTO_MESHES, request_id,
+                            (uint32_t)(size - SDF_PROTO_HEADER_SIZE));
+    p += SDF_PROTO_HEADER_SIZE;
+    put32(p, (uint32_t)count);
+    p += 4;
+    for (size_t i = 0; i < count; i++) {
+        const sdf_proto_mesh_entry *e = &entries[i];
+        if (e->name_len > UINT16_MAX)
+            return 0;
+        put16(p, (uint16_t)e->name_len);
+        memcpy(p + 2, e->name, e->name_len);
+        p += 2 + e->name_len;
+        put64(p, e->triangles);
+        p[8] = e->closed;
+        p[9] = e->auto_sign;
+        p += 10;
+    }
+    return size;
+}
+
+int sdf_proto_meshes_count(const void *payload, size_t size, uint32_t *count)
+{
+    if (size < 4)
+        return SDF_EPROTO;
+    *count = get32(payload);
+    return 0;
+}
+
+int sdf_proto_meshes_next(const void *payload, size_t size, size_t *offset,
+                          sdf_proto_mesh_entry *e, const char **reason)
+{
+    const unsigned char *p = payload;
+    size_t off = *offset ? *offset : 4;
+    if (get_string(p, size, &off, &e->name, &e->name_len) || size - off < 10)
+        return fail(reason, SDF_EPROTO, "MESHES entry runs past the payload");
+    e->triangles = get64(p + off);
+    e->closed = p[off + 8];
+    e->auto_sign = p[off + 9];
+    *offset = off + 10;
+    return 0;
+}

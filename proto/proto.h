@@ -1,0 +1,135 @@
+/* proto.h - codec for sdfd's binary protocol (PROTOCOL.md): frame headers and the payloads
+ * of each message type. No I/O and no allocation: decoders check every length against the
+ * bytes given and the caller's caps and return pointers into the caller's buffer; encoders
+ * write into caller buffers and say how much they wrote. Shared by the server, the tests
+ * and C clients. Errors are SDF_E* codes (sdf.h) with a static reason string. */
+#ifndef SDF_PROTO_H
+#define SDF_PROTO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "sdf/sdf.h"
+
+#define SDF_PROTO_VERSION 1
+#define SDF_PROTO_HEADER_SIZE 16
+#define SDF_PROTO_MAX_NAME 255
+
+enum sdf_proto_type {
+    SDF_PROTO_HELLO = 0x01,
+    SDF_PROTO_LIST_MESHES = 0x02,
+    SDF_PROTO_QUERY = 0x03,
+    SDF_PROTO_ERROR = 0x7F,
+    SDF_PROTO_HELLO_OK = 0x81,
+    SDF_PROTO_MESHES = 0x82,
+    SDF_PROTO_RESULT = 0x83,
+};
+
+/* Query modes; the values are the wire codes. */
+typedef enum sdf_proto_mode {
+    SDF_MODE_SIGNED = 0,
+    SDF_MODE_DISTANCE = 1,
+    SDF_MODE_GRADIENT = 2,
+    SDF_MODE_CLOSEST = 3,
+} sdf_proto_mode;
+
+/* "signed", "distance", "gradient", "closest" <-> mode. */
+int sdf_proto_mode_from_name(const char *name, sdf_proto_mode *out);
+const char *sdf_proto_mode_name(sdf_proto_mode mode);
+/* 32-bit words per point in a result: 1, 1, 4, 5; 0 for an unknown mode. */
+unsigned sdf_proto_words(sdf_proto_mode mode);
+
+typedef struct sdf_proto_header {
+    uint8_t version, type;
+    uint16_t flags;
+    uint32_t request_id;
+    uint32_t length; /* payload bytes */
+} sdf_proto_header;
+
+/* Decode the 16-byte header at `buf` (`size` bytes available). SDF_ETRUNC if fewer than 16;
+ * SDF_EPROTO for a wrong magic or version; SDF_ELIMIT if length > max_payload. */
+int sdf_proto_decode_header(const void *buf, size_t size, uint32_t max_payload,
+                            sdf_proto_header *h, const char **reason);
+void sdf_proto_encode_header(void *dst, uint8_t type, uint32_t request_id, uint32_t length);
+
+/* QUERY. `points` holds 12 * count bytes of little-endian float32 xyz (4-byte aligned
+ * relative to the payload start). */
+typedef struct sdf_proto_query {
+    sdf_proto_mode mode;
+    sdf_sign_method sign;
+    const char *name;
+    size_t name_len;
+    uint32_t count;
+    const void *points;
+} sdf_proto_query;
+
+/* Payload size of a QUERY, or 0 if name_len is 0 or too long. */
+size_t sdf_proto_query_size(size_t name_len, uint32_t count);
+int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points,
+                           sdf_proto_query *q, const char **reason);
+/* Write a whole QUERY frame (header + payload, points copied from q->points); returns its
+ * size, or 0 if it does not fit in `cap` or the name is empty / too long. */
+size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const sdf_proto_query *q);
+
+/* RESULT: 12 bytes of header fields then 4 * words * count bytes of data. */
+typedef struct sdf_proto_result {
+    sdf_proto_mode mode;
+    unsigned words;
+    uint32_t count;
+    const void *data;
+} sdf_proto_result;
+
+#define SDF_PROTO_RESULT_PREFIX 8
+/* Write the header and the 8-byte result prefix for `count` points of `mode` into dst
+ * (SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX bytes); the caller appends the data. */
+size_t sdf_proto_encode_result_head(void *dst, uint32_t request_id, sdf_proto_mode mode,
+                                    uint32_t count);
+int sdf_proto_decode_result(const void *payload, size_t size, sdf_proto_result *r,
+                            const char **reason);
+
+/* ERROR: status, code name, message. Encoding truncates the message to fit `cap`. */
+typedef struct sdf_proto_error {
+    uint16_t status;
+    const char *code;
+    size_t code_len;
+    const char *message;
+    size_t message_len;
+} sdf_proto_error;
+
+size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, int err,
+                              const char *message);
+int sdf_proto_decode_error(const void *payload, size_t size, sdf_proto_error *e,
+                           const char **reason);
+
+/* HELLO_OK */
+typedef struct sdf_proto_hello {
+    uint16_t version;
+    uint32_t max_payload, max_points;
+    const char *server;
+    size_t server_len;
+} sdf_proto_hello;
+
+size_t sdf_proto_encode_hello_ok(void *dst, size_t cap, uint32_t request_id,
+                                 const sdf_proto_hello *h);
+int sdf_proto_decode_hello_ok(const void *payload, size_t size, sdf_proto_hello *h,
+                              const char **reason);
+
+/* MESHES: built entry by entry into a caller buffer. */
+typedef struct sdf_proto_mesh_entry {
+    const char *name;
+    size_t name_len;
+    uint64_t triangles;
+    uint8_t closed;
+    uint8_t auto_sign;
+} sdf_proto_mesh_entry;
+
+/* Frame size for these entries; encode writes header + payload, returning the size or 0. */
+size_t sdf_proto_meshes_size(const sdf_proto_mesh_entry *entries, size_t count);
+size_t sdf_proto_encode_meshes(void *dst, size_t cap, uint32_t request_id,
+                               const sdf_proto_mesh_entry *entries, size_t count);
+/* Iterate: *offset starts at 0 (after reading the count with sdf_proto_meshes_count). */
+int sdf_proto_meshes_count(const void *payload, size_t size, uint32_t *count);
+int sdf_proto_meshes_next(const void *payload, size_t size, size_t *offset,
+                          sdf_proto_mesh_entry *e, const char **reason);
+
+#endif

@@ -1,0 +1,145 @@
+/* test_proto.c - the binary protocol codec: every message type round-trips; every
+ * truncated prefix of every payload (and of a header) is refused; bad magic, version,
+ * lengths, modes, signs and names are refused with their codes; the PROTOCOL.md example
+ * frame is byte-exact. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/check.h"
+#include "proto.h"
+
+static unsigned char frame[1 << 16];
+
+static void test_header(void)
+{
+    sdf_proto_header h;
+    const char *why = NULL;
+    sdf_proto_encode_header(frame, SDF_PROTO_QUERY, 0xdeadbeef, 1234);
+    CHECK(sdf_proto_decode_header(frame, 16, 1 << 20, &h, &why) == 0 && h.type == SDF_PROTO_QUERY &&
+              h.request_id == 0xdeadbeef && h.length == 1234 && h.version == 1,
+          "header round trip");
+    for (size_t n = 0; n < 16; n++)
+        CHECK(sdf_proto_decode_header(frame, n, 1 << 20, &h, &why) == SDF_ETRUNC, "prefix %zu", n);
+    CHECK(sdf_proto_decode_header(frame, 16, 1000, &h, &why) == SDF_ELIMIT && why, "cap");
+    frame[4] = 2;
+    CHECK(sdf_proto_decode_header(frame, 16, 1 << 20, &h, &why) == SDF_EPROTO, "version 2");
+    frame[4] = 1;
+    frame[0] = 'X';
+    CHECK(sdf_proto_decode_header(frame, 16, 1 << 20, &h, &why) == SDF_EPROTO, "magic");
+}
+
+static void test_query(void)
+{
+    float pts[6] = {1, 2, 3, -4, 5.5f, 1e-30f};
+    sdf_proto_query q = {SDF_MODE_CLOSEST, SDF_SIGN_WINDING, "elephant", 8, 2, pts}, back;
+    size_t n = sdf_proto_encode_query(frame, sizeof frame, 42, &q);
+    CHECK(n == 16 + 8 + 8 + 24, "query frame size %zu", n);
+    sdf_proto_header h;
+    const char *why;
+    CHECK(sdf_proto_decode_header(frame, n, 1 << 20, &h, &why) == 0 && h.length == n - 16, "header");
+    CHECK(sdf_proto_decode_query(frame + 16, h.length, 100, &back, &why) == 0, "decode: %s", why);
+    CHECK(back.mode == q.mode && back.sign == q.sign && back.count == 2 && back.name_len == 8 &&
+              !memcmp(back.name, "elephant", 8) && !memcmp(back.points, pts, sizeof pts),
+          "query round trip");
+    CHECK(((const unsigned char *)back.points - (frame + 16)) % 4 == 0, "points are 4-aligned");
+    for (size_t len = 0; len < h.length; len++)
+        CHECK(sdf_proto_decode_query(frame + 16, len, 100, &back, &why) != 0, "prefix %zu", len);
+    CHECK(sdf_proto_decode_query(frame + 16, h.length, 1, &back, &why) == SDF_ELIMIT, "max points");
+    frame[16] = 9;
+    CHECK(sdf_proto_decode_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL, "mode 9");
+    frame[16] = SDF_MODE_CLOSEST;
+    frame[17] = 5;
+    CHECK(sdf_proto_decode_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL, "sign 5");
+    frame[17] = 0;
+    frame[18] = 0;
+    CHECK(sdf_proto_decode_query(frame + 16, h.length, 100, &back, &why) == SDF_EPROTO, "empty name");
+    q.name_len = 0;
+    CHECK(sdf_proto_encode_query(frame, sizeof frame, 1, &q) == 0, "empty name encoded");
+    q.name_len = 8;
+    CHECK(sdf_proto_encode_query(frame, 40, 1, &q) == 0, "overflowing buffer written");
+    /* Count that disagrees with the length, including one that would overflow 12 * count. */
+    n = sdf_proto_encode_query(frame, sizeof frame, 42, &q);
+    frame[16 + 4] = 0xff, frame[16 + 5] = 0xff, frame[16 + 6] = 0xff, frame[16 + 7] = 0x7f;
+    CHECK(sdf_proto_decode_query(frame + 16, n - 16, UINT32_MAX, &back, &why) == SDF_EPROTO, "count");
+
+    /* The example from PROTOCOL.md, byte for byte. */
+    static const unsigned char example[] = {
+        0x53, 0x44, 0x46, 0x50, 0x01, 0x03, 0x00, 0x00, 0x07, 0x00, 0x00, 0x00, 0x18, 0x00, 0x00,
+        0x00, 0x00, 0x00, 0x04, 0x00, 0x01, 0x00, 0x00, 0x00, 0x64, 0x65, 0x6d, 0x6f, 0, 0, 0,
+        0, 0, 0, 0, 0, 0, 0, 0, 0};
+    float origin[3] = {0, 0, 0};
+    sdf_proto_query ex = {SDF_MODE_SIGNED, SDF_SIGN_AUTO, "demo", 4, 1, origin};
+    n = sdf_proto_encode_query(frame, sizeof frame, 7, &ex);
+    CHECK(n == sizeof example && !memcmp(frame, example, n), "PROTOCOL.md example differs");
+}
+
+static void test_result(void)
+{
+    float data[10] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
+    size_t n = sdf_proto_encode_result_head(frame, 3, SDF_MODE_CLOSEST, 2);
+    memcpy(frame + n, data, sizeof data);
+    sdf_proto_header h;
+    sdf_proto_result r;
+    const char *why;
+    CHECK(sdf_proto_decode_header(frame, n + 40, 1 << 20, &h, &why) == 0 && h.length == 8 + 40, "len");
+    CHECK(sdf_proto_decode_result(frame + 16, h.length, &r, &why) == 0 && r.words == 5 &&
+              r.count == 2 && !memcmp(r.data, data, 40),
+          "result round trip");
+    for (size_t len = 0; len < h.length; len++)
+        CHECK(sdf_proto_decode_result(frame + 16, len, &r, &why) != 0, "prefix %zu", len);
+}
+
+static void test_error_and_hello(void)
+{
+    size_t n = sdf_proto_encode_error(frame, sizeof frame, 9, SDF_ENOTFOUND, "no mesh 'x'");
+    sdf_proto_header h;
+    sdf_proto_error e;
+    const char *why;
+    CHECK(sdf_proto_decode_header(frame, n, 1 << 20, &h, &why) == 0 && h.type == SDF_PROTO_ERROR, "hdr");
+    CHECK(sdf_proto_decode_error(frame + 16, h.length, &e, &why) == 0 && e.status == 404 &&
+              e.code_len == 9 && !memcmp(e.code, "ENOTFOUND", 9) && e.message_len == 11,
+          "error round trip");
+    for (size_t len = 0; len < h.length; len++)
+        CHECK(sdf_proto_decode_error(frame + 16, len, &e, &why) != 0, "error prefix %zu", len);
+    n = sdf_proto_encode_error(frame, 40, 9, SDF_EINVAL, "a long message that cannot fit in forty bytes");
+    CHECK(n == 40, "truncated error message: %zu", n);
+
+    sdf_proto_hello hello = {1, 5000, 400, "sdfd 0.1", 8}, back;
+    n = sdf_proto_encode_hello_ok(frame, sizeof frame, 1, &hello);
+    CHECK(sdf_proto_decode_hello_ok(frame + 16, n - 16, &back, &why) == 0 && back.max_points == 400 &&
+              back.max_payload == 5000 && back.server_len == 8,
+          "hello round trip");
+    for (size_t len = 0; len < n - 16; len++)
+        CHECK(sdf_proto_decode_hello_ok(frame + 16, len, &back, &why) != 0, "hello prefix %zu", len);
+
+    sdf_proto_mesh_entry meshes[2] = {{"demo", 4, 12288, 1, 1}, {"cow", 3, 5804, 1, 2}}, m;
+    n = sdf_proto_encode_meshes(frame, sizeof frame, 5, meshes, 2);
+    CHECK(n == sdf_proto_meshes_size(meshes, 2), "meshes size");
+    uint32_t count;
+    size_t off = 0;
+    CHECK(sdf_proto_meshes_count(frame + 16, n - 16, &count) == 0 && count == 2, "count");
+    CHECK(sdf_proto_meshes_next(frame + 16, n - 16, &off, &m, &why) == 0 && m.name_len == 4 &&
+              m.triangles == 12288,
+          "first mesh");
+    CHECK(sdf_proto_meshes_next(frame + 16, n - 16, &off, &m, &why) == 0 && m.auto_sign == 2 &&
+              off == n - 16,
+          "second mesh");
+    CHECK(sdf_proto_meshes_next(frame + 16, n - 16, &off, &m, &why) != 0, "read past the end");
+    off = 0;
+    CHECK(sdf_proto_meshes_next(frame + 16, n - 20, &off, &m, &why) == 0 &&
+              sdf_proto_meshes_next(frame + 16, n - 20, &off, &m, &why) == SDF_EPROTO,
+          "truncated second entry");
+}
+
+int main(void)
+{
+    test_header();
+    test_query();
+    test_result();
+    test_error_and_hello();
+    sdf_proto_mode m;
+    CHECK(sdf_proto_mode_from_name("gradient", &m) == 0 && m == SDF_MODE_GRADIENT &&
+              sdf_proto_words(m) == 4 && sdf_proto_mode_from_name("fast", &m) == SDF_EINVAL,
+          "mode names");
+    return check_finish("test_proto");
+}
