@@ -160,17 +160,23 @@ int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *d
 
 long sdf_npy_write_header(char *dst, size_t cap, int ndim, const size_t *shape)
 {
-    if (ndim < 1 || ndim > SDF_NPY_MAX_DIMS || !shape || !dst)
+    return sdf_npy_write_header_descr(dst, cap, "'<f4'", ndim, shape);
+}
+
+long sdf_npy_write_header_descr(char *dst, size_t cap, const char *descr, int ndim,
+                                const size_t *shape)
+{
+    if (ndim < 1 || ndim > SDF_NPY_MAX_DIMS || !shape || !dst || !descr || strlen(descr) > 192)
         return SDF_EINVAL;
-    char dict[128], dims[96] = "";
+    char dict[320], dims[96] = "";
     size_t used = 0;
     for (int i = 0; i < ndim; i++)
         used += (size_t)snprintf(dims + used, sizeof dims - used, "%zu,%s", shape[i],
                                  i + 1 < ndim ? " " : "");
     if (ndim > 1)
         dims[used - 1] = '\0'; /* "(3, 4)" but "(3,)" */
-    int n = snprintf(dict, sizeof dict, "{'descr': '<f4', 'fortran_order': False, 'shape': (%s), }",
-                     dims);
+    int n = snprintf(dict, sizeof dict, "{'descr': %s, 'fortran_order': False, 'shape': (%s), }",
+                     descr, dims);
     size_t total = 10 + (size_t)n + 1;
     total = (total + 63) / 64 * 64;
     if (total > cap)

@@ -35,7 +35,7 @@ extern "C" {
  * X(NAME, value, http_status, message)
  * ------------------------------------------------------------------------------------- */
 #define SDF_ERRNO_MAP(X)                                                                  \
-    X(EINVAL, -1, 400, "invalid argument")                                                \
+    X(EINVAL, -1, 422, "invalid argument")                                                \
     X(ENOMEM, -2, 503, "out of memory")                                                   \
     X(EIO, -3, 500, "cannot read file")                                                   \
     X(EFORMAT, -4, 415, "unknown or unsupported file format")                             \
@@ -52,7 +52,8 @@ extern "C" {
     X(EMETHOD, -15, 405, "method not allowed")                                            \
     X(ELENGTH, -16, 411, "Content-Length required")                                       \
     X(EBUSY, -17, 429, "too many requests")                                               \
-    X(EUNAVAILABLE, -18, 503, "service unavailable (loading or shutting down)")
+    X(EUNAVAILABLE, -18, 503, "service unavailable (loading or shutting down)")           \
+    X(ESYNTAX, -19, 400, "malformed request")
 
 typedef enum sdf_error {
     SDF_OK = 0,
@@ -233,6 +234,12 @@ int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *d
  * dimensions into `dst` (`cap` bytes). Returns the header's length (a multiple of 64),
  * or a negative SDF_E* code (SDF_ELIMIT if `cap` is too small; 128 bytes always suffice). */
 long sdf_npy_write_header(char *dst, size_t cap, int ndim, const size_t *shape);
+
+/* The same with any dtype description, written verbatim, e.g. a structured dtype
+ * "[('distance', '<f4'), ('triangle', '<u4')]" (at most 192 characters; 512 bytes of
+ * `dst` always suffice). */
+long sdf_npy_write_header_descr(char *dst, size_t cap, const char *descr, int ndim,
+                                const size_t *shape);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,243 @@
+/* batcher.c - coalescing dispatcher (see batcher.h). */
+#include "batcher.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "log.h"
+
+struct sdfd_batcher {
+    pthread_mutex_t lock;
+    pthread_cond_t wake;
+    pthread_t thread;
+    sdfd_job *head, *tail;   /* FIFO */
+    int stopping;
+    int threads;
+    double window;
+    size_t max_points;
+    sdfd_metrics *metrics;
+    /* scratch for the dispatcher thread only, grown as needed */
+    float *points, *distance, *vec3;
+    uint32_t *triangle;
+    size_t capacity;
+};
+
+double sdfd_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static int same_batch(const sdfd_job *a, const sdfd_job *b)
+{
+    return a->mesh == b->mesh && a->mode == b->mode && a->sign == b->sign;
+}
+
+/* Take the head job and every queued job of the same key (up to max_points); caller holds
+ * the lock. Returns the list, linked through next. */
+static sdfd_job *take_batch(sdfd_batcher *b, size_t *requests, size_t *points)
+{
+    sdfd_job *first = b->head, *list = first, *last = first;
+    b->head = first->next;
+    if (!b->head)
+        b->tail = NULL;
+    first->next = NULL;
+    *requests = 1;
+    *points = first->count;
+    sdfd_job **link = &b->head, *prev = NULL;
+    while (*link && *points < b->max_points) {
+        sdfd_job *j = *link;
+        if (same_batch(first, j) && *points + j->count <= b->max_points) {
+            *link = j->next;
+            if (b->tail == j)
+                b->tail = prev;
+            j->next = NULL;
+            last->next = j;
+            last = j;
+            ++*requests;
+            *points += j->count;
+        } else {
+            prev = j;
+            link = &j->next;
+        }
+    }
+    return list;
+}
+
+/* Points of the same key waiting, counting from the head (caller holds the lock). */
+static size_t waiting_points(const sdfd_batcher *b)
+{
+    size_t n = 0;
+    for (const sdfd_job *j = b->head; j; j = j->next)
+        if (same_batch(b->head, j))
+            n += j->count;
+    return n;
+}
+
+static int ensure_scratch(sdfd_batcher *b, size_t n)
+{
+    if (n <= b->capacity)
+        return 0;
+    free(b->points), free(b->distance), free(b->vec3), free(b->triangle);
+    b->points = malloc(3 * n * sizeof(float));
+    b->distance = malloc(n * sizeof(float));
+    b->vec3 = malloc(3 * n * sizeof(float));
+    b->triangle = malloc(n * sizeof(uint32_t));
+    b->capacity = b->points && b->distance && b->vec3 && b->triangle ? n : 0;
+    return b->capacity ? 0 : SDF_ENOMEM;
+}
+
+/* Write results [offset, offset + count) of the batch into the job in wire layout. */
+static void scatter(const sdfd_batcher *b, sdfd_job *j, size_t offset)
+{
+    unsigned w = sdf_proto_words(j->mode);
+    for (size_t i = 0; i < j->count; i++) {
+        uint32_t *dst = j->words + (size_t)w * i;
+        size_t k = offset + i;
+        memcpy(dst, &b->distance[k], 4);
+        if (w >= 4)
+            memcpy(dst + 1, &b->vec3[3 * k], 12);
+        if (w == 5)
+            dst[4] = b->triangle[k];
+    }
+}
+
+static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t points)
+{
+    double start = sdfd_now();
+    int rc = ensure_scratch(b, points);
+    if (!rc) {
+        const float *p = list->points;
+        if (requests > 1) { /* gather: one contiguous batch */
+            size_t at = 0;
+            for (sdfd_job *j = list; j; j = j->next) {
+                memcpy(b->points + 3 * at, j->points, 3 * j->count * sizeof(float));
+                at += j->count;
+            }
+            p = b->points;
+        }
+        sdf_proto_mode mode = list->mode;
+        sdf_query_options opts = {.sign = mode == SDF_MODE_DISTANCE ? SDF_SIGN_NONE : list->sign,
+                                  .threads = b->threads};
+        sdf_query_result res = {.distance = b->distance,
+                                .gradient = mode == SDF_MODE_GRADIENT ? b->vec3 : NULL,
+                                .closest = mode == SDF_MODE_CLOSEST ? b->vec3 : NULL,
+                                .triangle = mode == SDF_MODE_CLOSEST ? b->triangle : NULL};
+        rc = sdf_query(list->mesh, p, points, &opts, &res);
+    }
+    sdfd_metrics_batch(b->metrics, requests, points, sdfd_now() - start);
+    size_t offset = 0;
+    for (sdfd_job *j = list, *next; j; j = next) {
+        next = j->next; /* done() may free the job */
+        j->status = rc;
+        if (!rc)
+            scatter(b, j, offset);
+        offset += j->count;
+        sdfd_metrics_queue_depth(b->metrics, -1);
+        j->done(j);
+    }
+}
+
+static void wait_until(sdfd_batcher *b, double deadline)
+{
+    double left = deadline - sdfd_now();
+    if (left <= 0)
+        return;
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    double whole, frac = modf(left, &whole);
+    ts.tv_sec += (time_t)whole;
+    ts.tv_nsec += (long)(frac * 1e9);
+    if (ts.tv_nsec >= 1000000000L)
+        ts.tv_sec++, ts.tv_nsec -= 1000000000L;
+    pthread_cond_timedwait(&b->wake, &b->lock, &ts);
+}
+
+static void *dispatcher(void *arg)
+{
+    sdfd_batcher *b = arg;
+    pthread_mutex_lock(&b->lock);
+    for (;;) {
+        while (!b->head && !b->stopping)
+            pthread_cond_wait(&b->wake, &b->lock);
+        if (!b->head)
+            break; /* stopping, and nothing left */
+        /* Give other requests for the same batch a moment to arrive. */
+        double deadline = b->head->enqueued + b->window;
+        while (!b->stopping && sdfd_now() < deadline && waiting_points(b) < b->max_points)
+            wait_until(b, deadline);
+        size_t requests, points;
+        sdfd_job *list = take_batch(b, &requests, &points);
+        pthread_mutex_unlock(&b->lock);
+        run_batch(b, list, requests, points);
+        pthread_mutex_lock(&b->lock);
+    }
+    pthread_mutex_unlock(&b->lock);
+    return NULL;
+}
+
+int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, sdfd_metrics *metrics,
+                        sdfd_batcher **out)
+{
+    sdfd_batcher *b = calloc(1, sizeof *b);
+    if (!b)
+        return SDF_ENOMEM;
+    pthread_mutex_init(&b->lock, NULL);
+    pthread_cond_init(&b->wake, NULL);
+    b->threads = threads;
+    b->window = window_us * 1e-6;
+    b->max_points = max_points ? max_points : 1;
+    b->metrics = metrics;
+    if (pthread_create(&b->thread, NULL, dispatcher, b)) {
+        free(b);
+        return SDF_ENOMEM;
+    }
+    *out = b;
+    return 0;
+}
+
+void sdfd_batcher_destroy(sdfd_batcher *b)
+{
+    if (!b)
+        return;
+    pthread_mutex_lock(&b->lock);
+    b->stopping = 1;
+    pthread_cond_signal(&b->wake);
+    pthread_mutex_unlock(&b->lock);
+    pthread_join(b->thread, NULL);
+    pthread_cond_destroy(&b->wake);
+    pthread_mutex_destroy(&b->lock);
+    free(b->points), free(b->distance), free(b->vec3), free(b->triangle);
+    free(b);
+}
+
+int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index)
+{
+    for (size_t i = 0; i < 3 * job->count; i++) {
+        if (!isfinite(job->points[i])) {
+            if (bad_index)
+                *bad_index = i / 3;
+            return SDF_ENONFINITE;
+        }
+    }
+    job->next = NULL;
+    job->enqueued = sdfd_now();
+    pthread_mutex_lock(&b->lock);
+    if (b->stopping) {
+        pthread_mutex_unlock(&b->lock);
+        return SDF_EUNAVAILABLE;
+    }
+    if (b->tail)
+        b->tail->next = job;
+    else
+        b->head = job;
+    b->tail = job;
+    sdfd_metrics_queue_depth(b->metrics, 1);
+    pthread_cond_signal(&b->wake);
+    pthread_mutex_unlock(&b->lock);
+    return 0;
+}

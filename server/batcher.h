@@ -1,0 +1,56 @@
+/* batcher.h - request coalescing, the heart of sdfd.
+ *
+ * Every query, HTTP or binary, becomes a job submitted here. One dispatcher thread takes
+ * the oldest job, waits up to the batch window (or until enough points wait) for more jobs
+ * with the same mesh, mode and sign, and runs them all as ONE library batch (sdf_query with
+ * the configured worker threads), so points from many small requests are traversed
+ * together. Results are written into each job's own `words` buffer in the wire layout
+ * (PROTOCOL.md: W 32-bit words per point), then each job's `done` callback runs on the
+ * dispatcher thread. Under load the queue fills while a batch computes, so batches grow
+ * without any waiting; the window only matters when the server is idle.
+ *
+ * Points are checked (finite) at submission, so one bad request can never fail a batch. */
+#ifndef SDFD_BATCHER_H
+#define SDFD_BATCHER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "metrics.h"
+#include "proto.h"
+#include "sdf/sdf.h"
+
+typedef struct sdfd_job sdfd_job;
+
+struct sdfd_job {
+    /* in: set by the submitter; the job and its buffers must stay alive until `done` */
+    sdf_mesh *mesh;          /* a reference the job holds; the batcher does not release it */
+    sdf_proto_mode mode;
+    sdf_sign_method sign;
+    const float *points;     /* 3 * count */
+    size_t count;
+    uint32_t *words;         /* out: count * sdf_proto_words(mode) words */
+    void (*done)(sdfd_job *job);
+    void *user;
+    /* out */
+    int status;              /* 0 or an SDF_E* code */
+    /* private */
+    sdfd_job *next;
+    double enqueued;
+};
+
+typedef struct sdfd_batcher sdfd_batcher;
+
+int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, sdfd_metrics *metrics,
+                        sdfd_batcher **out);
+/* Finish every queued job, then stop the thread and free. */
+void sdfd_batcher_destroy(sdfd_batcher *b);
+
+/* Queue a job. Returns 0 (done will be called), or an error and done is NOT called:
+ * SDF_ENONFINITE (*bad_index set), SDF_EUNAVAILABLE (shutting down). */
+int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
+
+/* Seconds on a monotonic clock. */
+double sdfd_now(void);
+
+#endif

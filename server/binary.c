@@ -1,0 +1,505 @@
+/* binary.c - the binary protocol listener: one thread polls the listening socket and every
+ * connection (non-blocking), splits the byte stream into frames, and answers HELLO and
+ * LIST_MESHES itself; a QUERY becomes a batcher job whose reply frame is built in place
+ * (the result words sit right after the frame header, so nothing is copied) and appended to
+ * the connection's output queue by the dispatcher thread, which wakes the poll loop through
+ * an eventfd. Replies therefore leave in completion order, matched by request id.
+ *
+ * Limits: a frame's length is checked against max_payload before the input buffer grows;
+ * at most 64 queries per connection are in flight, beyond which the connection is not read
+ * (TCP backpressure); a connection idle mid-frame for the timeout is closed; a framing error
+ * gets one ERROR frame and the connection closes after it is sent. A connection that goes
+ * away with queries in flight is freed when the last of them completes. */
+#define _GNU_SOURCE /* accept4 */
+#include "binary.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/eventfd.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "log.h"
+#include "proto.h"
+
+#define MAX_IN_FLIGHT 64
+
+typedef struct out_frame {
+    struct out_frame *next;
+    char *data;   /* frame bytes (malloc'd) */
+    size_t len, sent;
+} out_frame;
+
+typedef struct connection connection;
+
+typedef struct bin_job {
+    sdfd_job job;
+    connection *conn;
+    uint32_t request_id;
+    char *frame;  /* header + result prefix + words */
+    float *points;
+    double start;
+} bin_job;
+
+struct connection {
+    int fd;
+    unsigned char *in;
+    size_t in_len, in_cap;
+    double last_activity;
+    int closing;                /* send what is queued, then close */
+    int dead;                   /* socket closed; waiting for in-flight jobs */
+    pthread_mutex_t lock;       /* out queue and in_flight: shared with the dispatcher */
+    out_frame *out_head, *out_tail;
+    int in_flight;
+    connection *next;
+};
+
+struct sdfd_binary {
+    sdfd_server *srv;
+    int listen_fd, wake_fd;
+    pthread_t thread;
+    atomic_int stop, quiesced;
+    connection *conns;
+    size_t conn_count;
+    uint32_t max_payload;
+};
+
+static void wake(sdfd_binary *b)
+{
+    uint64_t one = 1;
+    ssize_t unused = write(b->wake_fd, &one, sizeof one);
+    (void)unused;
+}
+
+/* Queue a frame; takes ownership of data. Any thread. */
+static void enqueue(connection *c, char *data, size_t len)
+{
+    out_frame *f = malloc(sizeof *f);
+    if (!f) {
+        free(data);
+        return;
+    }
+    *f = (out_frame){NULL, data, len, 0};
+    pthread_mutex_lock(&c->lock);
+    if (c->out_tail)
+        c->out_tail->next = f;
+    else
+        c->out_head = f;
+    c->out_tail = f;
+    pthread_mutex_unlock(&c->lock);
+}
+
+static void send_error(connection *c, uint32_t id, int err, const char *message)
+{
+    char *frame = malloc(512);
+    if (!frame)
+        return;
+    size_t n = sdf_proto_encode_error(frame, 512, id, err, message);
+    enqueue(c, frame, n);
+}
+
+/* ---- queries ----------------------------------------------------------------------------- */
+
+static void query_done(sdfd_job *job)
+{
+    bin_job *bj = (bin_job *)job;
+    connection *c = bj->conn;
+    sdfd_binary *b = job->user;
+    int status = job->status ? sdf_http_status(job->status) : 200;
+    if (job->status) {
+        send_error(c, bj->request_id, job->status, sdf_strerror(job->status));
+        free(bj->frame);
+    } else {
+        size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
+                     4 * sdf_proto_words(job->mode) * job->count;
+        enqueue(c, bj->frame, len);
+    }
+    double seconds = sdfd_now() - bj->start;
+    sdfd_metrics_request(b->srv->metrics, SDFD_ROUTE_BIN_QUERY, status, seconds);
+    sdf_mesh_release(job->mesh);
+    free(bj->points);
+    free(bj);
+    pthread_mutex_lock(&c->lock);
+    c->in_flight--;
+    pthread_mutex_unlock(&c->lock);
+    atomic_fetch_sub(&b->srv->in_flight, 1);
+    wake(b);
+}
+
+static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsigned char *payload,
+                         size_t len)
+{
+    sdfd_server *srv = b->srv;
+    sdf_proto_query q;
+    const char *why;
+    int rc = sdf_proto_decode_query(payload, len, (uint32_t)srv->cfg.max_points, &q, &why);
+    if (rc) {
+        send_error(c, id, rc, why);
+        return;
+    }
+    if (atomic_load(&srv->draining)) {
+        send_error(c, id, SDF_EUNAVAILABLE, "the server is shutting down");
+        return;
+    }
+    sdf_mesh *mesh = sdfd_registry_get(srv->registry, q.name, q.name_len);
+    if (!mesh) {
+        char message[300];
+        snprintf(message, sizeof message, "no mesh named '%.*s'", (int)q.name_len, q.name);
+        send_error(c, id, SDF_ENOTFOUND, message);
+        return;
+    }
+    bin_job *bj = calloc(1, sizeof *bj);
+    size_t words = (size_t)sdf_proto_words(q.mode) * q.count;
+    if (bj) {
+        bj->frame = malloc(SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX + 4 * words);
+        bj->points = malloc(12 * (size_t)q.count + 4);
+    }
+    if (!bj || !bj->frame || !bj->points) {
+        if (bj)
+            free(bj->frame), free(bj->points);
+        free(bj);
+        sdf_mesh_release(mesh);
+        send_error(c, id, SDF_ENOMEM, "out of memory");
+        return;
+    }
+    memcpy(bj->points, q.points, 12 * (size_t)q.count); /* the input buffer will move on */
+    size_t head = sdf_proto_encode_result_head(bj->frame, id, q.mode, q.count);
+    bj->conn = c;
+    bj->request_id = id;
+    bj->start = sdfd_now();
+    bj->job = (sdfd_job){.mesh = mesh, .mode = q.mode, .sign = q.sign, .points = bj->points,
+                         .count = q.count, .words = (uint32_t *)(bj->frame + head),
+                         .done = query_done, .user = b};
+    pthread_mutex_lock(&c->lock);
+    c->in_flight++;
+    pthread_mutex_unlock(&c->lock);
+    atomic_fetch_add(&srv->in_flight, 1);
+    size_t bad = 0;
+    rc = sdfd_batcher_submit(srv->batcher, &bj->job, &bad);
+    if (rc) {
+        char message[96];
+        if (rc == SDF_ENONFINITE)
+            snprintf(message, sizeof message, "point %zu has a NaN or infinite coordinate", bad);
+        else
+            snprintf(message, sizeof message, "%s", sdf_strerror(rc));
+        send_error(c, id, rc, message);
+        sdf_mesh_release(mesh);
+        free(bj->frame), free(bj->points), free(bj);
+        pthread_mutex_lock(&c->lock);
+        c->in_flight--;
+        pthread_mutex_unlock(&c->lock);
+        atomic_fetch_sub(&srv->in_flight, 1);
+        return;
+    }
+    sdfd_metrics_points(srv->metrics, q.count);
+}
+
+static void handle_list(sdfd_binary *b, connection *c, uint32_t id)
+{
+    sdfd_entry *list;
+    size_t n = sdfd_registry_list(b->srv->registry, &list);
+    sdf_proto_mesh_entry *entries = calloc(n + 1, sizeof *entries);
+    for (size_t i = 0; entries && i < n; i++) {
+        sdf_mesh_report r;
+        sdf_mesh_get_report(list[i].mesh, &r);
+        entries[i] = (sdf_proto_mesh_entry){list[i].name, strlen(list[i].name), r.triangles,
+                                            (uint8_t)r.closed, (uint8_t)r.auto_sign};
+    }
+    size_t size = entries ? sdf_proto_meshes_size(entries, n) : 0;
+    char *frame = size ? malloc(size) : NULL;
+    if (frame && sdf_proto_encode_meshes(frame, size, id, entries, n) == size)
+        enqueue(c, frame, size);
+    else {
+        free(frame);
+        send_error(c, id, SDF_ENOMEM, "out of memory");
+    }
+    free(entries);
+    sdfd_registry_free_list(list, n);
+}
+
+static void handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *h,
+                         const unsigned char *payload)
+{
+    if (h->type == SDF_PROTO_QUERY) {
+        handle_query(b, c, h->request_id, payload, h->length);
+        return;
+    }
+    double start = sdfd_now();
+    int status = 200;
+    if (h->type == SDF_PROTO_HELLO) {
+        sdf_proto_hello hello = {SDF_PROTO_VERSION, b->max_payload, (uint32_t)b->srv->cfg.max_points,
+                                 "sdfd " SDFD_VERSION, strlen("sdfd " SDFD_VERSION)};
+        char *frame = malloc(128);
+        size_t n = frame ? sdf_proto_encode_hello_ok(frame, 128, h->request_id, &hello) : 0;
+        if (n)
+            enqueue(c, frame, n);
+        else
+            free(frame);
+    } else if (h->type == SDF_PROTO_LIST_MESHES) {
+        handle_list(b, c, h->request_id);
+    } else {
+        send_error(c, h->request_id, SDF_EPROTO, "unknown message type");
+        status = 400;
+    }
+    sdfd_metrics_request(b->srv->metrics, SDFD_ROUTE_BIN_OTHER, status, sdfd_now() - start);
+}
+
+/* ---- connections ------------------------------------------------------------------------- */
+
+/* Parse every complete frame in the input buffer. */
+static void consume_input(sdfd_binary *b, connection *c)
+{
+    size_t off = 0;
+    while (!c->closing && c->in_len - off >= SDF_PROTO_HEADER_SIZE) {
+        pthread_mutex_lock(&c->lock);
+        int busy = c->in_flight >= MAX_IN_FLIGHT;
+        pthread_mutex_unlock(&c->lock);
+        if (busy)
+            break; /* the rest waits for replies to go out */
+        sdf_proto_header h;
+        const char *why;
+        int rc = sdf_proto_decode_header(c->in + off, c->in_len - off, b->max_payload, &h, &why);
+        if (rc) { /* the stream cannot be trusted any more */
+            send_error(c, 0, rc, why);
+            c->closing = 1;
+            break;
+        }
+        if (c->in_len - off - SDF_PROTO_HEADER_SIZE < h.length)
+            break; /* the rest of this frame has not arrived */
+        handle_frame(b, c, &h, c->in + off + SDF_PROTO_HEADER_SIZE);
+        off += SDF_PROTO_HEADER_SIZE + h.length;
+    }
+    memmove(c->in, c->in + off, c->in_len - off);
+    c->in_len -= off;
+}
+
+/* How many bytes the input buffer needs for the frame being read (checked cap). */
+static size_t input_need(const sdfd_binary *b, const connection *c)
+{
+    if (c->in_len < SDF_PROTO_HEADER_SIZE)
+        return 64 * 1024;
+    sdf_proto_header h;
+    if (sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL))
+        return c->in_cap;
+    size_t need = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
+    return need > 64 * 1024 ? need : 64 * 1024;
+}
+
+static int read_input(sdfd_binary *b, connection *c)
+{
+    size_t need = input_need(b, c);
+    if (need > c->in_cap) {
+        unsigned char *in = realloc(c->in, need);
+        if (!in)
+            return -1;
+        c->in = in, c->in_cap = need;
+    }
+    ssize_t n = recv(c->fd, c->in + c->in_len, c->in_cap - c->in_len, 0);
+    if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR))
+        return -1;
+    if (n > 0) {
+        c->in_len += (size_t)n;
+        c->last_activity = sdfd_now();
+        consume_input(b, c);
+    }
+    return 0;
+}
+
+static int write_output(connection *c)
+{
+    for (;;) {
+        pthread_mutex_lock(&c->lock);
+        out_frame *f = c->out_head;
+        pthread_mutex_unlock(&c->lock);
+        if (!f)
+            return 0;
+        ssize_t n = send(c->fd, f->data + f->sent, f->len - f->sent, MSG_NOSIGNAL);
+        if (n < 0)
+            return errno == EAGAIN || errno == EINTR ? 0 : -1;
+        c->last_activity = sdfd_now();
+        f->sent += (size_t)n;
+        if (f->sent < f->len)
+            return 0;
+        pthread_mutex_lock(&c->lock);
+        c->out_head = f->next;
+        if (!c->out_head)
+            c->out_tail = NULL;
+        pthread_mutex_unlock(&c->lock);
+        free(f->data);
+        free(f);
+    }
+}
+
+static void close_socket(sdfd_binary *b, connection *c)
+{
+    if (c->fd >= 0) {
+        close(c->fd);
+        c->fd = -1;
+        b->conn_count--;
+    }
+    c->dead = 1;
+}
+
+static void free_connection(connection *c)
+{
+    for (out_frame *f = c->out_head, *next; f; f = next) {
+        next = f->next;
+        free(f->data);
+        free(f);
+    }
+    pthread_mutex_destroy(&c->lock);
+    free(c->in);
+    free(c);
+}
+
+static void accept_connections(sdfd_binary *b)
+{
+    for (;;) {
+        int fd = accept4(b->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        if (fd < 0)
+            return;
+        if (b->conn_count >= b->srv->cfg.max_connections) {
+            close(fd);
+            continue;
+        }
+        connection *c = calloc(1, sizeof *c);
+        if (!c) {
+            close(fd);
+            continue;
+        }
+        c->fd = fd;
+        c->last_activity = sdfd_now();
+        pthread_mutex_init(&c->lock, NULL);
+        c->next = b->conns;
+        b->conns = c;
+        b->conn_count++;
+    }
+}
+
+/* Drop closed connections whose jobs have all completed. */
+static void reap(sdfd_binary *b)
+{
+    for (connection **link = &b->conns; *link;) {
+        connection *c = *link;
+        pthread_mutex_lock(&c->lock);
+        int idle = c->in_flight == 0;
+        pthread_mutex_unlock(&c->lock);
+        if (c->dead && idle) {
+            *link = c->next;
+            free_connection(c);
+        } else {
+            link = &c->next;
+        }
+    }
+}
+
+static void *poll_loop(void *arg)
+{
+    sdfd_binary *b = arg;
+    struct pollfd *fds = NULL;
+    connection **owners = NULL;
+    size_t cap = 0;
+    while (!atomic_load(&b->stop)) {
+        size_t need = b->conn_count + 2;
+        if (need > cap) {
+            cap = need * 2;
+            fds = realloc(fds, cap * sizeof *fds);
+            owners = realloc(owners, cap * sizeof *owners);
+        }
+        size_t n = 0;
+        fds[n++] = (struct pollfd){b->wake_fd, POLLIN, 0};
+        fds[n++] = (struct pollfd){atomic_load(&b->quiesced) ? -1 : b->listen_fd, POLLIN, 0};
+        for (connection *c = b->conns; c; c = c->next) {
+            if (c->dead)
+                continue;
+            pthread_mutex_lock(&c->lock);
+            short events = (c->out_head ? POLLOUT : 0) |
+                           (!c->closing && c->in_flight < MAX_IN_FLIGHT ? POLLIN : 0);
+            pthread_mutex_unlock(&c->lock);
+            owners[n] = c;
+            fds[n++] = (struct pollfd){c->fd, events, 0};
+        }
+        poll(fds, n, 1000);
+        if (fds[0].revents & POLLIN) {
+            uint64_t v;
+            ssize_t unused = read(b->wake_fd, &v, sizeof v);
+            (void)unused;
+        }
+        if (fds[1].revents & POLLIN)
+            accept_connections(b);
+        double now = sdfd_now(), timeout = b->srv->cfg.timeout_seconds;
+        for (size_t i = 2; i < n; i++) {
+            connection *c = owners[i];
+            short re = fds[i].revents;
+            int fail = (re & (POLLERR | POLLNVAL)) != 0;
+            if (!fail && (re & (POLLIN | POLLHUP)) && !c->closing)
+                fail = read_input(b, c) != 0;
+            else if (!fail && !c->closing)
+                consume_input(b, c); /* frames held back by the in-flight limit */
+            if (!fail && (re & POLLOUT))
+                fail = write_output(c) != 0;
+            pthread_mutex_lock(&c->lock);
+            int drained = !c->out_head && c->in_flight == 0;
+            pthread_mutex_unlock(&c->lock);
+            int stalled = c->in_len > 0 && now - c->last_activity > timeout;
+            if (fail || stalled || (c->closing && drained))
+                close_socket(b, c);
+        }
+        reap(b);
+    }
+    free(fds);
+    free(owners);
+    return NULL;
+}
+
+int sdfd_binary_start(sdfd_server *srv, sdfd_binary **out)
+{
+    int port;
+    int fd = sdfd_listen(srv->cfg.bin_addr, &port);
+    if (fd < 0)
+        return -1;
+    sdfd_binary *b = calloc(1, sizeof *b);
+    b->srv = srv;
+    b->listen_fd = fd;
+    b->wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    uint64_t payload = 12ull * srv->cfg.max_points + 4096;
+    b->max_payload = payload > UINT32_MAX ? UINT32_MAX : (uint32_t)payload;
+    fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK); /* accept4 loops until EAGAIN */
+    if (b->wake_fd < 0 || pthread_create(&b->thread, NULL, poll_loop, b)) {
+        close(fd);
+        free(b);
+        return -1;
+    }
+    sdfd_log_listening("binary", srv->cfg.bin_addr, port);
+    *out = b;
+    return 0;
+}
+
+void sdfd_binary_quiesce(sdfd_binary *b)
+{
+    atomic_store(&b->quiesced, 1);
+    wake(b);
+}
+
+void sdfd_binary_stop(sdfd_binary *b)
+{
+    if (!b)
+        return;
+    atomic_store(&b->stop, 1);
+    wake(b);
+    pthread_join(b->thread, NULL);
+    for (connection *c = b->conns, *next; c; c = next) {
+        next = c->next;
+        if (c->fd >= 0)
+            close(c->fd);
+        free_connection(c);
+    }
+    close(b->listen_fd);
+    close(b->wake_fd);
+    free(b);
+}

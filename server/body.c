@@ -1,0 +1,474 @@
+/* body.c - query bodies in JSON, octet-stream and npy (see body.h). */
+#include "body.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+static const char *const form_types[] = {"application/json", "application/octet-stream",
+                                         "application/x-npy"};
+
+int sdfd_form_from_type(const char *type)
+{
+    if (!type)
+        return -1;
+    size_t n = strcspn(type, ";");
+    while (n && isspace((unsigned char)type[n - 1]))
+        n--;
+    for (int f = 0; f < 3; f++)
+        if (strlen(form_types[f]) == n && !strncasecmp(type, form_types[f], n))
+            return f;
+    return -1;
+}
+
+const char *sdfd_form_type(sdfd_form form) { return form_types[form]; }
+
+static int fail(char *err, size_t cap, int code, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+
+static int fail(char *err, size_t cap, int code, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err, cap, fmt, ap);
+    va_end(ap);
+    return code;
+}
+
+/* ---- JSON ------------------------------------------------------------------------------ */
+
+typedef struct json {
+    const char *begin, *p, *end;
+    float *points;
+    size_t count, cap, max_points;
+    char *err;
+    size_t err_cap;
+} json;
+
+#define JSON_MAX_DEPTH 64
+
+static void ws(json *j)
+{
+    while (j->p < j->end && (*j->p == ' ' || *j->p == '\t' || *j->p == '\n' || *j->p == '\r'))
+        j->p++;
+}
+
+static int syntax(json *j, const char *what)
+{
+    return fail(j->err, j->err_cap, SDF_ESYNTAX, "malformed JSON at byte %ld: %s",
+                (long)(j->p - j->begin), what);
+}
+
+static int expect(json *j, char c)
+{
+    ws(j);
+    if (j->p >= j->end || *j->p != c) {
+        char what[32];
+        snprintf(what, sizeof what, "expected '%c'", c);
+        return syntax(j, what);
+    }
+    j->p++;
+    return 0;
+}
+
+/* A JSON string; returns its raw contents (escapes left in place: keys and enum values
+ * we compare never contain any). */
+static int string(json *j, const char **s, size_t *n)
+{
+    if (expect(j, '"'))
+        return SDF_ESYNTAX;
+    *s = j->p;
+    while (j->p < j->end && *j->p != '"') {
+        if ((unsigned char)*j->p < 0x20)
+            return syntax(j, "control character in a string");
+        if (*j->p == '\\' && ++j->p >= j->end)
+            break;
+        j->p++;
+    }
+    if (j->p >= j->end)
+        return syntax(j, "unterminated string");
+    *n = (size_t)(j->p - *s);
+    j->p++;
+    return 0;
+}
+
+/* A JSON number (strict grammar: no NaN, Inf, hex or leading '+'). */
+static int number(json *j, double *v)
+{
+    ws(j);
+    const char *s = j->p;
+    if (s < j->end && *s == '-')
+        s++;
+    if (s >= j->end || !isdigit((unsigned char)*s))
+        return syntax(j, "expected a number");
+    char *q;
+    *v = strtod(j->p, &q);
+    if (q == j->p || q > j->end)
+        return syntax(j, "malformed number");
+    j->p = q;
+    return 0;
+}
+
+static int literal(json *j, const char *word)
+{
+    size_t n = strlen(word);
+    if ((size_t)(j->end - j->p) < n || memcmp(j->p, word, n))
+        return syntax(j, "unexpected token");
+    j->p += n;
+    return 0;
+}
+
+/* Parse and discard any value (for keys we do not use). */
+static int skip_value(json *j, int depth)
+{
+    ws(j);
+    if (depth > JSON_MAX_DEPTH)
+        return syntax(j, "nested too deeply");
+    if (j->p >= j->end)
+        return syntax(j, "expected a value");
+    const char *s;
+    size_t n;
+    double v;
+    switch (*j->p) {
+    case '"': return string(j, &s, &n);
+    case 't': return literal(j, "true");
+    case 'f': return literal(j, "false");
+    case 'n': return literal(j, "null");
+    case '[':
+    case '{': {
+        char close = *j->p == '[' ? ']' : '}';
+        int object = close == '}';
+        j->p++;
+        ws(j);
+        if (j->p < j->end && *j->p == close) {
+            j->p++;
+            return 0;
+        }
+        for (;;) {
+            if (object && (string(j, &s, &n) || expect(j, ':')))
+                return SDF_ESYNTAX;
+            if (skip_value(j, depth + 1))
+                return SDF_ESYNTAX;
+            ws(j);
+            if (j->p < j->end && *j->p == ',') {
+                j->p++;
+                continue;
+            }
+            return expect(j, close);
+        }
+    }
+    default: return number(j, &v);
+    }
+}
+
+static int push_coordinate(json *j, double v)
+{
+    if (j->count == j->cap) {
+        if (j->cap >= 3 * j->max_points)
+            return fail(j->err, j->err_cap, SDF_ELIMIT, "more than %zu points (limit)", j->max_points);
+        size_t cap = j->cap ? 2 * j->cap : 3 * 1024;
+        if (cap > 3 * j->max_points)
+            cap = 3 * j->max_points;
+        float *p = realloc(j->points, cap * sizeof *p);
+        if (!p)
+            return fail(j->err, j->err_cap, SDF_ENOMEM, "out of memory for points");
+        j->points = p, j->cap = cap;
+    }
+    j->points[j->count++] = (float)v;
+    return 0;
+}
+
+/* After a failed number: a type error if another JSON value starts here, else bad syntax. */
+static int not_a_number(json *j, const char *what)
+{
+    ws(j);
+    if (j->p < j->end && strchr("\"{[tfn", *j->p))
+        return fail(j->err, j->err_cap, SDF_EINVAL, "%s", what);
+    return syntax(j, "expected a number");
+}
+
+/* "points": [x, y, z, ...] or [[x, y, z], ...] */
+static int points_array(json *j)
+{
+    ws(j);
+    if (j->p >= j->end || *j->p != '[')
+        return not_a_number(j, "\"points\" must be an array");
+    j->p++;
+    ws(j);
+    if (j->p < j->end && *j->p == ']') {
+        j->p++;
+        return 0;
+    }
+    int nested = j->p < j->end && *j->p == '[';
+    for (;;) {
+        double v;
+        int rc;
+        if (nested) {
+            ws(j);
+            if (j->p >= j->end || *j->p != '[')
+                return not_a_number(j, "\"points\" must hold only [x, y, z] arrays or only numbers");
+            j->p++;
+            for (int k = 0; k < 3; k++) {
+                char what[64];
+                snprintf(what, sizeof what, "point %zu is not an array of 3 numbers", j->count / 3);
+                if (k && expect(j, ','))
+                    return j->p < j->end && *j->p == ']' ? fail(j->err, j->err_cap, SDF_EINVAL, "%s", what)
+                                                         : SDF_ESYNTAX;
+                const char *at = j->p;
+                if (number(j, &v)) {
+                    j->p = at;
+                    return not_a_number(j, what);
+                }
+                if ((rc = push_coordinate(j, v)))
+                    return rc;
+            }
+            ws(j);
+            if (j->p < j->end && *j->p == ',')
+                return fail(j->err, j->err_cap, SDF_EINVAL, "point %zu has more than 3 numbers",
+                            j->count / 3 - 1);
+            if (expect(j, ']'))
+                return SDF_ESYNTAX;
+        } else {
+            const char *at = j->p;
+            if (number(j, &v)) {
+                j->p = at;
+                return not_a_number(j, "\"points\" must hold only numbers or only [x, y, z] arrays");
+            }
+            if ((rc = push_coordinate(j, v)))
+                return rc;
+        }
+        ws(j);
+        if (j->p < j->end && *j->p == ',') {
+            j->p++;
+            continue;
+        }
+        if (expect(j, ']'))
+            return SDF_ESYNTAX;
+        if (!nested && j->count % 3)
+            return fail(j->err, j->err_cap, SDF_EINVAL,
+                        "a flat \"points\" array needs a multiple of 3 numbers, got %zu", j->count);
+        return 0;
+    }
+}
+
+static int json_object(json *j, sdfd_query_params *params, int *have_points)
+{
+    if (expect(j, '{'))
+        return fail(j->err, j->err_cap, SDF_ESYNTAX, "the body must be a JSON object");
+    ws(j);
+    if (j->p < j->end && *j->p == '}') {
+        j->p++;
+        return 0;
+    }
+    for (;;) {
+        const char *key, *s;
+        size_t n, sn;
+        int rc;
+        if (string(j, &key, &n) || expect(j, ':'))
+            return SDF_ESYNTAX;
+        if (n == 6 && !memcmp(key, "points", 6)) {
+            if ((rc = points_array(j)))
+                return rc;
+            *have_points = 1;
+        } else if ((n == 4 && !memcmp(key, "mode", 4)) || (n == 4 && !memcmp(key, "sign", 4))) {
+            ws(j);
+            if (j->p >= j->end || *j->p != '"')
+                return fail(j->err, j->err_cap, SDF_EINVAL, "\"%.4s\" must be a string", key);
+            if ((rc = string(j, &s, &sn)))
+                return rc;
+            if (key[0] == 'm')
+                params->mode = s, params->mode_len = sn;
+            else
+                params->sign = s, params->sign_len = sn;
+        } else if ((rc = skip_value(j, 1))) {
+            return rc;
+        }
+        ws(j);
+        if (j->p < j->end && *j->p == ',') {
+            j->p++;
+            continue;
+        }
+        if (expect(j, '}'))
+            return SDF_ESYNTAX;
+        ws(j);
+        return j->p == j->end ? 0 : syntax(j, "trailing characters after the object");
+    }
+}
+
+static int parse_json(char *body, size_t len, size_t max_points, sdfd_query_params *params,
+                      float **points, size_t *count, int *owned, char *err, size_t cap)
+{
+    json j = {body, body, body + len, NULL, 0, 0, max_points, err, cap};
+    int have_points = 0;
+    int rc = json_object(&j, params, &have_points);
+    if (!rc && !have_points)
+        rc = fail(err, cap, SDF_EINVAL, "the body has no \"points\"");
+    if (rc) {
+        free(j.points);
+        return rc;
+    }
+    *points = j.points;
+    *count = j.count / 3;
+    *owned = 1;
+    return 0;
+}
+
+/* ---- octet-stream and npy ----------------------------------------------------------------- */
+
+static int parse_npy(char *body, size_t len, size_t max_points, float **points, size_t *count,
+                     int *owned, char *err, size_t cap)
+{
+    sdf_npy_info info;
+    sdf_diag diag;
+    int rc = sdf_npy_parse(body, len, &info, &diag);
+    if (rc)
+        return fail(err, cap, rc == SDF_ETRUNC || rc == SDF_EPARSE ? SDF_ESYNTAX : rc, "npy: %s",
+                    diag.message);
+    if (info.ndim != 2 || info.shape[1] != 3)
+        return fail(err, cap, SDF_EINVAL, "npy: points must have shape (N, 3)");
+    if (info.shape[0] > max_points)
+        return fail(err, cap, SDF_ELIMIT, "%zu points, more than the limit of %zu", info.shape[0],
+                    max_points);
+    *count = info.shape[0];
+    if (info.dtype == SDF_NPY_F32) { /* the header is a multiple of 64 bytes: data aligned */
+        *points = (float *)(body + info.data_offset);
+        *owned = 0;
+        return 0;
+    }
+    float *p = malloc((3 * *count + 1) * sizeof *p);
+    if (!p)
+        return fail(err, cap, SDF_ENOMEM, "out of memory");
+    for (size_t i = 0; i < 3 * *count; i++) {
+        double d;
+        memcpy(&d, body + info.data_offset + 8 * i, 8);
+        p[i] = (float)d;
+    }
+    *points = p;
+    *owned = 1;
+    return 0;
+}
+
+int sdfd_parse_points(sdfd_form form, char *body, size_t len, size_t max_points,
+                      sdfd_query_params *params, float **points, size_t *count, int *owned,
+                      char *err, size_t err_cap)
+{
+    *owned = 0;
+    if (form == SDFD_FORM_JSON)
+        return parse_json(body, len, max_points, params, points, count, owned, err, err_cap);
+    if (form == SDFD_FORM_NPY)
+        return parse_npy(body, len, max_points, points, count, owned, err, err_cap);
+    if (len % 12)
+        return fail(err, err_cap, SDF_ESYNTAX,
+                    "octet-stream body of %zu bytes is not a whole number of 12-byte points", len);
+    if (len / 12 > max_points)
+        return fail(err, err_cap, SDF_ELIMIT, "%zu points, more than the limit of %zu", len / 12,
+                    max_points);
+    *points = (float *)body; /* malloc'd body: aligned */
+    *count = len / 12;
+    return 0;
+}
+
+/* ---- replies ----------------------------------------------------------------------------- */
+
+static long npy_header(char *dst, size_t cap, sdf_proto_mode mode, size_t count)
+{
+    size_t shape[2] = {count, sdf_proto_words(mode)};
+    if (mode == SDF_MODE_CLOSEST)
+        return sdf_npy_write_header_descr(
+            dst, cap, "[('distance', '<f4'), ('closest', '<f4', (3,)), ('triangle', '<u4')]", 1,
+            shape);
+    return sdf_npy_write_header(dst, cap, shape[1] == 1 ? 1 : 2, shape);
+}
+
+int sdfd_reply_init(sdfd_reply *r, sdfd_form form, sdf_proto_mode mode, size_t count)
+{
+    char header[512];
+    long h = form == SDFD_FORM_NPY ? npy_header(header, sizeof header, mode, count) : 0;
+    if (h < 0)
+        return SDF_ENOMEM;
+    size_t bytes = (size_t)h + 4 * sdf_proto_words(mode) * count;
+    r->buffer = malloc(bytes + 1);
+    if (!r->buffer)
+        return SDF_ENOMEM;
+    memcpy(r->buffer, header, (size_t)h);
+    r->header = (size_t)h;
+    r->words = (uint32_t *)(r->buffer + h);
+    r->count = count;
+    r->mode = mode;
+    return 0;
+}
+
+typedef struct text {
+    char *s;
+    size_t len, cap;
+} text;
+
+static int reserve(text *t, size_t more)
+{
+    if (t->len + more <= t->cap)
+        return 0;
+    size_t cap = (t->len + more) * 2;
+    char *s = realloc(t->s, cap);
+    if (!s)
+        return -1;
+    t->s = s, t->cap = cap;
+    return 0;
+}
+
+/* Append a float array field: "name":[v,...] or "name":[[x,y,z],...] */
+static int json_field(text *t, const char *name, const sdfd_reply *r, int word, int width,
+                      int is_uint)
+{
+    unsigned w = sdf_proto_words(r->mode);
+    if (reserve(t, strlen(name) + 8 + r->count * (width * 17 + 4)))
+        return -1;
+    t->len += (size_t)sprintf(t->s + t->len, "%s\"%s\":[", t->len > 1 ? "," : "", name);
+    for (size_t i = 0; i < r->count; i++) {
+        const uint32_t *src = r->words + (size_t)w * i + word;
+        if (i)
+            t->s[t->len++] = ',';
+        if (width > 1)
+            t->s[t->len++] = '[';
+        for (int k = 0; k < width; k++) {
+            float f;
+            memcpy(&f, &src[k], 4);
+            t->len += is_uint ? (size_t)sprintf(t->s + t->len, "%u", src[k])
+                              : (size_t)sprintf(t->s + t->len, k ? ",%.9g" : "%.9g", (double)f);
+        }
+        if (width > 1)
+            t->s[t->len++] = ']';
+    }
+    t->s[t->len++] = ']';
+    return 0;
+}
+
+char *sdfd_reply_render(sdfd_reply *r, sdfd_form form, size_t *len)
+{
+    if (form != SDFD_FORM_JSON) {
+        *len = r->header + 4 * sdf_proto_words(r->mode) * r->count;
+        char *out = r->buffer;
+        r->buffer = NULL;
+        return out;
+    }
+    text t = {0};
+    if (reserve(&t, 2))
+        return NULL;
+    t.s[t.len++] = '{';
+    int rc = json_field(&t, "distance", r, 0, 1, 0);
+    if (!rc && r->mode == SDF_MODE_GRADIENT)
+        rc = json_field(&t, "gradient", r, 1, 3, 0);
+    if (!rc && r->mode == SDF_MODE_CLOSEST)
+        rc = json_field(&t, "closest", r, 1, 3, 0) || json_field(&t, "triangle", r, 4, 1, 1);
+    if (rc || reserve(&t, 2)) {
+        free(t.s);
+        return NULL;
+    }
+    t.s[t.len++] = '}';
+    t.s[t.len] = '\0';
+    *len = t.len;
+    return t.s;
+}

@@ -1,0 +1,43 @@
+/* config.h - sdfd's settings: every flag, its SDFD_* environment variable, its default.
+ * Flags win over the environment, which wins over defaults. */
+#ifndef SDFD_CONFIG_H
+#define SDFD_CONFIG_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define SDFD_MAX_MESH_ARGS 64
+
+typedef struct sdfd_mesh_arg {
+    const char *name, *path;
+} sdfd_mesh_arg;
+
+typedef struct sdfd_config {
+    const char *http_addr;        /* HOST:PORT; port 0 picks a free one (logged at start) */
+    const char *bin_addr;
+    sdfd_mesh_arg meshes[SDFD_MAX_MESH_ARGS];
+    size_t mesh_count;
+    const char *mesh_dir;
+    int threads;                  /* 0 = all CPUs */
+    const char *token;            /* NULL = no authentication */
+    int auth_queries;             /* queries need the token too */
+    size_t max_body_bytes;
+    size_t max_points;            /* per request */
+    unsigned max_connections;
+    unsigned max_per_ip;
+    unsigned timeout_seconds;     /* idle connection timeout */
+    size_t max_meshes;
+    size_t max_total_triangles;
+    unsigned batch_window_us;     /* how long the batcher waits for more requests */
+    size_t batch_max_points;      /* ... or until this many points are waiting */
+    unsigned drain_seconds;       /* graceful shutdown: how long in-flight work may take */
+} sdfd_config;
+
+/* Fill `cfg` from argv and the environment. Returns 0; 1 if --help was printed (exit 0);
+ * -1 after printing a clear message to stderr (exit non-zero). */
+int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv);
+
+/* Split "HOST:PORT" ("[::1]:8080" for IPv6) into host and port; 0 or -1. */
+int sdfd_split_address(const char *addr, char *host, size_t host_cap, char *port, size_t port_cap);
+
+#endif

@@ -1,0 +1,586 @@
+/* http.c - the HTTP API on libmicrohttpd (routes in docs/api.md).
+ *
+ * MHD's threads only do I/O: they receive bodies, parse them, format replies. Geometry runs
+ * elsewhere: a query becomes a batcher job and a mesh upload a loader thread, and the
+ * connection is suspended (MHD_suspend_connection) until that work resumes it. The
+ * connection is suspended before the work is handed over, so the resume can never come
+ * first.
+ *
+ * Each request walks the same steps: `admit` (route, method, auth, Content-Length, all
+ * checked from the headers before any body byte is read), `receive` (append the body, never
+ * past its declared length), `dispatch` (start the work, or answer at once), and after a
+ * resume, `reply_*`. The completion callback logs, counts and frees. */
+#include "http.h"
+
+#include <cjson/cJSON.h>
+#include <microhttpd.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "body.h"
+#include "log.h"
+
+struct sdfd_http {
+    sdfd_server *srv;
+    struct MHD_Daemon *daemon;
+    int listen_fd;
+};
+
+typedef enum work { WORK_NONE, WORK_QUERY, WORK_UPLOAD } work;
+
+typedef struct request {
+    sdfd_http *http;
+    struct MHD_Connection *conn;
+    const char *method;
+    sdfd_route route;
+    char route_text[96];
+    char name[SDFD_MAX_NAME + 1]; /* mesh name from the URL */
+    double start;
+    int answered;                 /* a response is queued */
+    int status;
+    size_t points, bytes_out;
+    /* body */
+    char *body;
+    size_t len, declared;
+    /* background work; `finished` is set by the worker before it resumes the connection */
+    work work;
+    atomic_int finished;
+    sdfd_job job;
+    float *points_buf;
+    int points_owned;
+    sdfd_form reply_form;
+    sdfd_reply reply;
+    sdf_mesh *uploaded;
+    int upload_rc, replaced;
+    sdf_diag diag;
+} request;
+
+/* ---- responses --------------------------------------------------------------------------- */
+
+static enum MHD_Result send_buffer(request *req, int status, const char *type, char *body,
+                                   size_t len, const char *count)
+{
+    struct MHD_Response *r = MHD_create_response_from_buffer(len, body, MHD_RESPMEM_MUST_FREE);
+    if (!r) {
+        free(body);
+        return MHD_NO;
+    }
+    MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type);
+    if (count)
+        MHD_add_response_header(r, "X-SDF-Count", count);
+    if (status == MHD_HTTP_UNAUTHORIZED)
+        MHD_add_response_header(r, MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
+    if (status == MHD_HTTP_METHOD_NOT_ALLOWED)
+        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW,
+                                req->route == SDFD_ROUTE_MESH     ? "GET, PUT, DELETE"
+                                : req->route == SDFD_ROUTE_QUERY ? "POST"
+                                                                  : "GET");
+    if (atomic_load(&req->http->srv->draining))
+        MHD_add_response_header(r, MHD_HTTP_HEADER_CONNECTION, "close");
+    enum MHD_Result ok = MHD_queue_response(req->conn, (unsigned)status, r);
+    MHD_destroy_response(r);
+    req->answered = 1;
+    req->status = status;
+    req->bytes_out = len;
+    return ok;
+}
+
+static enum MHD_Result send_json(request *req, int status, cJSON *json)
+{
+    char *text = cJSON_PrintUnformatted(json);
+    cJSON_Delete(json);
+    if (!text)
+        return MHD_NO;
+    return send_buffer(req, status, "application/json", text, strlen(text), NULL);
+}
+
+/* {"error": {"code": "ENOTFOUND", "message": "..."}} with the code's HTTP status. */
+static enum MHD_Result send_error(request *req, int code, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+static enum MHD_Result send_error(request *req, int code, const char *fmt, ...)
+{
+    char message[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(message, sizeof message, fmt, ap);
+    va_end(ap);
+    cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
+    cJSON_AddStringToObject(err, "code", sdf_errname(code));
+    cJSON_AddStringToObject(err, "message", message);
+    return send_json(req, sdf_http_status(code), root);
+}
+
+static cJSON *report_json(const char *name, const sdf_mesh *mesh)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "name", name);
+    cJSON_AddStringToObject(o, "format", sdf_format_name(r.format));
+    cJSON_AddNumberToObject(o, "vertices", (double)r.vertices);
+    cJSON_AddNumberToObject(o, "input_vertices", (double)r.input_vertices);
+    cJSON_AddNumberToObject(o, "triangles", (double)r.triangles);
+    cJSON *bbox = cJSON_AddObjectToObject(o, "bbox");
+    cJSON_AddItemToObject(bbox, "min", cJSON_CreateFloatArray(r.bbox_min, 3));
+    cJSON_AddItemToObject(bbox, "max", cJSON_CreateFloatArray(r.bbox_max, 3));
+    cJSON_AddNumberToObject(o, "diagonal", r.diagonal);
+    cJSON_AddBoolToObject(o, "closed", r.closed);
+    cJSON_AddBoolToObject(o, "edge_manifold", r.edge_manifold);
+    cJSON_AddBoolToObject(o, "self_intersecting", r.self_intersecting);
+    cJSON_AddBoolToObject(o, "flipped", r.flipped);
+    cJSON_AddNumberToObject(o, "degenerate_triangles", (double)r.degenerate_triangles);
+    cJSON_AddNumberToObject(o, "boundary_edges", (double)r.boundary_edges);
+    cJSON_AddNumberToObject(o, "nonmanifold_edges", (double)r.nonmanifold_edges);
+    cJSON_AddNumberToObject(o, "misoriented_edges", (double)r.misoriented_edges);
+    cJSON_AddNumberToObject(o, "volume", r.volume);
+    cJSON_AddStringToObject(o, "sign", sdf_sign_name(r.auto_sign));
+    cJSON_AddNumberToObject(o, "index_bytes", (double)r.index_bytes);
+    cJSON_AddNumberToObject(o, "build_seconds", r.build_seconds);
+    return o;
+}
+
+/* ---- admission: everything decided from the request line and headers ------------------- */
+
+static int parse_route(request *req, const char *url)
+{
+    static const struct { const char *path; sdfd_route route; } fixed[] = {
+        {"/healthz", SDFD_ROUTE_HEALTH}, {"/readyz", SDFD_ROUTE_READY},
+        {"/metrics", SDFD_ROUTE_METRICS}, {"/v1/meshes", SDFD_ROUTE_MESHES}};
+    for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++) {
+        if (!strcmp(url, fixed[i].path)) {
+            req->route = fixed[i].route;
+            snprintf(req->route_text, sizeof req->route_text, "%s", url);
+            return 0;
+        }
+    }
+    const char *prefix = "/v1/meshes/";
+    if (strncmp(url, prefix, strlen(prefix)))
+        return -1;
+    const char *name = url + strlen(prefix), *slash = strchr(name, '/');
+    size_t n = slash ? (size_t)(slash - name) : strlen(name);
+    if (slash && strcmp(slash, "/query"))
+        return -1;
+    if (!sdfd_valid_name(name, n))
+        return -2;
+    memcpy(req->name, name, n);
+    req->name[n] = '\0';
+    req->route = slash ? SDFD_ROUTE_QUERY : SDFD_ROUTE_MESH;
+    snprintf(req->route_text, sizeof req->route_text, "%s",
+             slash ? "/v1/meshes/{name}/query" : "/v1/meshes/{name}");
+    return 0;
+}
+
+static int method_allowed(const request *req)
+{
+    const char *m = req->method;
+    switch (req->route) {
+    case SDFD_ROUTE_MESH:
+        return !strcmp(m, "GET") || !strcmp(m, "PUT") || !strcmp(m, "DELETE");
+    case SDFD_ROUTE_QUERY:
+        return !strcmp(m, "POST");
+    default:
+        return !strcmp(m, "GET") || !strcmp(m, "HEAD");
+    }
+}
+
+static int authorized(const request *req)
+{
+    const sdfd_config *cfg = &req->http->srv->cfg;
+    int needs = !strcmp(req->method, "PUT") || !strcmp(req->method, "DELETE") ||
+                (cfg->auth_queries && req->route == SDFD_ROUTE_QUERY);
+    if (!cfg->token || !needs)
+        return 1;
+    const char *h = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                MHD_HTTP_HEADER_AUTHORIZATION);
+    return h && !strncmp(h, "Bearer ", 7) && !strcmp(h + 7, cfg->token);
+}
+
+/* Decide from the headers alone; returns MHD_YES with a response queued if refused. */
+static enum MHD_Result admit(request *req, const char *url)
+{
+    sdfd_server *srv = req->http->srv;
+    int route = parse_route(req, url);
+    if (route == -1)
+        return send_error(req, SDF_ENOTFOUND, "no route %s", url);
+    if (route == -2)
+        return send_error(req, SDF_EINVAL, "mesh names are 1-255 characters of A-Z a-z 0-9 . _ - "
+                                           "and do not start with '.'");
+    if (!method_allowed(req))
+        return send_error(req, SDF_EMETHOD, "%s is not allowed on %s", req->method, req->route_text);
+    if (!authorized(req))
+        return send_error(req, SDF_EUNAUTHORIZED, "this request needs 'Authorization: Bearer <token>'");
+    if (atomic_load(&srv->draining) && req->route != SDFD_ROUTE_HEALTH &&
+        req->route != SDFD_ROUTE_READY && req->route != SDFD_ROUTE_METRICS)
+        return send_error(req, SDF_EUNAVAILABLE, "the server is shutting down");
+    int has_body = !strcmp(req->method, "POST") || !strcmp(req->method, "PUT");
+    if (!has_body)
+        return MHD_YES;
+    const char *cl = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                 MHD_HTTP_HEADER_CONTENT_LENGTH);
+    char *end;
+    unsigned long long declared = cl ? strtoull(cl, &end, 10) : 0;
+    if (!cl || !*cl || *end)
+        return send_error(req, SDF_ELENGTH, "send the body with a Content-Length header");
+    if (declared > srv->cfg.max_body_bytes)
+        return send_error(req, SDF_ELIMIT, "the body is %llu bytes, over the limit of %zu",
+                          declared, srv->cfg.max_body_bytes);
+    /* The whole body in one allocation, sized by a checked length, NUL-terminated. */
+    req->declared = (size_t)declared;
+    req->body = malloc(req->declared + 1);
+    if (!req->body)
+        return send_error(req, SDF_ENOMEM, "out of memory for a %zu-byte body", req->declared);
+    req->body[0] = '\0';
+    return MHD_YES;
+}
+
+/* ---- work: queries ----------------------------------------------------------------------- */
+
+static void query_done(sdfd_job *job)
+{
+    request *req = job->user;
+    atomic_store(&req->finished, 1);
+    MHD_resume_connection(req->conn);
+}
+
+/* A parameter from the body (JSON) or else the URL query string. */
+static const char *param(request *req, const char *body_value, size_t n, const char *key,
+                         char *buf, size_t cap)
+{
+    if (body_value) {
+        snprintf(buf, cap, "%.*s", (int)(n < cap ? n : cap - 1), body_value);
+        return buf;
+    }
+    return MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, key);
+}
+
+static int reply_form(request *req, sdfd_form request_form)
+{
+    const char *accept = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                     MHD_HTTP_HEADER_ACCEPT);
+    int f = sdfd_form_from_type(accept);
+    return f >= 0 ? f : (int)request_form;
+}
+
+static enum MHD_Result start_query(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    const char *type = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                   MHD_HTTP_HEADER_CONTENT_TYPE);
+    int form = sdfd_form_from_type(type);
+    if (form < 0)
+        return send_error(req, SDF_EFORMAT, "Content-Type must be application/json, "
+                                            "application/octet-stream or application/x-npy");
+    sdfd_query_params params = {0};
+    char err[256], mode_buf[32], sign_buf[32];
+    size_t count;
+    int rc = sdfd_parse_points((sdfd_form)form, req->body, req->len, srv->cfg.max_points, &params,
+                               &req->points_buf, &count, &req->points_owned, err, sizeof err);
+    if (rc)
+        return send_error(req, rc, "%s", err);
+    const char *mode = param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
+    const char *sign = param(req, params.sign, params.sign_len, "sign", sign_buf, sizeof sign_buf);
+    sdf_proto_mode m = SDF_MODE_SIGNED;
+    sdf_sign_method s = SDF_SIGN_AUTO;
+    if (mode && sdf_proto_mode_from_name(mode, &m))
+        return send_error(req, SDF_EINVAL, "unknown mode '%s' (signed, distance, gradient, closest)", mode);
+    if (sign && sdf_sign_from_name(sign, &s))
+        return send_error(req, SDF_EINVAL,
+                          "unknown sign '%s' (auto, pseudonormal, winding, raycast, none)", sign);
+    sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
+    if (!mesh)
+        return send_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+    req->points = count;
+    req->reply_form = (sdfd_form)reply_form(req, (sdfd_form)form);
+    if (sdfd_reply_init(&req->reply, req->reply_form, m, count)) {
+        sdf_mesh_release(mesh);
+        return send_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
+    }
+    req->job = (sdfd_job){.mesh = mesh, .mode = m, .sign = s, .points = req->points_buf,
+                          .count = count, .words = req->reply.words, .done = query_done,
+                          .user = req};
+    req->work = WORK_QUERY;
+    MHD_suspend_connection(req->conn); /* before submitting: the resume cannot come first */
+    size_t bad = 0;
+    rc = sdfd_batcher_submit(srv->batcher, &req->job, &bad);
+    if (rc) {
+        req->work = WORK_NONE;
+        MHD_resume_connection(req->conn);
+        if (rc == SDF_ENONFINITE)
+            return send_error(req, rc, "point %zu has a NaN or infinite coordinate", bad);
+        return send_error(req, rc, "%s", sdf_strerror(rc));
+    }
+    sdfd_metrics_points(srv->metrics, count);
+    return MHD_YES;
+}
+
+static enum MHD_Result reply_query(request *req)
+{
+    if (req->job.status)
+        return send_error(req, req->job.status, "query failed: %s", sdf_strerror(req->job.status));
+    size_t len;
+    char *body = sdfd_reply_render(&req->reply, req->reply_form, &len);
+    if (!body)
+        return send_error(req, SDF_ENOMEM, "out of memory formatting %zu results", req->points);
+    char count[32];
+    snprintf(count, sizeof count, "%zu", req->points);
+    return send_buffer(req, 200, sdfd_form_type(req->reply_form), body, len, count);
+}
+
+/* ---- work: uploads ----------------------------------------------------------------------- */
+
+static void *load_upload(void *arg)
+{
+    request *req = arg;
+    sdfd_server *srv = req->http->srv;
+    sdf_mesh_options opts = {.max_triangles = srv->cfg.max_total_triangles};
+    const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
+    if (format && sdf_format_from_name(format, &opts.format)) {
+        req->upload_rc = SDF_EFORMAT;
+        snprintf(req->diag.message, sizeof req->diag.message,
+                 "unknown format '%s' (obj, ply, stl, off)", format);
+    } else {
+        req->upload_rc = sdf_mesh_load_memory(req->body, req->len, &opts, &req->uploaded, &req->diag);
+    }
+    if (!req->upload_rc) {
+        req->upload_rc = sdfd_registry_put(srv->registry, req->name,
+                                           sdf_mesh_retain(req->uploaded), &req->replaced);
+        if (req->upload_rc == SDF_ELIMIT)
+            snprintf(req->diag.message, sizeof req->diag.message,
+                     "loading it would exceed --max-meshes or --max-triangles");
+    }
+    atomic_store(&req->finished, 1);
+    MHD_resume_connection(req->conn);
+    return NULL;
+}
+
+static enum MHD_Result start_upload(request *req)
+{
+    pthread_t t;
+    pthread_attr_t attr;
+    pthread_attr_init(&attr);
+    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+    req->work = WORK_UPLOAD;
+    MHD_suspend_connection(req->conn);
+    int failed = pthread_create(&t, &attr, load_upload, req);
+    pthread_attr_destroy(&attr);
+    if (failed) {
+        req->work = WORK_NONE;
+        MHD_resume_connection(req->conn);
+        return send_error(req, SDF_EUNAVAILABLE, "cannot start a loader thread");
+    }
+    return MHD_YES;
+}
+
+static enum MHD_Result reply_upload(request *req)
+{
+    if (req->upload_rc)
+        return send_error(req, req->upload_rc, "%s", req->diag.message);
+    sdfd_log("info", "mesh_loaded", "%s: %s by upload", req->name, req->replaced ? "replaced" : "added");
+    return send_json(req, req->replaced ? 200 : 201, report_json(req->name, req->uploaded));
+}
+
+/* ---- the simple routes ------------------------------------------------------------------- */
+
+static enum MHD_Result status_reply(request *req, int status, const char *state)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "status", state);
+    return send_json(req, status, o);
+}
+
+static enum MHD_Result list_meshes(request *req)
+{
+    sdfd_entry *list;
+    size_t n = sdfd_registry_list(req->http->srv->registry, &list);
+    cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "meshes");
+    for (size_t i = 0; i < n; i++) {
+        sdf_mesh_report r;
+        sdf_mesh_get_report(list[i].mesh, &r);
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "name", list[i].name);
+        cJSON_AddNumberToObject(o, "triangles", (double)r.triangles);
+        cJSON_AddBoolToObject(o, "closed", r.closed);
+        cJSON_AddStringToObject(o, "sign", sdf_sign_name(r.auto_sign));
+        cJSON_AddItemToArray(arr, o);
+    }
+    sdfd_registry_free_list(list, n);
+    return send_json(req, 200, root);
+}
+
+static enum MHD_Result mesh_route(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    if (!strcmp(req->method, "PUT"))
+        return start_upload(req);
+    if (!strcmp(req->method, "DELETE")) {
+        if (sdfd_registry_remove(srv->registry, req->name))
+            return send_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+        sdfd_log("info", "mesh_deleted", "%s", req->name);
+        return send_buffer(req, 204, "application/json", NULL, 0, NULL);
+    }
+    sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
+    if (!mesh)
+        return send_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+    enum MHD_Result r = send_json(req, 200, report_json(req->name, mesh));
+    sdf_mesh_release(mesh);
+    return r;
+}
+
+static enum MHD_Result dispatch(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    switch (req->route) {
+    case SDFD_ROUTE_HEALTH:
+        return status_reply(req, 200, "ok");
+    case SDFD_ROUTE_READY:
+        if (atomic_load(&srv->draining))
+            return status_reply(req, 503, "draining");
+        return atomic_load(&srv->ready) ? status_reply(req, 200, "ready")
+                                        : status_reply(req, 503, "loading");
+    case SDFD_ROUTE_METRICS: {
+        size_t len;
+        char *text = sdfd_metrics_render(srv->metrics, sdfd_registry_count(srv->registry), &len);
+        return text ? send_buffer(req, 200, "text/plain; version=0.0.4", text, len, NULL) : MHD_NO;
+    }
+    case SDFD_ROUTE_MESHES:
+        return list_meshes(req);
+    case SDFD_ROUTE_MESH:
+        return mesh_route(req);
+    case SDFD_ROUTE_QUERY:
+        return start_query(req);
+    default:
+        return send_error(req, SDF_ENOTFOUND, "no such route");
+    }
+}
+
+/* ---- MHD callbacks ----------------------------------------------------------------------- */
+
+static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url,
+                                  const char *method, const char *version,
+                                  const char *upload_data, size_t *upload_size, void **state)
+{
+    (void)version;
+    sdfd_http *http = cls;
+    request *req = *state;
+    if (!req) { /* headers are in: admit or refuse before reading the body */
+        req = calloc(1, sizeof *req);
+        if (!req)
+            return MHD_NO;
+        req->http = http;
+        req->conn = conn;
+        req->method = method;
+        req->route = SDFD_ROUTE_OTHER;
+        snprintf(req->route_text, sizeof req->route_text, "%s", "other");
+        req->start = sdfd_now();
+        atomic_fetch_add(&http->srv->in_flight, 1);
+        *state = req;
+        return admit(req, url);
+    }
+    if (req->answered) {
+        *upload_size = 0; /* refused from the headers: MHD discards the rest */
+        return MHD_YES;
+    }
+    if (*upload_size) { /* more body */
+        size_t n = *upload_size;
+        if (n > req->declared - req->len)
+            n = req->declared - req->len; /* never past the declared length */
+        memcpy(req->body + req->len, upload_data, n);
+        req->len += n;
+        req->body[req->len] = '\0';
+        *upload_size = 0;
+        return MHD_YES;
+    }
+    if (req->work != WORK_NONE) { /* resumed: the work is done */
+        if (!atomic_load(&req->finished))
+            return MHD_YES;
+        return req->work == WORK_QUERY ? reply_query(req) : reply_upload(req);
+    }
+    return dispatch(req);
+}
+
+static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
+                         enum MHD_RequestTerminationCode code)
+{
+    (void)cls, (void)conn, (void)code;
+    request *req = *state;
+    if (!req)
+        return;
+    sdfd_server *srv = req->http->srv;
+    double seconds = sdfd_now() - req->start;
+    int status = req->answered ? req->status : 499; /* client went away */
+    sdfd_metrics_request(srv->metrics, req->route, status, seconds);
+    if (req->route != SDFD_ROUTE_HEALTH && req->route != SDFD_ROUTE_READY &&
+        req->route != SDFD_ROUTE_METRICS)
+        sdfd_log_request("http", req->method, req->route_text, status, req->points, seconds * 1e6,
+                         req->len, req->bytes_out);
+    sdf_mesh_release(req->job.mesh);
+    sdf_mesh_release(req->uploaded);
+    if (req->points_owned)
+        free(req->points_buf);
+    free(req->reply.buffer);
+    free(req->body);
+    atomic_fetch_sub(&srv->in_flight, 1);
+    free(req);
+    *state = NULL;
+}
+
+static void on_mhd_log(void *cls, const char *fmt, va_list ap)
+{
+    (void)cls;
+    char message[512];
+    vsnprintf(message, sizeof message, fmt, ap);
+    message[strcspn(message, "\n")] = '\0';
+    sdfd_log("warn", "http", "%s", message);
+}
+
+int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
+{
+    int port;
+    int fd = sdfd_listen(srv->cfg.http_addr, &port);
+    if (fd < 0)
+        return -1;
+    sdfd_http *http = calloc(1, sizeof *http);
+    http->srv = srv;
+    http->listen_fd = fd;
+    unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_EPOLL | MHD_ALLOW_SUSPEND_RESUME |
+                     MHD_USE_ERROR_LOG;
+    http->daemon = MHD_start_daemon(
+        flags, 0, NULL, NULL, on_request, http,
+        MHD_OPTION_EXTERNAL_LOGGER, on_mhd_log, http, /* first, so every message goes through it */
+        MHD_OPTION_LISTEN_SOCKET, fd,
+        MHD_OPTION_THREAD_POOL_SIZE, 2u,
+        MHD_OPTION_CONNECTION_LIMIT, srv->cfg.max_connections,
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv->cfg.max_per_ip,
+        MHD_OPTION_CONNECTION_TIMEOUT, srv->cfg.timeout_seconds,
+        MHD_OPTION_NOTIFY_COMPLETED, on_completed, http,
+        MHD_OPTION_END);
+    if (!http->daemon) {
+        sdfd_log("error", "listen", "libmicrohttpd failed to start on %s", srv->cfg.http_addr);
+        close(fd);
+        free(http);
+        return -1;
+    }
+    sdfd_log_listening("http", srv->cfg.http_addr, port);
+    *out = http;
+    return 0;
+}
+
+void sdfd_http_quiesce(sdfd_http *http)
+{
+    int fd = MHD_quiesce_daemon(http->daemon);
+    if (fd >= 0)
+        close(fd);
+}
+
+void sdfd_http_stop(sdfd_http *http)
+{
+    if (!http)
+        return;
+    MHD_stop_daemon(http->daemon);
+    free(http);
+}

@@ -1,0 +1,164 @@
+/* metrics.c - Prometheus counters and histograms (see metrics.h). Statuses are kept per
+ * route in a fixed table of the codes sdfd answers with. */
+#include "metrics.h"
+
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const int statuses[] = {200, 201, 202, 204, 400, 401, 404, 405, 411, 413, 415, 422, 429, 500, 503};
+#define N_STATUS (sizeof statuses / sizeof statuses[0])
+static const char *const route_names[SDFD_ROUTE_COUNT] = {
+    "/healthz", "/readyz", "/metrics", "/v1/meshes", "/v1/meshes/{name}",
+    "/v1/meshes/{name}/query", "bin:query", "bin:other", "other"};
+
+/* A histogram with fixed upper bounds (+Inf implied). */
+#define MAX_BUCKETS 16
+typedef struct histogram {
+    const char *name, *help;
+    const double *bounds;
+    int n;
+    atomic_ullong buckets[MAX_BUCKETS + 1];
+    atomic_ullong count;
+    _Atomic double sum;
+} histogram;
+
+static const double latency_bounds[] = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01,
+                                        0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10};
+static const double request_bounds[] = {1, 2, 4, 8, 16, 32, 64, 128, 256};
+static const double point_bounds[] = {1, 10, 100, 1000, 10000, 100000, 1000000, 10000000};
+
+struct sdfd_metrics {
+    atomic_ullong requests[SDFD_ROUTE_COUNT][N_STATUS + 1];
+    atomic_ullong points;
+    atomic_long queue_depth;
+    histogram latency, batch_requests, batch_points, batch_seconds;
+};
+
+static void hist_init(histogram *h, const char *name, const char *help, const double *b, int n)
+{
+    memset(h, 0, sizeof *h);
+    h->name = name, h->help = help, h->bounds = b, h->n = n;
+}
+
+static void hist_observe(histogram *h, double v)
+{
+    int i = 0;
+    while (i < h->n && v > h->bounds[i])
+        i++;
+    atomic_fetch_add(&h->buckets[i], 1);
+    atomic_fetch_add(&h->count, 1);
+    double old = atomic_load(&h->sum);
+    while (!atomic_compare_exchange_weak(&h->sum, &old, old + v))
+        ;
+}
+
+sdfd_metrics *sdfd_metrics_create(void)
+{
+    sdfd_metrics *m = calloc(1, sizeof *m);
+    if (!m)
+        return NULL;
+    hist_init(&m->latency, "sdfd_request_seconds", "Request latency, receipt to reply.",
+              latency_bounds, 16);
+    hist_init(&m->batch_requests, "sdfd_batch_requests", "Requests coalesced into one batch.",
+              request_bounds, 9);
+    hist_init(&m->batch_points, "sdfd_batch_points", "Points in one batch.", point_bounds, 8);
+    hist_init(&m->batch_seconds, "sdfd_batch_seconds", "Time to compute one batch.",
+              latency_bounds, 16);
+    return m;
+}
+
+void sdfd_metrics_destroy(sdfd_metrics *m) { free(m); }
+
+void sdfd_metrics_request(sdfd_metrics *m, sdfd_route route, int status, double seconds)
+{
+    size_t s = 0;
+    while (s < N_STATUS && statuses[s] != status)
+        s++;
+    atomic_fetch_add(&m->requests[route][s], 1);
+    hist_observe(&m->latency, seconds);
+}
+
+void sdfd_metrics_points(sdfd_metrics *m, size_t points) { atomic_fetch_add(&m->points, points); }
+
+void sdfd_metrics_batch(sdfd_metrics *m, size_t requests, size_t points, double seconds)
+{
+    hist_observe(&m->batch_requests, (double)requests);
+    hist_observe(&m->batch_points, (double)points);
+    hist_observe(&m->batch_seconds, seconds);
+}
+
+void sdfd_metrics_queue_depth(sdfd_metrics *m, long delta) { atomic_fetch_add(&m->queue_depth, delta); }
+
+typedef struct out {
+    char *s;
+    size_t len, cap;
+} out;
+
+static void emit(out *o, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+static void emit(out *o, const char *fmt, ...)
+{
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = vsnprintf(o->s ? o->s + o->len : NULL, o->s ? o->cap - o->len : 0, fmt, ap);
+        va_end(ap);
+        if (n < 0)
+            return;
+        if (o->s && o->len + (size_t)n < o->cap) {
+            o->len += (size_t)n;
+            return;
+        }
+        size_t cap = (o->cap + (size_t)n + 1) * 2;
+        char *s = realloc(o->s, cap);
+        if (!s)
+            return;
+        o->s = s, o->cap = cap;
+    }
+}
+
+static void render_histogram(out *o, histogram *h)
+{
+    emit(o, "# HELP %s %s\n# TYPE %s histogram\n", h->name, h->help, h->name);
+    unsigned long long cumulative = 0;
+    for (int i = 0; i <= h->n; i++) {
+        cumulative += atomic_load(&h->buckets[i]);
+        if (i < h->n)
+            emit(o, "%s_bucket{le=\"%g\"} %llu\n", h->name, h->bounds[i], cumulative);
+        else
+            emit(o, "%s_bucket{le=\"+Inf\"} %llu\n", h->name, cumulative);
+    }
+    emit(o, "%s_sum %.9g\n%s_count %llu\n", h->name, atomic_load(&h->sum), h->name,
+         (unsigned long long)atomic_load(&h->count));
+}
+
+char *sdfd_metrics_render(sdfd_metrics *m, size_t meshes_loaded, size_t *len)
+{
+    out o = {0};
+    emit(&o, "# HELP sdfd_requests_total Requests answered, by route and status.\n"
+             "# TYPE sdfd_requests_total counter\n");
+    for (int r = 0; r < SDFD_ROUTE_COUNT; r++)
+        for (size_t s = 0; s <= N_STATUS; s++) {
+            unsigned long long v = atomic_load(&m->requests[r][s]);
+            char status[16];
+            snprintf(status, sizeof status, s < N_STATUS ? "%d" : "other", s < N_STATUS ? statuses[s] : 0);
+            if (v)
+                emit(&o, "sdfd_requests_total{route=\"%s\",status=\"%s\"} %llu\n",
+                     route_names[r], status, v);
+        }
+    emit(&o, "# HELP sdfd_points_total Points queried.\n# TYPE sdfd_points_total counter\n"
+             "sdfd_points_total %llu\n", (unsigned long long)atomic_load(&m->points));
+    emit(&o, "# HELP sdfd_queue_depth Requests waiting for the batcher.\n"
+             "# TYPE sdfd_queue_depth gauge\nsdfd_queue_depth %ld\n", atomic_load(&m->queue_depth));
+    emit(&o, "# HELP sdfd_meshes_loaded Meshes being served.\n# TYPE sdfd_meshes_loaded gauge\n"
+             "sdfd_meshes_loaded %zu\n", meshes_loaded);
+    render_histogram(&o, &m->latency);
+    render_histogram(&o, &m->batch_requests);
+    render_histogram(&o, &m->batch_points);
+    render_histogram(&o, &m->batch_seconds);
+    *len = o.len;
+    return o.s;
+}

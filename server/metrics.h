@@ -1,0 +1,28 @@
+/* metrics.h - counters and histograms for /metrics (Prometheus text format 0.0.4). All
+ * updates are lock-free atomics so recording costs nothing measurable on the hot path. */
+#ifndef SDFD_METRICS_H
+#define SDFD_METRICS_H
+
+#include <stddef.h>
+
+typedef struct sdfd_metrics sdfd_metrics;
+
+/* Routes the request counter distinguishes. */
+typedef enum sdfd_route {
+    SDFD_ROUTE_HEALTH, SDFD_ROUTE_READY, SDFD_ROUTE_METRICS, SDFD_ROUTE_MESHES,
+    SDFD_ROUTE_MESH, SDFD_ROUTE_QUERY, SDFD_ROUTE_BIN_QUERY, SDFD_ROUTE_BIN_OTHER,
+    SDFD_ROUTE_OTHER, SDFD_ROUTE_COUNT
+} sdfd_route;
+
+sdfd_metrics *sdfd_metrics_create(void);
+void sdfd_metrics_destroy(sdfd_metrics *m);
+
+void sdfd_metrics_request(sdfd_metrics *m, sdfd_route route, int status, double seconds);
+void sdfd_metrics_points(sdfd_metrics *m, size_t points);
+void sdfd_metrics_batch(sdfd_metrics *m, size_t requests, size_t points, double seconds);
+void sdfd_metrics_queue_depth(sdfd_metrics *m, long delta);
+
+/* Render everything (plus the given gauge of loaded meshes) into a new string. */
+char *sdfd_metrics_render(sdfd_metrics *m, size_t meshes_loaded, size_t *len);
+
+#endif
