@@ -6,8 +6,8 @@
  * an eventfd. Replies therefore leave in completion order, matched by request id.
  *
  * Limits: a frame's length is checked against max_payload before the input buffer grows;
- * at most 64 queries per connection are in flight, beyond which the connection is not read
- * (TCP backpressure); a connection idle mid-frame for the timeout is closed; a framing error
+ * at most 64 queries per connection are in flight and at most 64 MiB of replies wait unsent,
+ * beyond which the connection is not read (TCP backpressure on a client that does not read); a connection idle mid-frame for the timeout is closed; a framing error
  * gets one ERROR frame and the connection closes after it is sent. A connection that goes
  * away with queries in flight is freed when the last of them completes. */
 #define _GNU_SOURCE /* accept4 */
@@ -28,6 +28,7 @@
 #include "proto.h"
 
 #define MAX_IN_FLIGHT 64
+#define MAX_QUEUED_OUT (64u << 20) /* unsent reply bytes before we stop reading */
 
 typedef struct out_frame {
     struct out_frame *next;
@@ -55,6 +56,7 @@ struct connection {
     int dead;                   /* socket closed; waiting for in-flight jobs */
     pthread_mutex_t lock;       /* out queue and in_flight: shared with the dispatcher */
     out_frame *out_head, *out_tail;
+    size_t out_bytes;           /* queued, not yet sent */
     int in_flight;
     connection *next;
 };
@@ -91,6 +93,7 @@ static void enqueue(connection *c, char *data, size_t len)
     else
         c->out_head = f;
     c->out_tail = f;
+    c->out_bytes += len;
     pthread_mutex_unlock(&c->lock);
 }
 
@@ -257,7 +260,7 @@ static void consume_input(sdfd_binary *b, connection *c)
     size_t off = 0;
     while (!c->closing && c->in_len - off >= SDF_PROTO_HEADER_SIZE) {
         pthread_mutex_lock(&c->lock);
-        int busy = c->in_flight >= MAX_IN_FLIGHT;
+        int busy = c->in_flight >= MAX_IN_FLIGHT || c->out_bytes >= MAX_QUEUED_OUT;
         pthread_mutex_unlock(&c->lock);
         if (busy)
             break; /* the rest waits for replies to go out */
@@ -274,8 +277,10 @@ static void consume_input(sdfd_binary *b, connection *c)
         handle_frame(b, c, &h, c->in + off + SDF_PROTO_HEADER_SIZE);
         off += SDF_PROTO_HEADER_SIZE + h.length;
     }
-    memmove(c->in, c->in + off, c->in_len - off);
-    c->in_len -= off;
+    if (off) { /* c->in is NULL before the first read */
+        memmove(c->in, c->in + off, c->in_len - off);
+        c->in_len -= off;
+    }
 }
 
 /* How many bytes the input buffer needs for the frame being read (checked cap). */
@@ -329,6 +334,7 @@ static int write_output(connection *c)
         c->out_head = f->next;
         if (!c->out_head)
             c->out_tail = NULL;
+        c->out_bytes -= f->len;
         pthread_mutex_unlock(&c->lock);
         free(f->data);
         free(f);
@@ -418,8 +424,8 @@ static void *poll_loop(void *arg)
             if (c->dead)
                 continue;
             pthread_mutex_lock(&c->lock);
-            short events = (c->out_head ? POLLOUT : 0) |
-                           (!c->closing && c->in_flight < MAX_IN_FLIGHT ? POLLIN : 0);
+            int room = c->in_flight < MAX_IN_FLIGHT && c->out_bytes < MAX_QUEUED_OUT;
+            short events = (c->out_head ? POLLOUT : 0) | (!c->closing && room ? POLLIN : 0);
             pthread_mutex_unlock(&c->lock);
             owners[n] = c;
             fds[n++] = (struct pollfd){c->fd, events, 0};

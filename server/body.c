@@ -436,8 +436,14 @@ static int json_field(text *t, const char *name, const sdfd_reply *r, int word, 
         for (int k = 0; k < width; k++) {
             float f;
             memcpy(&f, &src[k], 4);
-            t->len += is_uint ? (size_t)sprintf(t->s + t->len, "%u", src[k])
-                              : (size_t)sprintf(t->s + t->len, k ? ",%.9g" : "%.9g", (double)f);
+            if (k)
+                t->s[t->len++] = ',';
+            if (is_uint)
+                t->len += (size_t)sprintf(t->s + t->len, "%u", src[k]);
+            else if (f == 0 && signbit(f)) /* "-0" would read back as the integer 0 */
+                t->len += (size_t)sprintf(t->s + t->len, "-0.0");
+            else
+                t->len += (size_t)sprintf(t->s + t->len, "%.9g", (double)f);
         }
         if (width > 1)
             t->s[t->len++] = ']';

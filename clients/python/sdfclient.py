@@ -1,0 +1,261 @@
+"""sdfclient - Python client for sdfd (standard library + numpy only).
+
+    import numpy as np, sdfclient
+    c = sdfclient.Client("http://127.0.0.1:8080")
+    c.meshes()                                   # [{'name': 'demo', 'triangles': 12288, ...}]
+    r = c.query("demo", np.zeros((5, 3)), mode="gradient")
+    r["distance"], r["gradient"]                 # float32 arrays (5,) and (5, 3)
+
+    b = sdfclient.BinaryClient("127.0.0.1", 9090)
+    r = b.query("demo", points, mode="closest")  # distance, closest, triangle
+    rs = b.query_many([("demo", p1), ("demo", p2)])   # pipelined on one connection
+
+Results are dicts of numpy arrays: "distance" always; "gradient" (mode gradient); "closest"
+and "triangle" (mode closest). Errors raise SdfError with the HTTP status, the error code
+(e.g. "ENOTFOUND") and the server's message.
+"""
+import http.client
+import io
+import json
+import socket
+import struct
+import urllib.parse
+
+import numpy as np
+
+__all__ = ["Client", "BinaryClient", "SdfError"]
+
+MODES = {"signed": 0, "distance": 1, "gradient": 2, "closest": 3}
+SIGNS = {"auto": 0, "pseudonormal": 1, "winding": 2, "raycast": 3, "none": 4}
+WORDS = {0: 1, 1: 1, 2: 4, 3: 5}
+
+
+class SdfError(Exception):
+    """A request sdfd refused: .status (HTTP status), .code ("EINVAL" ...), .message."""
+
+    def __init__(self, status, code, message):
+        super().__init__(f"{status} {code}: {message}")
+        self.status, self.code, self.message = status, code, message
+
+
+def _points(points):
+    p = np.ascontiguousarray(points, dtype=np.float32)
+    if p.ndim == 1 and p.size % 3 == 0:
+        p = p.reshape(-1, 3)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError("points must have shape (N, 3)")
+    return p
+
+
+def _split_words(words, mode):
+    """(N, W) uint32 words in the wire layout -> result dict."""
+    out = {"distance": words[:, 0].view(np.float32).copy()}
+    if mode == "gradient":
+        out["gradient"] = words[:, 1:4].copy().view(np.float32)
+    if mode == "closest":
+        out["closest"] = words[:, 1:4].copy().view(np.float32)
+        out["triangle"] = words[:, 4].copy()
+    return out
+
+
+class Client:
+    """HTTP client on one persistent connection (not thread-safe: one per thread)."""
+
+    def __init__(self, url="http://127.0.0.1:8080", token=None, timeout=120):
+        u = urllib.parse.urlsplit(url)
+        self.host, self.port = u.hostname, u.port or 80
+        self.token, self.timeout = token, timeout
+        self._conn = None
+
+    def close(self):
+        if self._conn:
+            self._conn.close()
+            self._conn = None
+
+    def _request(self, method, path, body=None, headers=None):
+        headers = dict(headers or {})
+        if self.token:
+            headers["Authorization"] = f"Bearer {self.token}"
+        for attempt in (0, 1):  # one retry if a kept-alive connection was closed meanwhile
+            if self._conn is None:
+                self._conn = http.client.HTTPConnection(self.host, self.port, timeout=self.timeout)
+            try:
+                self._conn.request(method, path, body=body, headers=headers)
+                resp = self._conn.getresponse()
+                data = resp.read()
+                break
+            except (http.client.RemoteDisconnected, ConnectionResetError, BrokenPipeError):
+                self.close()
+                if attempt:
+                    raise
+        if resp.getheader("Connection", "").lower() == "close":
+            self.close()
+        if resp.status >= 400:
+            try:
+                e = json.loads(data)["error"]
+                raise SdfError(resp.status, e["code"], e["message"])
+            except (ValueError, KeyError, TypeError):
+                raise SdfError(resp.status, "EUNKNOWN", data[:200].decode("utf-8", "replace"))
+        return resp, data
+
+    def _json(self, method, path):
+        return json.loads(self._request(method, path)[1])
+
+    def health(self):
+        return self._json("GET", "/healthz")
+
+    def meshes(self):
+        return self._json("GET", "/v1/meshes")["meshes"]
+
+    def mesh(self, name):
+        return self._json("GET", f"/v1/meshes/{name}")
+
+    def upload(self, name, path, format=None):
+        with open(path, "rb") as f:
+            data = f.read()
+        q = f"?format={format}" if format else ""
+        return json.loads(self._request("PUT", f"/v1/meshes/{name}{q}", data,
+                                        {"Content-Type": "application/octet-stream"})[1])
+
+    def delete(self, name):
+        self._request("DELETE", f"/v1/meshes/{name}")
+
+    def metrics(self):
+        return self._request("GET", "/metrics")[1].decode()
+
+    def query(self, name, points, mode="signed", sign="auto", form="npy"):
+        """Query points ((N, 3) array-like) in body form "npy", "octet" or "json"."""
+        p = _points(points)
+        path = f"/v1/meshes/{name}/query"
+        if form == "json":
+            body = json.dumps({"points": p.tolist(), "mode": mode, "sign": sign})
+            _, data = self._request("POST", path, body, {"Content-Type": "application/json"})
+            r = json.loads(data)
+            out = {"distance": np.asarray(r["distance"], np.float32)}
+            for k in ("gradient", "closest"):
+                if k in r:
+                    out[k] = np.asarray(r[k], np.float32).reshape(-1, 3)
+            if "triangle" in r:
+                out["triangle"] = np.asarray(r["triangle"], np.uint32)
+            return out
+        path += "?" + urllib.parse.urlencode({"mode": mode, "sign": sign})
+        if form == "octet":
+            _, data = self._request("POST", path, p.tobytes(),
+                                    {"Content-Type": "application/octet-stream"})
+            words = np.frombuffer(data, np.uint32).reshape(len(p), WORDS[MODES[mode]])
+            return _split_words(words, mode)
+        if form != "npy":
+            raise ValueError("form must be npy, octet or json")
+        buf = io.BytesIO()
+        np.save(buf, p)
+        _, data = self._request("POST", path, buf.getvalue(),
+                                {"Content-Type": "application/x-npy"})
+        a = np.load(io.BytesIO(data))
+        if mode == "closest":  # a structured array: distance, closest (3,), triangle
+            return {"distance": a["distance"], "closest": a["closest"], "triangle": a["triangle"]}
+        if a.ndim == 1:
+            return {"distance": a}
+        return {"distance": a[:, 0].copy(), "gradient": a[:, 1:4].copy()}
+
+
+class BinaryClient:
+    """Binary protocol client (proto/PROTOCOL.md) on one TCP connection."""
+
+    HEADER = struct.Struct("<4sBBHII")
+
+    def __init__(self, host="127.0.0.1", port=9090, timeout=120):
+        self.sock = socket.create_connection((host, port), timeout=timeout)
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._next_id = 1
+
+    def close(self):
+        self.sock.close()
+
+    def _send(self, type_, payload):
+        rid = self._next_id
+        self._next_id = (self._next_id + 1) & 0xFFFFFFFF or 1
+        self.sock.sendall(self.HEADER.pack(b"SDFP", 1, type_, 0, rid, len(payload)) + payload)
+        return rid
+
+    def _recv_exact(self, n):
+        chunks, got = [], 0
+        while got < n:
+            c = self.sock.recv(min(n - got, 1 << 20))
+            if not c:
+                raise ConnectionError("sdfd closed the connection")
+            chunks.append(c)
+            got += len(c)
+        return b"".join(chunks)
+
+    def _recv(self):
+        magic, version, type_, _, rid, length = self.HEADER.unpack(self._recv_exact(16))
+        if magic != b"SDFP" or version != 1:
+            raise ConnectionError("not an sdfd binary protocol reply")
+        payload = self._recv_exact(length)
+        if type_ == 0x7F:
+            status, n = struct.unpack_from("<HH", payload)
+            code = payload[4:4 + n].decode()
+            (m,) = struct.unpack_from("<H", payload, 4 + n)
+            return rid, type_, SdfError(status, code, payload[6 + n:6 + n + m].decode())
+        return rid, type_, payload
+
+    def _call(self, type_, payload=b""):
+        rid = self._send(type_, payload)
+        got, t, p = self._recv()
+        if got != rid:
+            raise ConnectionError(f"reply to request {got}, expected {rid}")
+        if isinstance(p, SdfError):
+            raise p
+        return t, p
+
+    def hello(self):
+        _, p = self._call(0x01, b"sdfclient.py")
+        version, _, max_payload, max_points, n = struct.unpack_from("<HHIIH", p)
+        return {"version": version, "max_payload": max_payload, "max_points": max_points,
+                "server": p[14:14 + n].decode()}
+
+    def meshes(self):
+        _, p = self._call(0x02)
+        (count,), off, out = struct.unpack_from("<I", p), 4, []
+        for _ in range(count):
+            (n,) = struct.unpack_from("<H", p, off)
+            name = p[off + 2:off + 2 + n].decode()
+            tris, closed, sign = struct.unpack_from("<QBB", p, off + 2 + n)
+            off += 12 + n
+            sign_name = {v: k for k, v in SIGNS.items()}.get(sign, str(sign))
+            out.append({"name": name, "triangles": tris, "closed": bool(closed), "sign": sign_name})
+        return out
+
+    @staticmethod
+    def _query_payload(name, points, mode, sign):
+        p = _points(points)
+        nb = name.encode()
+        pad = (-len(nb)) % 4
+        return struct.pack("<BBHI", MODES[mode], SIGNS[sign], len(nb), len(p)) + nb + b"\0" * pad \
+            + p.tobytes()
+
+    @staticmethod
+    def _result(payload, mode):
+        m, w, _, count = struct.unpack_from("<BBHI", payload)
+        words = np.frombuffer(payload, np.uint32, offset=8).reshape(count, w)
+        return _split_words(words, mode)
+
+    def query(self, name, points, mode="signed", sign="auto"):
+        _, p = self._call(0x03, self._query_payload(name, points, mode, sign))
+        return self._result(p, mode)
+
+    def query_many(self, requests, mode="signed", sign="auto", window=32):
+        """Pipeline [(name, points), ...] with up to `window` requests in flight; replies may
+        arrive in any order. Returns results (or SdfError objects) in request order."""
+        ids, got = [], {}
+        for name, points in requests:
+            if len(ids) - len(got) >= window:
+                self._collect(got, mode)
+            ids.append(self._send(0x03, self._query_payload(name, points, mode, sign)))
+        while len(got) < len(ids):
+            self._collect(got, mode)
+        return [got[i] for i in ids]
+
+    def _collect(self, got, mode):
+        rid, _, p = self._recv()
+        got[rid] = p if isinstance(p, SdfError) else self._result(p, mode)

@@ -1,0 +1,87 @@
+"""Start the real sdfd on free loopback ports for a test, and stop it.
+
+Ports: sdfd is started with --http 127.0.0.1:0 --bin 127.0.0.1:0 and logs the ports the
+kernel picked ("listening" events); the harness reads them from its JSON log. The log is
+drained on a thread (a full pipe would block the server) and kept for assertions.
+Paths come from meson: SDFD (the daemon), SDF_BENCH (sdf-bench), SDF_TEST_DATA."""
+import json
+import os
+import signal
+import subprocess
+import threading
+import time
+
+SDFD = os.environ.get("SDFD", "build/server/sdfd")
+SDF_BENCH = os.environ.get("SDF_BENCH", "build/tests/bench/sdf-bench")
+DATA = os.environ.get("SDF_TEST_DATA", "tests/data")
+
+
+class Server:
+    def __init__(self, *args, wait_ready=True):
+        self.proc = subprocess.Popen([SDFD, "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0", *args],
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        self.logs, self.ports = [], {}
+        self._ready = threading.Event()
+        self._reader = threading.Thread(target=self._read_log, daemon=True)
+        self._reader.start()
+        if wait_ready and not self._ready.wait(60):
+            self.stop()
+            raise RuntimeError("sdfd did not become ready:\n" + "\n".join(map(str, self.logs)))
+
+    def _read_log(self):
+        for line in self.proc.stderr:
+            try:
+                entry = json.loads(line)
+            except ValueError:
+                entry = {"unparsed": line.decode(errors="replace")}
+            self.logs.append(entry)
+            if entry.get("event") == "listening":
+                self.ports[entry["proto"]] = entry["port"]
+            if entry.get("event") == "ready":
+                self._ready.set()
+
+    @property
+    def url(self):
+        return f"http://127.0.0.1:{self.ports['http']}"
+
+    @property
+    def bin_port(self):
+        return self.ports["binary"]
+
+    def stop(self, sig=signal.SIGTERM, timeout=60):
+        """Signal the server and wait; returns its exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        try:
+            code = self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            code = self.proc.wait()
+        self._reader.join(5)
+        return code
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+def wait_until(predicate, timeout=10.0):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def metric(text, name, labels=None):
+    """Value of one Prometheus sample from /metrics text."""
+    for line in text.splitlines():
+        if line.startswith("#"):
+            continue
+        key, _, value = line.rpartition(" ")
+        if key == (f"{name}{{{labels}}}" if labels else name):
+            return float(value)
+    return None

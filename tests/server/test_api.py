@@ -1,0 +1,167 @@
+"""sdfd's HTTP API and binary protocol against the library itself: the same points, queried
+in-process by sdf-bench (which calls sdf_query directly) and through every body form and
+the binary protocol, must give the same float32 bits. Plus mesh management, auth, and the
+documented error statuses."""
+import io
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+import urllib.request
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
+import sdfclient  # noqa: E402
+from harness import DATA, SDF_BENCH, Server  # noqa: E402
+
+
+def library_results(mesh, points, mode, sign="auto"):
+    """sdf-bench --out: (N,) or (N, 4) float32 straight from sdf_query."""
+    with tempfile.TemporaryDirectory() as d:
+        np.save(os.path.join(d, "p.npy"), points)
+        out = os.path.join(d, "out.npy")
+        subprocess.run([SDF_BENCH, mesh, os.path.join(d, "p.npy"), "--mode", mode, "--sign", sign,
+                        "--repeat", "1", "--out", out], check=True, stdout=subprocess.DEVNULL)
+        return np.load(out)
+
+
+def same_bits(a, b):
+    a, b = np.ascontiguousarray(a, np.float32), np.ascontiguousarray(b, np.float32)
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+class Exactness(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.mesh = os.path.join(DATA, "fandisk.off")
+        cls.server = Server("--mesh", f"fandisk={cls.mesh}")
+        cls.http = sdfclient.Client(cls.server.url)
+        cls.bin = sdfclient.BinaryClient("127.0.0.1", cls.server.bin_port)
+        rng = np.random.default_rng(5)
+        cls.points = rng.uniform(-0.2, 0.2, (3000, 3)).astype(np.float32)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.http.close()
+        cls.bin.close()
+        cls.server.stop()
+
+    def check_mode(self, mode, sign="auto"):
+        ref = library_results(self.mesh, self.points, mode, sign)
+        ref_d = ref if ref.ndim == 1 else ref[:, 0]
+        answers = {f: self.http.query("fandisk", self.points, mode=mode, sign=sign, form=f)
+                   for f in ("json", "octet", "npy")}
+        answers["binary"] = self.bin.query("fandisk", self.points, mode=mode, sign=sign)
+        for form, r in answers.items():
+            self.assertTrue(same_bits(r["distance"], ref_d), f"{mode}/{sign} {form}: distance")
+            if mode == "gradient":
+                self.assertTrue(same_bits(r["gradient"], ref[:, 1:4]), f"{form}: gradient")
+            if mode == "closest":
+                self.assertTrue(same_bits(r["closest"], ref[:, 1:4]), f"{form}: closest")
+                self.assertTrue(np.array_equal(r["triangle"], answers["binary"]["triangle"]))
+
+    def test_signed(self):
+        self.check_mode("signed")
+
+    def test_signed_winding(self):
+        self.check_mode("signed", "winding")
+
+    def test_distance(self):
+        self.check_mode("distance")
+
+    def test_gradient(self):
+        self.check_mode("gradient")
+
+    def test_closest(self):
+        self.check_mode("closest")
+
+    def test_accept_overrides_form(self):
+        body = json.dumps({"points": self.points[:10].tolist()}).encode()
+        req = urllib.request.Request(f"{self.server.url}/v1/meshes/fandisk/query", body, method="POST",
+                                     headers={"Content-Type": "application/json",
+                                              "Accept": "application/x-npy"})
+        with urllib.request.urlopen(req) as resp:
+            self.assertEqual(resp.headers["Content-Type"], "application/x-npy")
+            self.assertEqual(resp.headers["X-SDF-Count"], "10")
+            a = np.load(io.BytesIO(resp.read()))
+        self.assertTrue(same_bits(a, library_results(self.mesh, self.points[:10], "signed")))
+
+    def test_float64_npy(self):
+        buf = io.BytesIO()
+        np.save(buf, self.points.astype(np.float64))
+        req = urllib.request.Request(f"{self.server.url}/v1/meshes/fandisk/query", buf.getvalue(),
+                                     method="POST", headers={"Content-Type": "application/x-npy"})
+        with urllib.request.urlopen(req) as resp:
+            a = np.load(io.BytesIO(resp.read()))
+        self.assertTrue(same_bits(a, library_results(self.mesh, self.points, "signed")))
+
+
+class Meshes(unittest.TestCase):
+    def test_upload_replace_delete_and_auth(self):
+        with Server("--token", "s3cret") as s:
+            anon = sdfclient.Client(s.url)
+            admin = sdfclient.Client(s.url, token="s3cret")
+            self.addCleanup(anon.close)
+            self.addCleanup(admin.close)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                anon.upload("knot", os.path.join(DATA, "knot1.off"))
+            self.assertEqual((e.exception.status, e.exception.code), (401, "EUNAUTHORIZED"))
+            rep = admin.upload("knot", os.path.join(DATA, "knot1.off"))
+            self.assertEqual((rep["triangles"], rep["closed"], rep["sign"]), (6400, True, "pseudonormal"))
+            names = sorted(m["name"] for m in anon.meshes())
+            self.assertEqual(names, ["demo", "knot"])
+            p = np.zeros((1, 3), np.float32)
+            before = anon.query("knot", p)["distance"]
+            rep = admin.upload("knot", os.path.join(DATA, "fandisk.off"))  # atomic replace
+            self.assertEqual(rep["triangles"], 12946)
+            self.assertNotEqual(anon.query("knot", p)["distance"][0], before[0])
+            self.assertEqual(anon.mesh("knot")["triangles"], 12946)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                admin.upload("bad", os.path.join(DATA, "issue623.ply"))
+            self.assertEqual(e.exception.status, 422)
+            self.assertIn("face element", e.exception.message)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                admin.upload("knot", os.path.join(DATA, "knot1.off"), format="3ds")
+            self.assertEqual(e.exception.status, 415)
+            admin.delete("knot")
+            with self.assertRaises(sdfclient.SdfError) as e:
+                anon.query("knot", p)
+            self.assertEqual(e.exception.status, 404)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                admin.delete("knot")
+            self.assertEqual(e.exception.status, 404)
+
+    def test_queries_need_token_when_asked(self):
+        with Server("--token", "t", "--auth-queries") as s:
+            with self.assertRaises(sdfclient.SdfError) as e:
+                sdfclient.Client(s.url).query("demo", np.zeros((1, 3)))
+            self.assertEqual(e.exception.status, 401)
+            sdfclient.Client(s.url, token="t").query("demo", np.zeros((1, 3)))
+
+    def test_mesh_dir_and_flags(self):
+        with tempfile.TemporaryDirectory() as d:
+            for f in ("knot1.off", "cube.ply"):
+                with open(os.path.join(DATA, f), "rb") as src, open(os.path.join(d, f), "wb") as dst:
+                    dst.write(src.read())
+            with Server("--mesh-dir", d) as s:
+                names = sorted(m["name"] for m in sdfclient.Client(s.url).meshes())
+                self.assertEqual(names, ["cube", "knot1"])
+        env = dict(os.environ, SDFD_THREADS="many")
+        r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd")], env=env,
+                           capture_output=True, timeout=30)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn(b"SDFD_THREADS", r.stderr)
+        r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--mesh", "x=/nonexistent.obj",
+                            "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0"], capture_output=True, timeout=30)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn(b"nonexistent", r.stderr)
+        r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--help"], capture_output=True)
+        self.assertEqual(r.returncode, 0)
+        self.assertIn(b"--batch-window-us", r.stdout)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)

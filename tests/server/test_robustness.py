@@ -1,0 +1,261 @@
+"""sdfd under bad input, load and shutdown:
+  - a catalogue of bad requests, each answered with its status and error code (or, for
+    garbage binary frames, an ERROR frame and a closed connection), after which the server
+    still answers /healthz and real queries;
+  - a client that sends half a request and stalls is cut off by the timeout, others unaffected;
+  - 64 concurrent clients of small requests all get correct answers, and /metrics proves
+    that batches coalesced more than one request;
+  - SIGTERM with requests in flight: every one of them is answered, then exit 0."""
+import http.client
+import json
+import os
+import signal
+import socket
+import struct
+import sys
+import threading
+import time
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
+import sdfclient  # noqa: E402
+from harness import Server, metric, wait_until  # noqa: E402
+
+
+def raw_http(port, method, path, body=b"", headers=None):
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    try:
+        c.request(method, path, body=body, headers=headers or {})
+        r = c.getresponse()
+        data = r.read()
+        return r.status, (json.loads(data) if data and r.getheader("Content-Type", "").startswith(
+            "application/json") else data)
+    finally:
+        c.close()
+
+
+class BadInput(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.server = Server("--max-body-bytes", "100000", "--max-points", "1000", "--timeout", "2")
+        cls.port = int(cls.server.url.rsplit(":", 1)[1])
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.server.stop()
+
+    def assert_alive(self):
+        self.assertEqual(raw_http(self.port, "GET", "/healthz")[0], 200)
+        c = sdfclient.Client(self.server.url)
+        d = c.query("demo", np.array([[3.35, 0, 0]], np.float32))["distance"]
+        c.close()
+        self.assertLess(abs(d[0]), 1e-5)
+
+    def expect(self, status, code, method, path, body=b"", headers=None):
+        got, data = raw_http(self.port, method, path, body, headers)
+        self.assertEqual(got, status, f"{method} {path} {body[:60]!r}: {data}")
+        if code:
+            self.assertEqual(data["error"]["code"], code, data)
+            self.assertTrue(data["error"]["message"])
+        self.assert_alive()
+
+    Q = "/v1/meshes/demo/query"
+    JSON = {"Content-Type": "application/json"}
+    OCTET = {"Content-Type": "application/octet-stream"}
+
+    def test_json_catalogue(self):
+        for body, status, code in [
+            (b'{"points": [0,0,', 400, "ESYNTAX"),
+            (b'not json', 400, "ESYNTAX"),
+            (b'{"points": [[0,0,0]]} trailing', 400, "ESYNTAX"),
+            (b'{"points": "abc"}', 422, "EINVAL"),
+            (b'{"points": [[0,0]]}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": 7}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "fast"}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "sign": "guess"}', 422, "EINVAL"),
+            (b'{"points": [0,0,0, 1e999,0,0]}', 422, "ENONFINITE"),
+            (b'{"nopoints": 1}', 422, "EINVAL"),
+            (b'{"points": [' + b"0," * 3003 + b"0]}", 413, "ELIMIT"),
+        ]:
+            with self.subTest(body=body[:40]):
+                self.expect(status, code, "POST", self.Q, body, self.JSON)
+
+    def test_http_catalogue(self):
+        nan = struct.pack("<6f", 0, 0, 0, float("nan"), 0, 0)
+        self.expect(415, "EFORMAT", "POST", self.Q, b"{}", {"Content-Type": "text/plain"})
+        self.expect(400, "ESYNTAX", "POST", self.Q, b"\0" * 13, self.OCTET)
+        self.expect(422, "ENONFINITE", "POST", self.Q, nan, self.OCTET)
+        self.expect(413, "ELIMIT", "POST", self.Q, b"\0" * 12 * 1001, self.OCTET)
+        self.expect(413, "ELIMIT", "POST", self.Q, b"\0" * 120000, self.OCTET)
+        self.expect(404, "ENOTFOUND", "POST", "/v1/meshes/nope/query", b"\0" * 12, self.OCTET)
+        self.expect(422, "EINVAL", "POST", self.Q + "?mode=fast", b"\0" * 12, self.OCTET)
+        self.expect(422, "EINVAL", "POST", self.Q + "?sign=maybe", b"\0" * 12, self.OCTET)
+        self.expect(404, "ENOTFOUND", "GET", "/nowhere")
+        self.expect(405, "EMETHOD", "GET", self.Q)
+        self.expect(405, "EMETHOD", "POST", "/v1/meshes")
+        self.expect(422, "EINVAL", "GET", "/v1/meshes/..secret")
+        npy = {"Content-Type": "application/x-npy"}
+        self.expect(415, "EFORMAT", "POST", self.Q, b"\x93NUMPY garbage", npy)
+        self.expect(400, "ESYNTAX", "POST", self.Q, b"\x93NUMPY\x01\x00\x76\x00{'descr'", npy)
+        self.expect(422, "EINDEX", "PUT", "/v1/meshes/x?format=off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n")
+
+    def test_length_required_and_oversize_header(self):
+        # Chunked upload: no Content-Length -> 411, before any body is read.
+        s = socket.create_connection(("127.0.0.1", self.port))
+        s.sendall(b"POST /v1/meshes/demo/query HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                  b"Transfer-Encoding: chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n")
+        self.assertIn(b" 411 ", s.recv(4096).split(b"\r\n")[0] + b" ")
+        s.close()
+        # A huge declared body is refused from the header alone (the body is never sent).
+        s = socket.create_connection(("127.0.0.1", self.port))
+        s.sendall(b"POST /v1/meshes/demo/query HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                  b"Content-Length: 99999999999\r\n\r\n")
+        self.assertIn(b" 413 ", s.recv(4096).split(b"\r\n")[0] + b" ")
+        s.close()
+        self.assert_alive()
+
+    def test_stalled_http_client(self):
+        s = socket.create_connection(("127.0.0.1", self.port))
+        s.sendall(b"POST /v1/meshes/demo/query HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                  b"Content-Length: 100\r\n\r\n{\"points\": [")
+        self.assert_alive()  # others are served while it stalls
+        s.settimeout(10)
+        t0 = time.time()
+        data = s.recv(4096)  # the server closes it after --timeout 2
+        self.assertLess(time.time() - t0, 9)
+        self.assertEqual(data, b"")
+        s.close()
+        self.assert_alive()
+
+    def bin_connect(self):
+        s = socket.create_connection(("127.0.0.1", self.server.bin_port))
+        s.settimeout(10)
+        return s
+
+    @staticmethod
+    def recv_frame(s):
+        head = b""
+        while len(head) < 16:
+            chunk = s.recv(16 - len(head))
+            if not chunk:
+                return None
+            head += chunk
+        magic, _, type_, _, rid, length = struct.unpack("<4sBBHII", head)
+        body = b""
+        while len(body) < length:
+            body += s.recv(length - len(body))
+        return type_, rid, body
+
+    def test_binary_garbage_closes_connection(self):
+        for junk in (b"GET / HTTP/1.1\r\n\r\n", b"SDFP\x02\x03\0\0" + b"\0" * 8,
+                     b"SDFP\x01\x03\0\0\1\0\0\0" + struct.pack("<I", 1 << 31)):
+            s = self.bin_connect()
+            s.sendall(junk)
+            type_, rid, body = self.recv_frame(s)
+            self.assertEqual((type_, rid), (0x7F, 0))
+            self.assertIsNone(self.recv_frame(s), "connection stays open after garbage")
+            s.close()
+        self.assert_alive()
+
+    def test_binary_bad_requests_keep_connection(self):
+        b = sdfclient.BinaryClient("127.0.0.1", self.server.bin_port)
+        for name, pts, mode, code in [("nope", np.zeros((1, 3)), "signed", "ENOTFOUND"),
+                                      ("demo", np.full((1, 3), np.nan), "signed", "ENONFINITE"),
+                                      ("demo", np.zeros((1001, 3)), "signed", "ELIMIT")]:
+            with self.assertRaises(sdfclient.SdfError) as e:
+                b.query(name, pts, mode=mode)
+            self.assertEqual(e.exception.code, code)
+        # A wrongly sized QUERY and an unknown type: ERROR replies, connection kept.
+        b.sock.sendall(struct.pack("<4sBBHII", b"SDFP", 1, 3, 0, 77, 9) + b"\0" * 9)
+        b.sock.sendall(struct.pack("<4sBBHII", b"SDFP", 1, 0x42, 0, 78, 0))
+        replies = {b._recv()[0]: None for _ in range(2)}
+        self.assertEqual(set(replies), {77, 78})
+        self.assertEqual(len(b.query("demo", np.zeros((4, 3)))["distance"]), 4)
+        b.close()
+
+    def test_binary_truncated_frame_times_out(self):
+        s = self.bin_connect()
+        s.sendall(struct.pack("<4sBBHII", b"SDFP", 1, 3, 0, 5, 1000) + b"\0" * 10)
+        t0 = time.time()
+        self.assertIsNone(self.recv_frame(s))  # closed after --timeout 2
+        self.assertLess(time.time() - t0, 9)
+        s.close()
+        self.assert_alive()
+
+
+class Concurrency(unittest.TestCase):
+    def test_64_clients_coalesce(self):
+        with Server("--batch-window-us", "2000") as s:
+            rng = np.random.default_rng(9)
+            sets = [rng.uniform(-3, 3, (int(rng.integers(1, 50)), 3)).astype(np.float32)
+                    for _ in range(64 * 8)]
+            ref = sdfclient.Client(s.url)
+            expected = [ref.query("demo", p, form="octet")["distance"] for p in sets]
+            ref.close()
+            errors = []
+
+            def client(i):
+                try:
+                    binary = i % 2
+                    c = (sdfclient.BinaryClient("127.0.0.1", s.bin_port) if binary
+                         else sdfclient.Client(s.url))
+                    for k in range(8):
+                        j = 8 * i + k
+                        r = c.query("demo", sets[j]) if binary else \
+                            c.query("demo", sets[j], form=("npy", "octet", "json")[k % 3])
+                        if r["distance"].tobytes() != expected[j].tobytes():
+                            errors.append(f"client {i} request {k}: wrong answer")
+                    c.close()
+                except Exception as e:  # noqa: BLE001 - reported below
+                    errors.append(f"client {i}: {e!r}")
+
+            threads = [threading.Thread(target=client, args=(i,)) for i in range(64)]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join(120)
+            self.assertEqual(errors, [])
+            text = sdfclient.Client(s.url).metrics()
+            batches = metric(text, "sdfd_batch_requests_count")
+            single = metric(text, "sdfd_batch_requests_bucket", 'le="1"')
+            self.assertGreater(batches - single, 0, "no batch held more than one request")
+            self.assertLess(batches, 64 * 8 * 2, "every request ran alone")
+            print(f"\n  {int(batches)} batches for {64 * 8 * 2} requests; "
+                  f"{int(batches - single)} held more than one", file=sys.stderr)
+
+
+class Shutdown(unittest.TestCase):
+    def test_sigterm_answers_everything_in_flight(self):
+        s = Server()
+        big = np.random.default_rng(3).uniform(-3, 3, (200000, 3)).astype(np.float32)
+        results, errors = [], []
+
+        def client(i):
+            try:
+                c = (sdfclient.BinaryClient("127.0.0.1", s.bin_port) if i % 2
+                     else sdfclient.Client(s.url))
+                results.append(len(c.query("demo", big)["distance"]))
+            except Exception as e:  # noqa: BLE001
+                errors.append(repr(e))
+
+        threads = [threading.Thread(target=client, args=(i,)) for i in range(8)]
+        for t in threads:
+            t.start()
+        # Wait until all 8 are in flight (the batcher is busy with the first ones).
+        self.assertTrue(wait_until(lambda: metric(sdfclient.Client(s.url).metrics(),
+                                                  "sdfd_points_total") >= 8 * 200000, 30))
+        s.proc.send_signal(signal.SIGTERM)
+        for t in threads:
+            t.join(120)
+        self.assertEqual(errors, [])
+        self.assertEqual(results, [200000] * 8)
+        self.assertEqual(s.stop(), 0)
+        events = [e.get("event") for e in s.logs]
+        self.assertIn("shutdown", events)
+        self.assertEqual(events[-1], "stopped")
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
