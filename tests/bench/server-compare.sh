@@ -1,0 +1,45 @@
+#!/bin/sh
+# The server's throughput next to the in-process library's on the same points, in one run:
+# starts sdfd on free ports with MESH, runs sdf-bench (in-process, 2 threads) and sdfd-bench
+# (binary, HTTP octet-stream, HTTP JSON, each one request of N points; then 64 concurrent
+# clients x 1,000 points over binary and octet-stream), and prints a Markdown table with each
+# throughput as a ratio of the in-process one. Both generate the band workload from the same
+# seed, so the points are identical. Needs a release build in build/.
+#
+#   tests/bench/server-compare.sh [MESH...]     (default: fandisk, refined_elephant)
+set -eu
+cd "$(dirname "$0")/../.."
+[ "$#" -gt 0 ] || set -- ../shared/meshes/fandisk.off ../shared/meshes/refined_elephant.off
+n=${N:-1000000}
+log=$(mktemp)
+trap 'kill $pid 2>/dev/null; rm -f "$log"' EXIT
+
+mqs() { awk '/^throughput:/ {print $2}'; }
+
+echo "| mesh | path | clients x points | Mq/s | vs in-process | latency p50 / p99 ms |"
+echo "| --- | --- | --- | ---: | ---: | --- |"
+for mesh in "$@"; do
+    build/server/sdfd --http 127.0.0.1:0 --bin 127.0.0.1:0 --mesh "m=$mesh" 2>"$log" &
+    pid=$!
+    until grep -q '"event":"ready"' "$log"; do sleep 0.1; done
+    http=$(grep '"proto":"http"' "$log" | sed 's/.*"port":\([0-9]*\).*/\1/')
+    bin=$(grep '"proto":"binary"' "$log" | sed 's/.*"port":\([0-9]*\).*/\1/')
+    base=$(build/tests/bench/sdf-bench "$mesh" --workload band --n "$n" --threads 2 | mqs)
+    name=$(basename "$mesh")
+    echo "| $name | in-process sdf-bench | 1 x $n | $base | 1.00 | |"
+    run() { # form clients
+        out=$(build/tests/bench/sdfd-bench "$mesh" --name m --http "127.0.0.1:$http" \
+            --bin "127.0.0.1:$bin" --n "$n" --form "$1" --clients "$2" --per-request 1000)
+        v=$(echo "$out" | mqs)
+        lat=$(echo "$out" | awk '/^latency/ {print $4 " / " $6}')
+        shape=$([ "$2" = 1 ] && echo "1 x $n" || echo "$2 x 1000")
+        echo "| $name | $1 | $shape | $v | $(awk -v a="$v" -v b="$base" 'BEGIN {printf "%.2f", a / b}') | $lat |"
+    }
+    run binary 1
+    run octet 1
+    run json 1
+    run binary 64
+    run octet 64
+    kill "$pid"
+    wait "$pid" 2>/dev/null || true
+done
