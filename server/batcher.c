@@ -18,6 +18,7 @@ struct sdfd_batcher {
     int threads;
     double window;
     size_t max_points;
+    size_t max_queued, queued; /* points waiting */
     sdfd_metrics *metrics;
     /* scratch for the dispatcher thread only, grown as needed */
     float *points, *distance, *vec3;
@@ -172,6 +173,7 @@ static void *dispatcher(void *arg)
             wait_until(b, deadline);
         size_t requests, points;
         sdfd_job *list = take_batch(b, &requests, &points);
+        b->queued -= points;
         pthread_mutex_unlock(&b->lock);
         run_batch(b, list, requests, points);
         pthread_mutex_lock(&b->lock);
@@ -180,8 +182,8 @@ static void *dispatcher(void *arg)
     return NULL;
 }
 
-int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, sdfd_metrics *metrics,
-                        sdfd_batcher **out)
+int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, size_t max_queued,
+                        sdfd_metrics *metrics, sdfd_batcher **out)
 {
     sdfd_batcher *b = calloc(1, sizeof *b);
     if (!b)
@@ -191,6 +193,7 @@ int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, sdfd
     b->threads = threads;
     b->window = window_us * 1e-6;
     b->max_points = max_points ? max_points : 1;
+    b->max_queued = max_queued;
     b->metrics = metrics;
     if (pthread_create(&b->thread, NULL, dispatcher, b)) {
         free(b);
@@ -231,6 +234,11 @@ int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index)
         pthread_mutex_unlock(&b->lock);
         return SDF_EUNAVAILABLE;
     }
+    if (b->head && b->queued + job->count > b->max_queued) { /* an idle queue takes any job */
+        pthread_mutex_unlock(&b->lock);
+        return SDF_EBUSY;
+    }
+    b->queued += job->count;
     if (b->tail)
         b->tail->next = job;
     else

@@ -20,6 +20,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <netinet/in.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -45,10 +46,12 @@ typedef struct bin_job {
     char *frame;  /* header + result prefix + words */
     float *points;
     double start;
+    size_t bytes_in;
 } bin_job;
 
 struct connection {
     int fd;
+    struct sockaddr_storage peer; /* for the per-address connection limit */
     unsigned char *in;
     size_t in_len, in_cap;
     double last_activity;
@@ -106,6 +109,16 @@ static void send_error(connection *c, uint32_t id, int err, const char *message)
     enqueue(c, frame, n);
 }
 
+/* One request: metrics and a log line, as the HTTP side does. */
+static void account(sdfd_binary *b, sdfd_route route, const char *what, int status, size_t points,
+                    double start, size_t bytes_in, size_t bytes_out)
+{
+    double seconds = sdfd_now() - start;
+    sdfd_metrics_request(b->srv->metrics, route, status, seconds);
+    sdfd_log_request("binary", what, route == SDFD_ROUTE_BIN_QUERY ? "query" : "other", status,
+                     points, seconds * 1e6, bytes_in, bytes_out);
+}
+
 /* ---- queries ----------------------------------------------------------------------------- */
 
 static void query_done(sdfd_job *job)
@@ -114,16 +127,16 @@ static void query_done(sdfd_job *job)
     connection *c = bj->conn;
     sdfd_binary *b = job->user;
     int status = job->status ? sdf_http_status(job->status) : 200;
+    size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
+                 4 * sdf_proto_words(job->mode) * job->count;
     if (job->status) {
         send_error(c, bj->request_id, job->status, sdf_strerror(job->status));
         free(bj->frame);
     } else {
-        size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
-                     4 * sdf_proto_words(job->mode) * job->count;
         enqueue(c, bj->frame, len);
     }
-    double seconds = sdfd_now() - bj->start;
-    sdfd_metrics_request(b->srv->metrics, SDFD_ROUTE_BIN_QUERY, status, seconds);
+    account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", status, job->count, bj->start, bj->bytes_in,
+            job->status ? 0 : len);
     sdf_mesh_release(job->mesh);
     free(bj->points);
     free(bj);
@@ -134,26 +147,36 @@ static void query_done(sdfd_job *job)
     wake(b);
 }
 
+/* Refuse a query: ERROR frame, metrics, log. */
+static void refuse(sdfd_binary *b, connection *c, uint32_t id, int err, const char *message,
+                   double start, size_t bytes_in)
+{
+    send_error(c, id, err, message);
+    account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", sdf_http_status(err), 0, start, bytes_in, 0);
+}
+
 static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsigned char *payload,
                          size_t len)
 {
     sdfd_server *srv = b->srv;
+    double start = sdfd_now();
+    size_t bytes_in = SDF_PROTO_HEADER_SIZE + len;
     sdf_proto_query q;
     const char *why;
     int rc = sdf_proto_decode_query(payload, len, (uint32_t)srv->cfg.max_points, &q, &why);
     if (rc) {
-        send_error(c, id, rc, why);
+        refuse(b, c, id, rc, why, start, bytes_in);
         return;
     }
     if (atomic_load(&srv->draining)) {
-        send_error(c, id, SDF_EUNAVAILABLE, "the server is shutting down");
+        refuse(b, c, id, SDF_EUNAVAILABLE, "the server is shutting down", start, bytes_in);
         return;
     }
     sdf_mesh *mesh = sdfd_registry_get(srv->registry, q.name, q.name_len);
     if (!mesh) {
         char message[300];
         snprintf(message, sizeof message, "no mesh named '%.*s'", (int)q.name_len, q.name);
-        send_error(c, id, SDF_ENOTFOUND, message);
+        refuse(b, c, id, SDF_ENOTFOUND, message, start, bytes_in);
         return;
     }
     bin_job *bj = calloc(1, sizeof *bj);
@@ -167,14 +190,15 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
             free(bj->frame), free(bj->points);
         free(bj);
         sdf_mesh_release(mesh);
-        send_error(c, id, SDF_ENOMEM, "out of memory");
+        refuse(b, c, id, SDF_ENOMEM, "out of memory", start, bytes_in);
         return;
     }
     memcpy(bj->points, q.points, 12 * (size_t)q.count); /* the input buffer will move on */
     size_t head = sdf_proto_encode_result_head(bj->frame, id, q.mode, q.count);
     bj->conn = c;
     bj->request_id = id;
-    bj->start = sdfd_now();
+    bj->start = start;
+    bj->bytes_in = bytes_in;
     bj->job = (sdfd_job){.mesh = mesh, .mode = q.mode, .sign = q.sign, .points = bj->points,
                          .count = q.count, .words = (uint32_t *)(bj->frame + head),
                          .done = query_done, .user = b};
@@ -188,9 +212,12 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         char message[96];
         if (rc == SDF_ENONFINITE)
             snprintf(message, sizeof message, "point %zu has a NaN or infinite coordinate", bad);
+        else if (rc == SDF_EBUSY)
+            snprintf(message, sizeof message, "more than %zu points are waiting; retry later",
+                     srv->cfg.max_queued_points);
         else
             snprintf(message, sizeof message, "%s", sdf_strerror(rc));
-        send_error(c, id, rc, message);
+        refuse(b, c, id, rc, message, start, bytes_in);
         sdf_mesh_release(mesh);
         free(bj->frame), free(bj->points), free(bj);
         pthread_mutex_lock(&c->lock);
@@ -249,7 +276,9 @@ static void handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *
         send_error(c, h->request_id, SDF_EPROTO, "unknown message type");
         status = 400;
     }
-    sdfd_metrics_request(b->srv->metrics, SDFD_ROUTE_BIN_OTHER, status, sdfd_now() - start);
+    const char *what = h->type == SDF_PROTO_HELLO ? "HELLO"
+                       : h->type == SDF_PROTO_LIST_MESHES ? "LIST_MESHES" : "UNKNOWN";
+    account(b, SDFD_ROUTE_BIN_OTHER, what, status, 0, start, SDF_PROTO_HEADER_SIZE + h->length, 0);
 }
 
 /* ---- connections ------------------------------------------------------------------------- */
@@ -363,13 +392,37 @@ static void free_connection(connection *c)
     free(c);
 }
 
+static int same_host(const struct sockaddr_storage *a, const struct sockaddr_storage *b)
+{
+    if (a->ss_family != b->ss_family)
+        return 0;
+    if (a->ss_family == AF_INET)
+        return !memcmp(&((const struct sockaddr_in *)a)->sin_addr,
+                       &((const struct sockaddr_in *)b)->sin_addr, sizeof(struct in_addr));
+    if (a->ss_family == AF_INET6)
+        return !memcmp(&((const struct sockaddr_in6 *)a)->sin6_addr,
+                       &((const struct sockaddr_in6 *)b)->sin6_addr, sizeof(struct in6_addr));
+    return 0;
+}
+
+static size_t connections_from(const sdfd_binary *b, const struct sockaddr_storage *peer)
+{
+    size_t n = 0;
+    for (const connection *c = b->conns; c; c = c->next)
+        n += !c->dead && same_host(&c->peer, peer);
+    return n;
+}
+
 static void accept_connections(sdfd_binary *b)
 {
     for (;;) {
-        int fd = accept4(b->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        struct sockaddr_storage peer;
+        socklen_t len = sizeof peer;
+        int fd = accept4(b->listen_fd, (struct sockaddr *)&peer, &len, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0)
             return;
-        if (b->conn_count >= b->srv->cfg.max_connections) {
+        if (b->conn_count >= b->srv->cfg.max_connections ||
+            connections_from(b, &peer) >= b->srv->cfg.max_per_ip) {
             close(fd);
             continue;
         }
@@ -379,6 +432,7 @@ static void accept_connections(sdfd_binary *b)
             continue;
         }
         c->fd = fd;
+        c->peer = peer;
         c->last_activity = sdfd_now();
         pthread_mutex_init(&c->lock, NULL);
         c->next = b->conns;

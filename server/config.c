@@ -35,6 +35,7 @@ static const setting settings[] = {
     {"--max-triangles", "SDFD_MAX_TRIANGLES", "N", "most triangles over all meshes (default 50000000)", SIZE, AT(max_total_triangles), 1ull << 32},
     {"--batch-window-us", "SDFD_BATCH_WINDOW_US", "US", "wait this long to coalesce requests (default 200)", UINT, AT(batch_window_us), 1000000},
     {"--batch-max-points", "SDFD_BATCH_MAX_POINTS", "N", "... or until this many points wait (default 262144)", SIZE, AT(batch_max_points), 1u << 30},
+    {"--max-queued-points", "SDFD_MAX_QUEUED_POINTS", "N", "refuse new queries (429) while this many points wait (default 16777216)", SIZE, AT(max_queued_points), 1ull << 34},
     {"--drain-seconds", "SDFD_DRAIN_SECONDS", "SECONDS", "on SIGTERM, let in-flight requests finish this long (default 30)", UINT, AT(drain_seconds), 3600},
 };
 
@@ -132,6 +133,7 @@ static void defaults(sdfd_config *cfg)
         .max_total_triangles = 50000000,
         .batch_window_us = 200,
         .batch_max_points = 262144,
+        .max_queued_points = 16u << 20,
         .drain_seconds = 30,
     };
 }
@@ -174,7 +176,7 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
             return -1;
     }
     if (cfg->max_points == 0 || cfg->max_body_bytes == 0 || cfg->max_connections == 0 ||
-        cfg->max_per_ip == 0 || cfg->max_meshes == 0) {
+        cfg->max_per_ip == 0 || cfg->max_meshes == 0 || cfg->max_queued_points == 0) {
         fprintf(stderr, "sdfd: limits must be at least 1\n");
         return -1;
     }

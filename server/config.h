@@ -30,6 +30,7 @@ typedef struct sdfd_config {
     size_t max_total_triangles;
     unsigned batch_window_us;     /* how long the batcher waits for more requests */
     size_t batch_max_points;      /* ... or until this many points are waiting */
+    size_t max_queued_points;     /* more waiting than this: new requests get 429 */
     unsigned drain_seconds;       /* graceful shutdown: how long in-flight work may take */
 } sdfd_config;
 

@@ -312,6 +312,9 @@ static enum MHD_Result start_query(request *req)
         MHD_resume_connection(req->conn);
         if (rc == SDF_ENONFINITE)
             return send_error(req, rc, "point %zu has a NaN or infinite coordinate", bad);
+        if (rc == SDF_EBUSY)
+            return send_error(req, rc, "more than %zu points are waiting; retry later",
+                              srv->cfg.max_queued_points);
         return send_error(req, rc, "%s", sdf_strerror(rc));
     }
     sdfd_metrics_points(srv->metrics, count);

@@ -109,7 +109,7 @@ int main(int argc, char **argv)
     srv.metrics = sdfd_metrics_create();
     if (!srv.registry || !srv.metrics ||
         sdfd_batcher_create(srv.cfg.threads, srv.cfg.batch_window_us, srv.cfg.batch_max_points,
-                            srv.metrics, &srv.batcher)) {
+                            srv.cfg.max_queued_points, srv.metrics, &srv.batcher)) {
         sdfd_log("error", "start", "out of memory");
         return 1;
     }

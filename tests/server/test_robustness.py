@@ -185,6 +185,57 @@ class BadInput(unittest.TestCase):
         self.assert_alive()
 
 
+class Limits(unittest.TestCase):
+    def test_busy_queue_gets_429(self):
+        # A 300 ms batch window keeps the first job queued; with room for 10 queued points,
+        # a second job arriving meanwhile is refused with 429, then everything recovers.
+        with Server("--batch-window-us", "300000", "--max-queued-points", "10") as s:
+            first = {}
+            t = threading.Thread(target=lambda: first.update(
+                r=sdfclient.Client(s.url).query("demo", np.zeros((8, 3)))))
+            t.start()
+            self.assertTrue(wait_until(lambda: metric(sdfclient.Client(s.url).metrics(),
+                                                      "sdfd_queue_depth") == 1, 5))
+            with self.assertRaises(sdfclient.SdfError) as e:
+                sdfclient.Client(s.url).query("demo", np.zeros((8, 3)), form="octet")
+            self.assertEqual((e.exception.status, e.exception.code), (429, "EBUSY"))
+            b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                b.query("demo", np.zeros((8, 3)))
+            self.assertEqual(e.exception.code, "EBUSY")
+            t.join(10)
+            self.assertEqual(len(first["r"]["distance"]), 8)
+            self.assertEqual(len(b.query("demo", np.zeros((8, 3)))["distance"]), 8)
+            b.close()
+
+    def test_binary_connection_limits_and_logs(self):
+        with Server("--max-per-ip", "2") as s:
+            a = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            a.hello(), b.hello()
+            c = socket.create_connection(("127.0.0.1", s.bin_port))
+            c.settimeout(5)
+            self.assertEqual(c.recv(16), b"", "a third connection from one address was kept")
+            c.close()
+            a.query("demo", np.zeros((3, 3)))
+            a.close()
+            self.assertTrue(wait_until(lambda: self._third_connects(s)))
+            b.close()
+            lines = [e for e in s.logs if e.get("event") == "request" and e.get("proto") == "binary"]
+            self.assertTrue(any(e["method"] == "QUERY" and e["points"] == 3 and e["status"] == 200
+                                for e in lines), lines)
+
+    @staticmethod
+    def _third_connects(s):
+        try:
+            c = sdfclient.BinaryClient("127.0.0.1", s.bin_port, timeout=2)
+            c.hello()
+            c.close()
+            return True
+        except (ConnectionError, OSError):
+            return False
+
+
 class Concurrency(unittest.TestCase):
     def test_64_clients_coalesce(self):
         with Server("--batch-window-us", "2000") as s:
