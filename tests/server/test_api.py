@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import unittest
 import urllib.request
 
@@ -15,7 +16,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
-from harness import DATA, SDF_BENCH, Server  # noqa: E402
+import harness  # noqa: E402
+from harness import DATA, SDF_BENCH, Server, wait_until  # noqa: E402
 
 
 def library_results(mesh, points, mode, sign="auto"):
@@ -115,8 +117,19 @@ class Meshes(unittest.TestCase):
             self.assertEqual(names, ["demo", "knot"])
             p = np.zeros((1, 3), np.float32)
             before = anon.query("knot", p)["distance"]
+            # A replace while a big query is in flight: the query finishes on the old mesh.
+            big = np.random.default_rng(2).uniform(-0.3, 0.3, (300000, 3)).astype(np.float32)
+            expected = library_results(os.path.join(DATA, "knot1.off"), big, "signed")
+            got = {}
+            t = threading.Thread(target=lambda: got.update(
+                r=sdfclient.BinaryClient("127.0.0.1", s.bin_port).query("knot", big)))
+            t.start()
+            self.assertTrue(wait_until(lambda: (harness.metric(anon.metrics(), "sdfd_points_total")
+                                                or 0) >= 300000, 30))
             rep = admin.upload("knot", os.path.join(DATA, "fandisk.off"))  # atomic replace
             self.assertEqual(rep["triangles"], 12946)
+            t.join(60)
+            self.assertTrue(same_bits(got["r"]["distance"], expected), "in-flight query changed mesh")
             self.assertNotEqual(anon.query("knot", p)["distance"][0], before[0])
             self.assertEqual(anon.mesh("knot")["triangles"], 12946)
             with self.assertRaises(sdfclient.SdfError) as e:

@@ -187,9 +187,9 @@ class BadInput(unittest.TestCase):
 
 class Limits(unittest.TestCase):
     def test_busy_queue_gets_429(self):
-        # A 300 ms batch window keeps the first job queued; with room for 10 queued points,
+        # A 1 s batch window keeps the first job queued; with room for 10 queued points,
         # a second job arriving meanwhile is refused with 429, then everything recovers.
-        with Server("--batch-window-us", "300000", "--max-queued-points", "10") as s:
+        with Server("--batch-window-us", "1000000", "--max-queued-points", "10") as s:
             first = {}
             t = threading.Thread(target=lambda: first.update(
                 r=sdfclient.Client(s.url).query("demo", np.zeros((8, 3)))))
@@ -291,13 +291,19 @@ class Shutdown(unittest.TestCase):
             except Exception as e:  # noqa: BLE001
                 errors.append(repr(e))
 
+        watcher = sdfclient.Client(s.url)  # a kept-alive connection, open before the drain
         threads = [threading.Thread(target=client, args=(i,)) for i in range(8)]
         for t in threads:
             t.start()
         # Wait until all 8 are in flight (the batcher is busy with the first ones).
-        self.assertTrue(wait_until(lambda: metric(sdfclient.Client(s.url).metrics(),
-                                                  "sdfd_points_total") >= 8 * 200000, 30))
+        self.assertTrue(wait_until(lambda: metric(watcher.metrics(), "sdfd_points_total")
+                                   >= 8 * 200000, 30))
         s.proc.send_signal(signal.SIGTERM)
+        self.assertTrue(wait_until(lambda: any(e.get("event") == "shutdown" for e in s.logs), 10))
+        status, _ = self._readyz(watcher)
+        self.assertEqual(status, 503, "/readyz on an open connection while draining")
+        with self.assertRaises(OSError):  # no new connections
+            socket.create_connection(("127.0.0.1", s.bin_port), timeout=2).recv(1)
         for t in threads:
             t.join(120)
         self.assertEqual(errors, [])
@@ -306,6 +312,14 @@ class Shutdown(unittest.TestCase):
         events = [e.get("event") for e in s.logs]
         self.assertIn("shutdown", events)
         self.assertEqual(events[-1], "stopped")
+
+    @staticmethod
+    def _readyz(client):
+        try:
+            client._request("GET", "/readyz")
+            return 200, None
+        except sdfclient.SdfError as e:
+            return e.status, e
 
 
 if __name__ == "__main__":
