@@ -75,6 +75,29 @@ static int expect(json *j, char c)
     return 0;
 }
 
+/* After an element of an array or object: 1 if a ',' announces another, 0 if `close` ends
+ * it (both consumed), or SDF_ESYNTAX. */
+static int list_next(json *j, char close)
+{
+    ws(j);
+    if (j->p < j->end && *j->p == ',') {
+        j->p++;
+        return 1;
+    }
+    return expect(j, close) ? SDF_ESYNTAX : 0;
+}
+
+/* Consume `close` if the list is empty (returns 1), else leave it (returns 0). */
+static int list_empty(json *j, char close)
+{
+    ws(j);
+    if (j->p < j->end && *j->p == close) {
+        j->p++;
+        return 1;
+    }
+    return 0;
+}
+
 /* A JSON string; returns its raw contents (escapes left in place: keys and enum values
  * we compare never contain any). */
 static int string(json *j, const char **s, size_t *n)
@@ -141,25 +164,17 @@ static int skip_value(json *j, int depth)
     case '[':
     case '{': {
         char close = *j->p == '[' ? ']' : '}';
-        int object = close == '}';
+        int object = close == '}', more;
         j->p++;
-        ws(j);
-        if (j->p < j->end && *j->p == close) {
-            j->p++;
+        if (list_empty(j, close))
             return 0;
-        }
-        for (;;) {
+        do {
             if (object && (string(j, &s, &n) || expect(j, ':')))
                 return SDF_ESYNTAX;
             if (skip_value(j, depth + 1))
                 return SDF_ESYNTAX;
-            ws(j);
-            if (j->p < j->end && *j->p == ',') {
-                j->p++;
-                continue;
-            }
-            return expect(j, close);
-        }
+        } while ((more = list_next(j, close)) == 1);
+        return more;
     }
     default: return number(j, &v);
     }
@@ -198,13 +213,11 @@ static int points_array(json *j)
     if (j->p >= j->end || *j->p != '[')
         return not_a_number(j, "\"points\" must be an array");
     j->p++;
-    ws(j);
-    if (j->p < j->end && *j->p == ']') {
-        j->p++;
+    if (list_empty(j, ']'))
         return 0;
-    }
-    int nested = j->p < j->end && *j->p == '[';
-    for (;;) {
+    ws(j);
+    int nested = j->p < j->end && *j->p == '[', more;
+    do {
         double v;
         int rc;
         if (nested) {
@@ -241,30 +254,21 @@ static int points_array(json *j)
             if ((rc = push_coordinate(j, v)))
                 return rc;
         }
-        ws(j);
-        if (j->p < j->end && *j->p == ',') {
-            j->p++;
-            continue;
-        }
-        if (expect(j, ']'))
-            return SDF_ESYNTAX;
-        if (!nested && j->count % 3)
-            return fail(j->err, j->err_cap, SDF_EINVAL,
-                        "a flat \"points\" array needs a multiple of 3 numbers, got %zu", j->count);
-        return 0;
-    }
+    } while ((more = list_next(j, ']')) == 1);
+    if (more)
+        return more;
+    if (!nested && j->count % 3)
+        return fail(j->err, j->err_cap, SDF_EINVAL,
+                    "a flat \"points\" array needs a multiple of 3 numbers, got %zu", j->count);
+    return 0;
 }
 
 static int json_object(json *j, sdfd_query_params *params, int *have_points)
 {
     if (expect(j, '{'))
         return fail(j->err, j->err_cap, SDF_ESYNTAX, "the body must be a JSON object");
-    ws(j);
-    if (j->p < j->end && *j->p == '}') {
-        j->p++;
-        return 0;
-    }
-    for (;;) {
+    int more = list_empty(j, '}') ? 0 : 1;
+    while (more == 1) {
         const char *key, *s;
         size_t n, sn;
         int rc;
@@ -287,16 +291,12 @@ static int json_object(json *j, sdfd_query_params *params, int *have_points)
         } else if ((rc = skip_value(j, 1))) {
             return rc;
         }
-        ws(j);
-        if (j->p < j->end && *j->p == ',') {
-            j->p++;
-            continue;
-        }
-        if (expect(j, '}'))
-            return SDF_ESYNTAX;
-        ws(j);
-        return j->p == j->end ? 0 : syntax(j, "trailing characters after the object");
+        more = list_next(j, '}');
     }
+    if (more)
+        return more;
+    ws(j);
+    return j->p == j->end ? 0 : syntax(j, "trailing characters after the object");
 }
 
 static int parse_json(char *body, size_t len, size_t max_points, sdfd_query_params *params,

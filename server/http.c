@@ -54,6 +54,7 @@ typedef struct request {
     int points_owned;
     sdfd_form reply_form;
     sdfd_reply reply;
+    char format[16];              /* ?format= of an upload, copied on the MHD thread */
     sdf_mesh *uploaded;
     int upload_rc, replaced;
     sdf_diag diag;
@@ -341,11 +342,10 @@ static void *load_upload(void *arg)
     request *req = arg;
     sdfd_server *srv = req->http->srv;
     sdf_mesh_options opts = {.max_triangles = srv->cfg.max_total_triangles};
-    const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
-    if (format && sdf_format_from_name(format, &opts.format)) {
+    if (req->format[0] && sdf_format_from_name(req->format, &opts.format)) {
         req->upload_rc = SDF_EFORMAT;
         snprintf(req->diag.message, sizeof req->diag.message,
-                 "unknown format '%s' (obj, ply, stl, off)", format);
+                 "unknown format '%s' (obj, ply, stl, off)", req->format);
     } else {
         req->upload_rc = sdf_mesh_load_memory(req->body, req->len, &opts, &req->uploaded, &req->diag);
     }
@@ -363,6 +363,10 @@ static void *load_upload(void *arg)
 
 static enum MHD_Result start_upload(request *req)
 {
+    /* The loader thread must not call MHD: take what it needs from the request now. */
+    const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
+    if (format)
+        snprintf(req->format, sizeof req->format, "%s", format);
     pthread_t t;
     pthread_attr_t attr;
     pthread_attr_init(&attr);
