@@ -2,20 +2,25 @@
  *
  * A batch is checked whole first (finite coordinates, valid arguments) so that a bad point
  * fails the call before any output is written, then cut into chunks that worker threads
- * take in turn. Each point is answered independently, so results do not depend on the
- * thread count. Per point: the exact closest point (Embree BVH + double-precision triangle
- * test), then the sign by the requested method, then the outputs asked for. */
+ * take in turn. The closest points come from packets of Morton-ordered points traversing
+ * our BVH together (query/packet.c), or with SDF_TRAVERSAL_SINGLE from one Embree
+ * rtcPointQuery per point; both run the same exact double-precision triangle test. Then,
+ * per point, the sign by the requested method and the outputs asked for. The distances do
+ * not depend on the thread count or the traversal. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "bvh/embree.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
+#include "query/packet.h"
 #include "sign/pseudonormal.h"
 #include "sign/raycast.h"
 #include "sign/winding.h"
 
-#define CHUNK 256
+#define CHUNK 256          /* points per work item, single traversal */
+#define PACKET_CHUNK 4096  /* Morton-ordered points per work item, packet traversal */
 
 static const char *const sign_names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
 
@@ -42,6 +47,7 @@ typedef struct batch {
     sdf_sign_method sign;
     sdf_query_result *out;
     float *winding;
+    const uint32_t *order; /* packet traversal: visit order */
 } batch;
 
 static const float *point_at(const batch *b, size_t i)
@@ -63,7 +69,7 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
         return SDF_EINVAL;
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
-    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL};
+    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL};
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -97,12 +103,12 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
     }
 }
 
-static void answer(const batch *b, size_t i)
+/* Sign and outputs of point i, given its closest point. */
+static void finish(const batch *b, size_t i, const sdf__hit *h)
 {
     const sdf_mesh *m = b->mesh;
     const float *p = point_at(b, i);
-    sdf__hit hit;
-    sdf__bvh_closest(m->bvh, p, &hit);
+    sdf__hit hit = *h;
     double d = sqrt(hit.dist2);
     int on_surface = d <= m->surface_epsilon;
     float normal[3] = {0, 0, 0};
@@ -129,8 +135,45 @@ static void answer(const batch *b, size_t i)
 static void answer_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
-    for (size_t i = begin; i < end; i++)
-        answer(ctx, i);
+    const batch *b = ctx;
+    for (size_t i = begin; i < end; i++) {
+        sdf__hit hit;
+        sdf__bvh_closest(b->mesh->bvh, point_at(b, i), &hit);
+        finish(b, i, &hit);
+    }
+}
+
+/* Positions [begin, end) of the Morton order, packet by packet. Each packet's bounds are
+ * seeded from the last point answered before it (packet.h, lever 1). */
+static void packet_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const batch *b = ctx;
+    const sdf_mesh *m = b->mesh;
+    sdf__packet pk;
+    sdf__hit hits[SDF__PACKET];
+    double prev[3] = {0, 0, 0}, prev_d = INFINITY;
+    for (size_t k = begin; k < end; k += SDF__PACKET) {
+        pk.n = (int)(end - k < SDF__PACKET ? end - k : SDF__PACKET);
+        for (int i = 0; i < pk.n; i++) {
+            const float *p = point_at(b, b->order[k + (size_t)i]);
+            pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
+            double dx = p[0] - prev[0], dy = p[1] - prev[1], dz = p[2] - prev[2];
+            double bound = prev_d + sqrt(dx * dx + dy * dy + dz * dz);
+            pk.bound2[i] = bound * bound;
+        }
+        for (int i = pk.n; i < SDF__PACKET; i++) /* pad: the box tests run on every lane */
+            pk.x[i] = pk.x[pk.n - 1], pk.y[i] = pk.y[pk.n - 1], pk.z[i] = pk.z[pk.n - 1];
+        sdf__closest_packet(&m->tree, m->positions, m->triangles, &pk, hits);
+        for (int i = 0; i < pk.n; i++) {
+            size_t idx = b->order[k + (size_t)i];
+            if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
+                sdf__bvh_closest(m->bvh, point_at(b, idx), &hits[i]);
+            finish(b, idx, &hits[i]);
+        }
+        prev[0] = pk.x[pk.n - 1], prev[1] = pk.y[pk.n - 1], prev[2] = pk.z[pk.n - 1];
+        prev_d = sqrt(hits[pk.n - 1].dist2);
+    }
 }
 
 int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
@@ -143,7 +186,22 @@ int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
     if (rc)
         return rc;
     b.out = out;
-    sdf__parallel_for(count, CHUNK, opts ? opts->threads : 0, answer_range, &b);
+    int threads = opts ? opts->threads : 0;
+    uint32_t *order = NULL;
+    if (!(opts && opts->traversal == SDF_TRAVERSAL_SINGLE) && count > 1 && count <= UINT32_MAX) {
+        order = malloc(count * sizeof *order);
+        if (order && sdf__morton_order(b.points, b.stride, count, order)) {
+            free(order);
+            order = NULL;
+        }
+    }
+    if (order) {
+        b.order = order;
+        sdf__parallel_for(count, PACKET_CHUNK, threads, packet_range, &b);
+        free(order);
+    } else { /* single traversal, or no memory for the order: same answers */
+        sdf__parallel_for(count, CHUNK, threads, answer_range, &b);
+    }
     return 0;
 }
 

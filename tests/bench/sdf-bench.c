@@ -3,7 +3,7 @@
  *
  *   sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid --n N --seed S]
  *             [--mode distance|signed|gradient|closest] [--sign auto|pseudonormal|winding|raycast|none]
- *             [--threads N] [--repeat R] [--out OUT.npy]
+ *             [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]
  *
  * Points come from POINTS.npy (float32 or float64, shape (N, 3)) or are generated
  * (--workload, default band, 1,000,000 points). The batch is timed R times (default 2) after
@@ -25,6 +25,7 @@ typedef struct args {
     size_t n;
     uint64_t seed;
     sdf_sign_method sign;
+    sdf_traversal traversal;
     int threads, repeat;
 } args;
 
@@ -34,7 +35,7 @@ static void usage(void)
             "usage: sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid] [--n N] [--seed S]\n"
             "                 [--mode distance|signed|gradient|closest]\n"
             "                 [--sign auto|pseudonormal|winding|raycast|none]\n"
-            "                 [--threads N] [--repeat R] [--out OUT.npy]\n");
+            "                 [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]\n");
     exit(2);
 }
 
@@ -81,6 +82,13 @@ static args parse_args(int argc, char **argv)
         else if (!strcmp(s, "--threads")) a.threads = (int)parse_long(v, s);
         else if (!strcmp(s, "--repeat")) a.repeat = (int)parse_long(v, s);
         else if (!strcmp(s, "--out")) a.out = v;
+        else if (!strcmp(s, "--traversal")) {
+            if (strcmp(v, "packets") && strcmp(v, "single")) {
+                fprintf(stderr, "sdf-bench: --traversal packets|single\n");
+                exit(2);
+            }
+            a.traversal = strcmp(v, "single") ? SDF_TRAVERSAL_PACKETS : SDF_TRAVERSAL_SINGLE;
+        }
         else if (!strcmp(s, "--sign")) {
             if (sdf_sign_from_name(v, &a.sign)) {
                 fprintf(stderr, "sdf-bench: unknown sign method '%s'\n", v);
@@ -183,14 +191,15 @@ int main(int argc, char **argv)
     uint32_t *tri = closest ? malloc((n + 1) * sizeof *tri) : NULL;
     sdf_query_result out = {.distance = dist, .gradient = gradient ? vec3 : NULL,
                             .closest = closest ? vec3 : NULL, .triangle = tri};
-    sdf_query_options opts = {.sign = a.sign, .threads = a.threads};
+    sdf_query_options opts = {.sign = a.sign, .threads = a.threads, .traversal = a.traversal};
     printf("mesh: %s triangles: %zu vertices: %zu closed: %d manifold: %d flipped: %d "
            "auto sign: %s index: %.1f MB build: %.3f s\n",
            a.mesh, r.triangles, r.vertices, r.closed, r.edge_manifold, r.flipped,
            sdf_sign_name(r.auto_sign), r.index_bytes / 1e6, r.build_seconds);
-    printf("points: %zu source: %s mode: %s sign: %s threads: %d\n", n,
+    printf("points: %zu source: %s mode: %s sign: %s threads: %d traversal: %s\n", n,
            a.points ? a.points : a.workload, a.mode,
-           sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads);
+           sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads,
+           a.traversal == SDF_TRAVERSAL_SINGLE ? "single" : "packets");
     rc = sdf_query(mesh, points, n < 1000 ? n : 1000, &opts, &out); /* warm-up */
     double best = 1e300;
     for (int i = 0; !rc && i < a.repeat; i++) {

@@ -1,6 +1,8 @@
 /* test_distance.c - differential test of distance, closest point, triangle id and
  * barycentric coordinates against the brute-force double-precision reference, on real
- * meshes and near-surface, uniform-box and far points. Tolerance: 1e-5 x the bbox diagonal.
+ * meshes and near-surface, uniform-box and far points, for both traversals (packets and
+ * one query at a time), which must also agree with each other bit for bit. Tolerance:
+ * 1e-5 x the bbox diagonal.
  * Also: results are identical for 1 and 2 threads, for a strided point layout, and for
  * several caller threads sharing one mesh; a NaN point is reported by index before any
  * output is written. */
@@ -65,16 +67,29 @@ static void test_mesh(const char *name, sdf_mesh *mesh)
         float *c = malloc(3 * n * sizeof *c), *w = malloc(3 * n * sizeof *w);
         uint32_t *t = malloc(n * sizeof *t);
         CHECK(sdf_workload(mesh, kinds[k], &n, 11 + (uint64_t)k, p) == 0, "workload");
-        sdf_query_options o = {.sign = SDF_SIGN_NONE, .threads = 2};
-        sdf_query_result res = {.distance = d, .closest = c, .triangle = t, .barycentric = w};
-        CHECK(sdf_query(mesh, p, n, &o, &res) == 0, "query");
-        int before = check_failures;
-        char what[96];
-        for (size_t i = 0; i < n && check_failures - before < 5; i++) {
-            snprintf(what, sizeof what, "%s %s point %zu", name, kinds[k], i);
-            check_point(mesh, p + 3 * i, d[i], c + 3 * i, t[i], w + 3 * i, tol, what);
+        float *single = malloc(n * sizeof *single);
+        /* Both traversals against the reference, and against each other bit for bit. */
+        const sdf_traversal traversals[] = {SDF_TRAVERSAL_PACKETS, SDF_TRAVERSAL_SINGLE};
+        for (int v = 0; v < 2; v++) {
+            sdf_query_options o = {.sign = SDF_SIGN_NONE, .threads = 2, .traversal = traversals[v]};
+            sdf_query_result res = {.distance = d, .closest = c, .triangle = t, .barycentric = w};
+            CHECK(sdf_query(mesh, p, n, &o, &res) == 0, "query");
+            int before = check_failures;
+            char what[96];
+            for (size_t i = 0; i < n && check_failures - before < 5; i++) {
+                snprintf(what, sizeof what, "%s %s %s point %zu", name, kinds[k],
+                         v ? "single" : "packets", i);
+                check_point(mesh, p + 3 * i, d[i], c + 3 * i, t[i], w + 3 * i, tol, what);
+            }
+            if (v == 0)
+                memcpy(single, d, n * sizeof *d);
         }
-        free(p), free(d), free(c), free(w), free(t);
+        size_t differ = 0;
+        for (size_t i = 0; i < n; i++)
+            differ += memcmp(&single[i], &d[i], sizeof *d) != 0;
+        CHECK(differ == 0, "%s %s: packets and single traversal differ on %zu points", name,
+              kinds[k], differ);
+        free(p), free(d), free(c), free(w), free(t), free(single);
     }
 }
 

@@ -180,10 +180,18 @@ const uint32_t *sdf_mesh_triangles(const sdf_mesh *mesh);
 /* ---------------------------------------------------------------------------------------
  * Batched queries
  * ------------------------------------------------------------------------------------- */
+typedef enum sdf_traversal {
+    SDF_TRAVERSAL_PACKETS = 0, /* Morton-ordered packets of nearby points traverse the BVH
+                                  together, each search seeded with a neighbour's bound */
+    SDF_TRAVERSAL_SINGLE,      /* one independent query per point (the reference path) */
+} sdf_traversal;
+
 typedef struct sdf_query_options {
-    sdf_sign_method sign; /* SDF_SIGN_AUTO by default */
-    int threads;          /* worker threads; 0 = all online CPUs */
-    size_t point_stride;  /* bytes between consecutive points; 0 = 12 (packed xyz) */
+    sdf_sign_method sign;    /* SDF_SIGN_AUTO by default */
+    int threads;             /* worker threads; 0 = all online CPUs */
+    size_t point_stride;     /* bytes between consecutive points; 0 = 12 (packed xyz) */
+    sdf_traversal traversal; /* PACKETS by default; both give the same distances (exact ties
+                                between equally close triangles may name either one) */
 } sdf_query_options;
 
 /* Caller-owned outputs of sdf_query; any pointer may be NULL when not wanted. */

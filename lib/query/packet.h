@@ -1,0 +1,46 @@
+/* packet.h - coherent packet traversal for batched closest-point queries.
+ *
+ * Sec. 3 of the convolution paper ("packet sampling"): nearby queries go through the same
+ * branches of the tree, so they are grouped and the tree is traversed once for all of them.
+ * Three levers, in order of payoff (DESIGN.md):
+ *  1. bounds: no search starts at infinity. Points are visited in Morton order, and a
+ *     point's squared search radius starts at (d_prev + |p - p_prev|)^2, an upper bound of
+ *     its distance by the triangle inequality (p_prev: the last point answered before its
+ *     packet, d_prev its distance);
+ *  2. packets: SDF__PACKET consecutive points traverse the mesh's BVH (bvh/tree.h) together;
+ *     a node is skipped only when it is farther than every point's current bound;
+ *  3. data layout: the packet's coordinates and bounds are SoA arrays, so the per-node and
+ *     per-triangle box tests are plain loops the compiler vectorizes (portable C, no
+ *     intrinsics).
+ * Each candidate triangle then gets the same exact double-precision test as the single-point
+ * path (query/triangle.c), so distances are identical to it; only exact ties may name a
+ * different (equally close) triangle. */
+#ifndef SDF_QUERY_PACKET_H
+#define SDF_QUERY_PACKET_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "bvh/embree.h" /* sdf__hit */
+#include "bvh/tree.h"
+
+#define SDF__PACKET 32
+
+/* Visit order of `count` points (xyz floats `stride` bytes apart): 30-bit Morton codes over
+ * the points' bounding box, sorted by a 3-pass LSD radix sort. `order` receives point
+ * indices. Returns 0 or SDF_ENOMEM (count must be < 2^32). */
+int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t *order);
+
+typedef struct sdf__packet {
+    int n;                                     /* points 1..SDF__PACKET; lanes past n hold
+                                                  copies of the last (padding, ignored) */
+    float x[SDF__PACKET], y[SDF__PACKET], z[SDF__PACKET];
+    double bound2[SDF__PACKET];                /* in: upper bounds of squared distances */
+} sdf__packet;
+
+/* Closest points of a packet's points over `tree`. A bound that is too small is detected:
+ * such a point comes back with hit.dist2 == INFINITY and must be asked again unseeded. */
+void sdf__closest_packet(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                         sdf__packet *pk, sdf__hit *hits);
+
+#endif
