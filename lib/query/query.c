@@ -71,6 +71,8 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
     sdf_sign_method sign = opts ? opts->sign : SDF_SIGN_AUTO;
     if (sign < SDF_SIGN_AUTO || sign > SDF_SIGN_NONE)
         return SDF_EINVAL;
+    if (opts && (opts->traversal < SDF_TRAVERSAL_PACKETS || opts->traversal > SDF_TRAVERSAL_SINGLE))
+        return SDF_EINVAL;
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
     *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL};

@@ -180,6 +180,8 @@ static void test_bad_points(sdf_mesh *mesh)
           "winding: NaN not reported at 2 (%zu)", bad);
     sdf_query_options o = {.sign = (sdf_sign_method)42};
     CHECK(sdf_query(mesh, p, 1, &o, &res) == SDF_EINVAL, "bad sign method accepted");
+    o = (sdf_query_options){.traversal = (sdf_traversal)9};
+    CHECK(sdf_query(mesh, p, 1, &o, &res) == SDF_EINVAL, "bad traversal accepted");
     o = (sdf_query_options){.point_stride = 8};
     CHECK(sdf_query(mesh, p, 1, &o, &res) == SDF_EINVAL, "stride below 12 accepted");
     CHECK(sdf_query(NULL, p, 1, NULL, &res) == SDF_EINVAL, "NULL mesh accepted");
