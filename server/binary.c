@@ -23,6 +23,7 @@
 #include <netinet/in.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 #include "log.h"
@@ -546,6 +547,23 @@ void sdfd_binary_quiesce(sdfd_binary *b)
     wake(b);
 }
 
+/* Send what is still queued before closing: a reply counts as answered once queued, so
+ * shutdown must not drop it. Blocking writes, bounded by the connection timeout. */
+static void flush_connection(sdfd_binary *b, connection *c)
+{
+    if (c->fd < 0 || !c->out_head)
+        return;
+    fcntl(c->fd, F_SETFL, fcntl(c->fd, F_GETFL) & ~O_NONBLOCK);
+    struct timeval tv = {(time_t)b->srv->cfg.timeout_seconds, 0};
+    setsockopt(c->fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+    for (;;) { /* stop on error or when a timed-out send made no progress */
+        out_frame *before = c->out_head;
+        size_t sent = before ? before->sent : 0;
+        if (!before || write_output(c) != 0 || (c->out_head == before && before->sent == sent))
+            return;
+    }
+}
+
 void sdfd_binary_stop(sdfd_binary *b)
 {
     if (!b)
@@ -555,6 +573,7 @@ void sdfd_binary_stop(sdfd_binary *b)
     pthread_join(b->thread, NULL);
     for (connection *c = b->conns, *next; c; c = next) {
         next = c->next;
+        flush_connection(b, c);
         if (c->fd >= 0)
             close(c->fd);
         free_connection(c);

@@ -133,9 +133,11 @@ int main(int argc, char **argv)
     sdfd_http_quiesce(http);
     sdfd_binary_quiesce(bin);
     drain(&srv);
+    /* The batcher finishes any job still queued (if the drain timed out) while both front
+     * ends can still take the replies; only then do they close. */
+    sdfd_batcher_destroy(srv.batcher);
     sdfd_binary_stop(bin);
     sdfd_http_stop(http);
-    sdfd_batcher_destroy(srv.batcher);
     sdfd_registry_destroy(srv.registry);
     sdfd_metrics_destroy(srv.metrics);
     sdfd_log("info", "stopped", "bye");
