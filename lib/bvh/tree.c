@@ -131,6 +131,10 @@ int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *tr
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM;
     args.maxBranchingFactor = 2;
     args.maxDepth = SDF__TREE_MAX_DEPTH;
+    /* A node visit costs about as much as 8 triangle tests in our traversals: the SAH then
+     * makes leaves of ~6 triangles instead of ~2, which halves the node count (memory) and
+     * measured faster (refined_elephant, packets: band 0.61 -> 0.73 Mq/s, box 0.30 -> 0.36). */
+    args.traversalCost = 8.0f;
     args.maxLeafSize = max_leaf < 1 ? 1 : (max_leaf > 32 ? 32 : max_leaf);
     args.bvh = bvh;
     args.primitives = prims;

@@ -22,9 +22,18 @@ typedef struct moments {
     double m[3][3];
 } moments;
 
+/* The same, stored compactly: computed in double, kept in float (half the memory; the
+ * expansion's own error is far larger than float rounding). */
+typedef struct stored_moments {
+    float center[3];
+    float radius;
+    float normal[3];
+    float m[3][3];
+} stored_moments;
+
 struct sdf__winding {
     const sdf__tree *tree;
-    moments *moments;
+    stored_moments *moments;
     const float *positions;
     const uint32_t *triangles;
 };
@@ -117,9 +126,11 @@ int sdf__winding_create(const sdf__tree *tree, const float *positions, const uin
                         sdf__winding **out)
 {
     sdf__winding *w = calloc(1, sizeof *w);
+    moments *full = malloc((tree->node_count + 1) * sizeof *full); /* build-time, double */
     if (w)
         w->moments = malloc(tree->node_count * sizeof *w->moments);
-    if (!w || !w->moments) {
+    if (!w || !w->moments || !full) {
+        free(full);
         sdf__winding_destroy(w);
         return SDF_ENOMEM;
     }
@@ -130,10 +141,22 @@ int sdf__winding_create(const sdf__tree *tree, const float *positions, const uin
     for (size_t i = w->tree->node_count; i-- > 0;) {
         const sdf__tree_node *node = &w->tree->nodes[i];
         if (node->count)
-            leaf_moments(w, node, &w->moments[i]);
+            leaf_moments(w, node, &full[i]);
         else
-            merge_moments(&w->moments[node->first], &w->moments[node->first + 1], &w->moments[i]);
+            merge_moments(&full[node->first], &full[node->first + 1], &full[i]);
     }
+    for (size_t i = 0; i < w->tree->node_count; i++) {
+        stored_moments *s = &w->moments[i];
+        for (int a = 0; a < 3; a++) {
+            s->center[a] = (float)full[i].center[a];
+            s->normal[a] = (float)full[i].normal[a];
+            for (int b = 0; b < 3; b++)
+                s->m[a][b] = (float)full[i].m[a][b];
+        }
+        /* Round the radius up: a far-field decision must never be taken too early. */
+        s->radius = nextafterf((float)full[i].radius, INFINITY);
+    }
+    free(full);
     *out = w;
     return 0;
 }
@@ -148,7 +171,7 @@ void sdf__winding_destroy(sdf__winding *w)
 
 size_t sdf__winding_bytes(const sdf__winding *w)
 {
-    return w->tree->node_count * sizeof(moments);
+    return w->tree->node_count * sizeof(stored_moments);
 }
 
 double sdf__solid_angle(const double q[3], const double a[3], const double b[3],
@@ -172,7 +195,7 @@ double sdf__solid_angle(const double q[3], const double a[3], const double b[3],
 /* Solid angle of a far node: integral over its triangles of (x - q).n / |x - q|^3 dA,
  * with f(r) = r/|r|^3 expanded about r0 = p~ - q to first order (J = df/dr):
  *   f(r0) . N  +  trace(J M),   J = I/|r0|^3 - 3 r0 r0^T / |r0|^5. */
-static double far_field(const moments *mo, const double r[3], double d)
+static double far_field(const stored_moments *mo, const double r[3], double d)
 {
     double d3 = d * d * d, d5 = d3 * d * d;
     double first = (r[0] * mo->normal[0] + r[1] * mo->normal[1] + r[2] * mo->normal[2]) / d3;
@@ -193,7 +216,7 @@ double sdf__winding_number(const sdf__winding *w, const double q[3])
     while (top > 0) {
         uint32_t i = stack[--top];
         const sdf__tree_node *node = &w->tree->nodes[i];
-        const moments *mo = &w->moments[i];
+        const stored_moments *mo = &w->moments[i];
         double r[3] = {mo->center[0] - q[0], mo->center[1] - q[1], mo->center[2] - q[2]};
         double d = length(r);
         if (d > BETA * mo->radius) {
