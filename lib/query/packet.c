@@ -84,28 +84,31 @@ static inline float minf(float a, float b) { return a < b ? a : b; }
 static inline float maxf(float a, float b) { return a > b ? a : b; }
 static inline float max0(float a, float b) { return maxf(maxf(a, b), 0.0f); }
 
+/* Squared distance from (x, y, z) to the box [lo, hi]; 0 inside. */
+static inline float box_dist2(const float lo[3], const float hi[3], float x, float y, float z)
+{
+    float dx = max0(lo[0] - x, x - hi[0]);
+    float dy = max0(lo[1] - y, y - hi[1]);
+    float dz = max0(lo[2] - z, z - hi[2]);
+    return dx * dx + dy * dy + dz * dz;
+}
+
 typedef struct box {
     float lo[3], hi[3];
 } box;
 
-/* For each point: is its distance to `b` within its culling limit? Writes the indices of
- * those that are into `act` and returns how many. */
+/* The packet's points whose distance to the box [lo, hi] is within their culling limit:
+ * their indices go to `act`; returns how many. */
 static int near_points(const sdf__packet *pk, const float *limit, const float lo[3],
-                       const float hi[3], const uint8_t *candidates, int ncand, uint8_t *act)
+                       const float hi[3], uint8_t *act)
 {
     float d2[SDF__PACKET];
-    for (int i = 0; i < SDF__PACKET; i++) { /* all lanes (padded): SoA, no branches, vectorized */
-        float dx = max0(lo[0] - pk->x[i], pk->x[i] - hi[0]);
-        float dy = max0(lo[1] - pk->y[i], pk->y[i] - hi[1]);
-        float dz = max0(lo[2] - pk->z[i], pk->z[i] - hi[2]);
-        d2[i] = dx * dx + dy * dy + dz * dz;
-    }
+    for (int i = 0; i < SDF__PACKET; i++) /* all lanes (padded): SoA, no branches, vectorized */
+        d2[i] = box_dist2(lo, hi, pk->x[i], pk->y[i], pk->z[i]);
     int n = 0;
-    for (int k = 0; k < ncand; k++) {
-        int i = candidates[k];
+    for (int i = 0; i < pk->n; i++)
         if (d2[i] <= limit[i])
             act[n++] = (uint8_t)i;
-    }
     return n;
 }
 
@@ -132,10 +135,7 @@ static void visit_leaf(const sdf__tree *tree, const sdf__tree_node *node, const 
         triangle_box(positions, triangles + 3 * (size_t)tri, v, &b);
         for (int j = 0; j < nact; j++) { /* only the points still interested in this leaf */
             int i = act[j];
-            float dx = max0(b.lo[0] - pk->x[i], pk->x[i] - b.hi[0]);
-            float dy = max0(b.lo[1] - pk->y[i], pk->y[i] - b.hi[1]);
-            float dz = max0(b.lo[2] - pk->z[i], pk->z[i] - b.hi[2]);
-            if (dx * dx + dy * dy + dz * dz > limit[i])
+            if (box_dist2(b.lo, b.hi, pk->x[i], pk->y[i], pk->z[i]) > limit[i])
                 continue;
             double p[3] = {pk->x[i], pk->y[i], pk->z[i]}, c[3], w[3];
             int feature;
@@ -154,12 +154,10 @@ static void visit_leaf(const sdf__tree *tree, const sdf__tree_node *node, const 
     }
 }
 
-
 void sdf__closest_packet(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                          sdf__packet *pk, sdf__hit *hits)
 {
     float limit[SDF__PACKET], cx = 0, cy = 0, cz = 0;
-    uint8_t all[SDF__PACKET];
     for (int i = 0; i < pk->n; i++) {
         hits[i].dist2 = INFINITY;
         hits[i].triangle = 0;
@@ -167,7 +165,6 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
         if (isfinite(pk->bound2[i]))
             pk->bound2[i] = pk->bound2[i] * 1.000001 + 1e-30;
         limit[i] = isfinite(pk->bound2[i]) ? (float)pk->bound2[i] * CULL_SLACK : INFINITY;
-        all[i] = (uint8_t)i;
         cx += pk->x[i], cy += pk->y[i], cz += pk->z[i];
     }
     cx /= (float)pk->n, cy /= (float)pk->n, cz /= (float)pk->n;
@@ -177,7 +174,7 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
     while (top > 0) {
         const sdf__tree_node *node = &tree->nodes[stack[--top]];
         uint8_t act[SDF__PACKET];
-        int nact = near_points(pk, limit, node->lo, node->hi, all, pk->n, act);
+        int nact = near_points(pk, limit, node->lo, node->hi, act);
         if (nact == 0)
             continue;
         if (node->count) {
@@ -186,13 +183,7 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
         }
         /* Near child last on the stack, so it is visited first and shrinks the bounds. */
         const sdf__tree_node *a = &tree->nodes[node->first], *b = a + 1;
-        float da = 0, db = 0;
-        for (int k = 0; k < 3; k++) {
-            float c = k == 0 ? cx : k == 1 ? cy : cz;
-            float ea = max0(a->lo[k] - c, c - a->hi[k]);
-            float eb = max0(b->lo[k] - c, c - b->hi[k]);
-            da += ea * ea, db += eb * eb;
-        }
+        float da = box_dist2(a->lo, a->hi, cx, cy, cz), db = box_dist2(b->lo, b->hi, cx, cy, cz);
         uint32_t near = da <= db ? node->first : node->first + 1;
         stack[top++] = near == node->first ? node->first + 1 : node->first;
         stack[top++] = near;
