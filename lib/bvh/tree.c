@@ -6,6 +6,7 @@
 #include "bvh/tree.h"
 
 #include <float.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -100,6 +101,23 @@ static int flatten(flattener *f, const build_node *src, size_t index, int depth)
     return 0;
 }
 
+static float mean_leaf_diagonal(const sdf__tree *t)
+{
+    double sum = 0;
+    size_t leaves = 0;
+    for (size_t i = 0; i < t->node_count; i++) {
+        const sdf__tree_node *n = &t->nodes[i];
+        if (!n->count)
+            continue;
+        double d2 = 0;
+        for (int a = 0; a < 3; a++)
+            d2 += ((double)n->hi[a] - n->lo[a]) * ((double)n->hi[a] - n->lo[a]);
+        sum += sqrt(d2);
+        leaves++;
+    }
+    return leaves ? (float)(sum / (double)leaves) : 0.0f;
+}
+
 int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *triangles,
                     size_t triangle_count, unsigned max_leaf, sdf__tree *out)
 {
@@ -159,6 +177,7 @@ int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *tr
         rc = flatten(&f, top, 0, 1) ? SDF_EBVH : 0;
         out->node_count = f.next_node;
         out->prim_count = f.next_prim;
+        out->leaf_size = mean_leaf_diagonal(out);
     }
     if (bvh)
         rtcReleaseBVH(bvh);

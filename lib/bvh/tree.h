@@ -28,6 +28,7 @@ typedef struct sdf__tree {
     uint32_t *prims;
     size_t prim_count;
     int depth; /* the longest root-to-leaf path, in nodes */
+    float leaf_size; /* mean diagonal of the leaves' boxes: the scale packets share work at */
 } sdf__tree;
 
 #define SDF__TREE_MAX_DEPTH 64

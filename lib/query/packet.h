@@ -9,10 +9,13 @@
  *     packet, d_prev its distance);
  *  2. packets: SDF__PACKET consecutive points traverse the mesh's BVH (bvh/tree.h) together;
  *     a node is skipped only when it is farther than every point's current bound;
- *  3. data layout: the packet's coordinates and bounds are SoA arrays, so the per-node and
- *     per-triangle box tests are plain loops the compiler vectorizes (portable C, no
- *     intrinsics).
- * Each candidate triangle then gets the same exact double-precision test as the single-point
+ *  3. data layout: the packet's coordinates are SoA arrays, so the per-node box tests and
+ *     a branchless float point-triangle distance run on all lanes at once in plain C loops
+ *     the compiler vectorizes (no intrinsics; AVX2 clones where the CPU has it, core/simd.h),
+ *     eight lanes to a group, and a triangle is tested only in the groups with a lane near
+ *     its box.
+ * The float distances only choose candidates: every triangle within a rounding margin of a
+ * lane's best float distance gets the same exact double-precision test as the single-point
  * path (query/triangle.c), so distances are identical to it; only exact ties may name a
  * different (equally close) triangle. */
 #ifndef SDF_QUERY_PACKET_H
@@ -38,9 +41,12 @@ typedef struct sdf__packet {
     double bound2[SDF__PACKET];                /* in: upper bounds of squared distances */
 } sdf__packet;
 
-/* Closest points of a packet's points over `tree`. A bound that is too small is detected:
- * such a point comes back with hit.dist2 == INFINITY and must be asked again unseeded. */
+/* Closest points of a packet's points over `tree`; `extent` is the mesh's bounding-box
+ * diagonal (the scale of float rounding). Candidates are found with a float test on all
+ * lanes at once and decided by the exact double test (query/triangle.c). A point the packet
+ * could not decide (a bound rounding made too small, or more near-equal candidates than it
+ * holds) comes back with hit.dist2 == INFINITY and must be asked again unseeded. */
 void sdf__closest_packet(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
-                         sdf__packet *pk, sdf__hit *hits);
+                         float extent, sdf__packet *pk, sdf__hit *hits);
 
 #endif

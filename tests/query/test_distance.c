@@ -5,7 +5,8 @@
  * 1e-5 x the bbox diagonal.
  * Also: results are identical for 1 and 2 threads, for a strided point layout, and for
  * several caller threads sharing one mesh; a NaN point is reported by index before any
- * output is written. */
+ * output is written. A cone whose apex touches 48 triangles exercises the packets' path for
+ * more near-equal candidates than a lane holds. */
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -91,6 +92,60 @@ static void test_mesh(const char *name, sdf_mesh *mesh)
               kinds[k], differ);
         free(p), free(d), free(c), free(w), free(t), free(single);
     }
+}
+
+/* A closed cone of 48 slices: its apex and base centre each touch 48 triangles, more
+ * near-equal candidates than a packet lane holds, so points above the apex and below the
+ * base centre take the packet's overflow path (asked again one at a time). */
+static sdf_mesh *make_cone(void)
+{
+    enum { SLICES = 48 };
+    float v[3 * (SLICES + 2)];
+    uint32_t t[3 * 2 * SLICES];
+    for (int i = 0; i < SLICES; i++) {
+        double a = 2 * M_PI * i / SLICES;
+        v[3 * i] = (float)cos(a), v[3 * i + 1] = (float)sin(a), v[3 * i + 2] = 0;
+    }
+    v[3 * SLICES] = 0, v[3 * SLICES + 1] = 0, v[3 * SLICES + 2] = 1.5f;            /* apex */
+    v[3 * SLICES + 3] = 0, v[3 * SLICES + 4] = 0, v[3 * SLICES + 5] = 0;            /* base */
+    for (uint32_t i = 0; i < SLICES; i++) {
+        uint32_t j = (i + 1) % SLICES;
+        uint32_t *side = t + 6 * i, *base = side + 3;
+        side[0] = i, side[1] = j, side[2] = SLICES;
+        base[0] = j, base[1] = i, base[2] = SLICES + 1;
+    }
+    sdf_mesh *mesh = NULL;
+    CHECK(sdf_mesh_create(v, SLICES + 2, t, 2 * SLICES, NULL, &mesh, NULL) == 0, "cone");
+    return mesh;
+}
+
+static void test_many_ties(void)
+{
+    sdf_mesh *cone = make_cone();
+    if (!cone)
+        return;
+    test_mesh("cone", cone);
+    /* A column of points over the apex and under the base centre, packed into packets. */
+    enum { N = 2000 };
+    float *p = malloc(3 * N * sizeof *p), *d = malloc(N * sizeof *d);
+    float *c = malloc(3 * N * sizeof *c), *w = malloc(3 * N * sizeof *w);
+    uint32_t *t = malloc(N * sizeof *t);
+    for (int i = 0; i < N; i++) {
+        double h = 0.001 + 0.5 * i / N;
+        p[3 * i] = 0, p[3 * i + 1] = 0, p[3 * i + 2] = (float)(i % 2 ? 1.5 + h : -h);
+    }
+    const sdf_traversal traversals[] = {SDF_TRAVERSAL_PACKETS, SDF_TRAVERSAL_SINGLE};
+    for (int v = 0; v < 2; v++) {
+        sdf_query_options o = {.sign = SDF_SIGN_NONE, .threads = 2, .traversal = traversals[v]};
+        sdf_query_result res = {.distance = d, .closest = c, .triangle = t, .barycentric = w};
+        CHECK(sdf_query(cone, p, N, &o, &res) == 0, "cone query");
+        int before = check_failures;
+        for (int i = 0; i < N && check_failures - before < 5; i++)
+            check_point(cone, p + 3 * i, d[i], c + 3 * i, t[i], w + 3 * i, 1e-6,
+                        v ? "cone apex single" : "cone apex packets");
+    }
+    free(p), free(d), free(c), free(w), free(t);
+    sdf_mesh_release(cone);
 }
 
 /* Same answers, bit for bit, whatever the thread count and point layout. */
@@ -202,6 +257,7 @@ int main(void)
     sdf_mesh *demo;
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
     test_mesh("demo", demo);
+    test_many_ties();
     test_threads_and_stride(demo);
     test_concurrent_callers(demo);
     test_bad_points(demo);
