@@ -261,11 +261,15 @@ SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *nod
                 continue;
             float d2[LANE_GROUP];
             triangle_lanes(&f, pk, g, d2);
-            for (int j = 0; j < LANE_GROUP; j++) {
-                int i = g * LANE_GROUP + j;
-                if (d2[j] <= limit2[i])
-                    lane_offer(&lanes[i], &limit2[i], tie_abs, tri, d2[j]);
-            }
+            uint8_t within[LANE_GROUP]; /* vector compare; lanes that pass are rare */
+            for (int j = 0; j < LANE_GROUP; j++)
+                within[j] = d2[j] <= limit2[g * LANE_GROUP + j];
+            uint64_t any;
+            memcpy(&any, within, sizeof any);
+            for (int j = 0; any && j < LANE_GROUP; j++)
+                if (within[j])
+                    lane_offer(&lanes[g * LANE_GROUP + j], &limit2[g * LANE_GROUP + j], tie_abs,
+                               tri, d2[j]);
         }
     }
 }
