@@ -23,6 +23,28 @@ static double normalize(double v[3])
     return len;
 }
 
+/* The unit normal of triangle `tri` in double (zero for zero area), from its corners `p`.
+ * Face normals are not stored (12 bytes per triangle): the sign needs one only for points
+ * whose closest feature is a face, and recomputing it costs less than the cache miss. */
+static double face_normal(const double p[3][3], double n[3])
+{
+    double u[3], v[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = p[1][i] - p[0][i];
+        v[i] = p[2][i] - p[0][i];
+    }
+    n[0] = u[1] * v[2] - u[2] * v[1];
+    n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+    return normalize(n);
+}
+
+static void load_corners(const float *positions, const uint32_t *tri, double p[3][3])
+{
+    for (int k = 0; k < 3; k++)
+        load(positions, tri[k], p[k]);
+}
+
 /* Interior angle at corner `a` of triangle (a, b, c). */
 static double corner_angle(const double a[3], const double b[3], const double c[3])
 {
@@ -55,11 +77,11 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
     double *edge_sum = calloc(3 * edge_count + 1, sizeof *edge_sum);
     double *vertex_sum = calloc(3 * vertex_count + 1, sizeof *vertex_sum);
     if (pn) {
-        pn->face = malloc(3 * triangle_count * sizeof(float));
+        pn->positions = positions;
         pn->edge = malloc((3 * edge_count + 1) * sizeof(float));
         pn->vertex = malloc((3 * vertex_count + 1) * sizeof(float));
     }
-    if (!pn || !edge_sum || !vertex_sum || !pn->face || !pn->edge || !pn->vertex) {
+    if (!pn || !edge_sum || !vertex_sum || !pn->edge || !pn->vertex) {
         free(edge_sum);
         free(vertex_sum);
         sdf__pseudonormals_destroy(pn);
@@ -68,22 +90,9 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
     for (size_t t = 0; t < triangle_count; t++) {
         const uint32_t *tri = triangles + 3 * t;
         double p[3][3], n[3];
-        for (int k = 0; k < 3; k++)
-            load(positions, tri[k], p[k]);
-        double u[3], v[3];
-        for (int i = 0; i < 3; i++) {
-            u[i] = p[1][i] - p[0][i];
-            v[i] = p[2][i] - p[0][i];
-        }
-        n[0] = u[1] * v[2] - u[2] * v[1];
-        n[1] = u[2] * v[0] - u[0] * v[2];
-        n[2] = u[0] * v[1] - u[1] * v[0];
-        if (normalize(n) == 0) {
-            pn->face[3 * t] = pn->face[3 * t + 1] = pn->face[3 * t + 2] = 0;
+        load_corners(positions, tri, p);
+        if (face_normal(p, n) == 0)
             continue;
-        }
-        for (int i = 0; i < 3; i++)
-            pn->face[3 * t + i] = (float)n[i];
         for (int k = 0; k < 3; k++) {
             double angle = corner_angle(p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
             uint32_t e = edge_of[3 * t + k];
@@ -100,7 +109,7 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
         store_unit(pn->vertex + 3 * v, vertex_sum + 3 * v);
     free(edge_sum);
     free(vertex_sum);
-    pn->bytes = (3 * triangle_count + 3 * edge_count + 3 * vertex_count) * sizeof(float);
+    pn->bytes = (3 * edge_count + 3 * vertex_count) * sizeof(float);
     *out = pn;
     return 0;
 }
@@ -109,7 +118,6 @@ void sdf__pseudonormals_destroy(sdf__pseudonormals *pn)
 {
     if (!pn)
         return;
-    free(pn->face);
     free(pn->edge);
     free(pn->vertex);
     free(pn);
@@ -134,8 +142,12 @@ void sdf__pseudonormal(const sdf__pseudonormals *pn, const uint32_t *triangles,
         if (e != SDF__NO_EDGE && copy_if_nonzero(pn->edge + 3 * (size_t)e, n))
             return;
     }
-    if (copy_if_nonzero(pn->face + 3 * (size_t)tri, n))
+    double p[3][3], face[3];
+    load_corners(pn->positions, t, p);
+    if (face_normal(p, face) > 0) {
+        n[0] = (float)face[0], n[1] = (float)face[1], n[2] = (float)face[2];
         return;
+    }
     for (int k = 0; k < 3; k++)
         if (copy_if_nonzero(pn->vertex + 3 * (size_t)t[k], n))
             return;

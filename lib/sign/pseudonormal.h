@@ -5,7 +5,9 @@
  *   face:   the face normal;
  *   edge:   the sum of the two adjacent face normals (each weighted by pi);
  *   vertex: sum over incident faces of (angle at the vertex) * (face normal).
- * Zero-area triangles have no normal and contribute nothing. */
+ * Zero-area triangles have no normal and contribute nothing. Edge and vertex normals are
+ * stored; face normals are recomputed from the corners (the mesh's positions must outlive
+ * the pseudonormals). */
 #ifndef SDF_SIGN_PSEUDONORMAL_H
 #define SDF_SIGN_PSEUDONORMAL_H
 
@@ -13,7 +15,7 @@
 #include <stdint.h>
 
 typedef struct sdf__pseudonormals {
-    float *face;   /* 3 per triangle, unit (or zero) */
+    const float *positions; /* the mesh's; face normals are computed from it when asked */
     float *edge;   /* 3 per edge, unit (or zero) */
     float *vertex; /* 3 per vertex, unit (or zero) */
     size_t bytes;
