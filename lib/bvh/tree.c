@@ -153,7 +153,7 @@ int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *tr
      * makes leaves of ~6 triangles instead of ~2, which halves the node count (memory) and
      * measured faster (refined_elephant, packets: band 0.61 -> 0.73 Mq/s, box 0.30 -> 0.36). */
     args.traversalCost = 8.0f;
-    args.maxLeafSize = max_leaf < 1 ? 1 : (max_leaf > 32 ? 32 : max_leaf);
+    args.maxLeafSize = max_leaf < 1 ? 1 : (max_leaf > SDF__TREE_MAX_LEAF ? SDF__TREE_MAX_LEAF : max_leaf);
     args.bvh = bvh;
     args.primitives = prims;
     args.primitiveCount = triangle_count;

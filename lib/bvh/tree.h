@@ -32,6 +32,7 @@ typedef struct sdf__tree {
 } sdf__tree;
 
 #define SDF__TREE_MAX_DEPTH 64
+#define SDF__TREE_MAX_LEAF 32 /* triangles per leaf, at most */
 
 /* Build over all triangles with at most `max_leaf` (1..32) per leaf. Returns 0, SDF_ENOMEM,
  * or SDF_EBVH (Embree failed, or the tree is deeper than SDF__TREE_MAX_DEPTH). */

@@ -79,13 +79,6 @@ int sdf__weld(const float *positions, size_t vertex_count, uint32_t *triangles,
 
 /* ---- edges ----------------------------------------------------------------------------- */
 
-typedef struct edge_slot {
-    uint64_t key;     /* lo << 32 | hi, or UINT64_MAX when empty */
-    uint32_t id;
-    uint32_t uses;    /* triangles using the edge */
-    int32_t balance;  /* +1 per use lo->hi, -1 per use hi->lo */
-} edge_slot;
-
 static int has_repeated_corner(const uint32_t *t)
 {
     return t[0] == t[1] || t[1] == t[2] || t[2] == t[0];
@@ -144,49 +137,100 @@ static void geometry_summary(const float *pos, const uint32_t *tris, size_t nt,
     r->degenerate_triangles = degenerate;
 }
 
+/* A half-edge filed under its lower vertex: the other vertex, and which triangle corner
+ * (3 t + k) it leaves from. */
+typedef struct half_edge {
+    uint32_t other, corner;
+} half_edge;
+
+static int by_other(const void *a, const void *b)
+{
+    const half_edge *x = a, *y = b;
+    return x->other < y->other ? -1 : x->other > y->other ? 1 : (x->corner > y->corner) - (x->corner < y->corner);
+}
+
+/* Sort a vertex's few half-edges: insertion sort for the usual handful, qsort for a fan. */
+static void sort_half_edges(half_edge *h, size_t n)
+{
+    if (n > 32) {
+        qsort(h, n, sizeof *h, by_other);
+        return;
+    }
+    for (size_t i = 1; i < n; i++) {
+        half_edge x = h[i];
+        size_t j = i;
+        while (j > 0 && by_other(&h[j - 1], &x) > 0) {
+            h[j] = h[j - 1];
+            j--;
+        }
+        h[j] = x;
+    }
+}
+
+/* Edges are found by filing every half-edge under its lower vertex (a counting sort, so
+ * memory is read in order: a hash table over 4M half-edges spent 0.9 s of a 1.4M-triangle
+ * build in cache misses) and grouping each vertex's list by the other vertex. Edge ids
+ * follow (lower vertex, upper vertex) order. */
 int sdf__analyse(const float *positions, const uint32_t *triangles, size_t triangle_count,
                  uint32_t **edge_of_out, size_t *edge_count, sdf_mesh_report *r)
 {
-    size_t cap = table_size(3 * triangle_count / 2 + 1);
-    edge_slot *table = malloc(cap * sizeof *table);
-    uint32_t *edge_of = malloc(3 * triangle_count * sizeof *edge_of);
-    if (!table || !edge_of) {
-        free(table);
+    size_t vertex_count = 0;
+    for (size_t i = 0; i < 3 * triangle_count; i++)
+        vertex_count = triangles[i] >= vertex_count ? (size_t)triangles[i] + 1 : vertex_count;
+    size_t *start = calloc(vertex_count + 2, sizeof *start);
+    half_edge *filed = malloc((3 * triangle_count + 1) * sizeof *filed);
+    uint32_t *edge_of = malloc((3 * triangle_count + 1) * sizeof *edge_of);
+    if (!start || !filed || !edge_of) {
+        free(start);
+        free(filed);
         free(edge_of);
         return SDF_ENOMEM;
     }
-    for (size_t i = 0; i < cap; i++)
-        table[i].key = UINT64_MAX;
-    uint32_t edges = 0;
     for (size_t t = 0; t < triangle_count; t++) {
         const uint32_t *tri = triangles + 3 * t;
-        int skip = has_repeated_corner(tri);
         for (int k = 0; k < 3; k++) {
-            uint32_t a = tri[k], b = tri[(k + 1) % 3];
-            if (skip) {
-                edge_of[3 * t + k] = SDF__NO_EDGE;
-                continue;
+            edge_of[3 * t + k] = SDF__NO_EDGE;
+            if (!has_repeated_corner(tri)) {
+                uint32_t a = tri[k], b = tri[(k + 1) % 3];
+                start[(a < b ? a : b) + 2]++;
             }
-            uint64_t key = a < b ? (uint64_t)a << 32 | b : (uint64_t)b << 32 | a;
-            size_t h = mix(key) & (cap - 1);
-            while (table[h].key != UINT64_MAX && table[h].key != key)
-                h = (h + 1) & (cap - 1);
-            if (table[h].key == UINT64_MAX)
-                table[h] = (edge_slot){key, edges++, 0, 0};
-            table[h].uses++;
-            table[h].balance += a < b ? 1 : -1;
-            edge_of[3 * t + k] = table[h].id;
         }
     }
-    size_t boundary = 0, nonmanifold = 0, misoriented = 0;
-    for (size_t i = 0; i < cap; i++) {
-        if (table[i].key == UINT64_MAX)
+    for (size_t v = 2; v < vertex_count + 2; v++) /* start[v + 1] = first slot of vertex v */
+        start[v] += start[v - 1];
+    for (size_t t = 0; t < triangle_count; t++) {
+        const uint32_t *tri = triangles + 3 * t;
+        if (has_repeated_corner(tri))
             continue;
-        boundary += table[i].uses == 1;
-        nonmanifold += table[i].uses > 2;
-        misoriented += table[i].uses == 2 && table[i].balance != 0;
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = tri[k], b = tri[(k + 1) % 3];
+            filed[start[(a < b ? a : b) + 1]++] = (half_edge){a < b ? b : a, (uint32_t)(3 * t + k)};
+        }
     }
-    free(table);
+    /* Now start[v] is the first slot of vertex v, start[v + 1] its end. */
+    uint32_t edges = 0;
+    size_t boundary = 0, nonmanifold = 0, misoriented = 0;
+    for (size_t v = 0; v < vertex_count; v++) {
+        half_edge *h = filed + start[v];
+        size_t n = start[v + 1] - start[v];
+        sort_half_edges(h, n);
+        for (size_t i = 0; i < n;) {
+            size_t j = i;
+            int balance = 0; /* +1 per use leaving the lower vertex, -1 per use entering it */
+            for (; j < n && h[j].other == h[i].other; j++) {
+                edge_of[h[j].corner] = edges;
+                balance += triangles[h[j].corner] == v ? 1 : -1;
+            }
+            size_t uses = j - i;
+            boundary += uses == 1;
+            nonmanifold += uses > 2;
+            misoriented += uses == 2 && balance != 0;
+            edges++;
+            i = j;
+        }
+    }
+    free(start);
+    free(filed);
     r->boundary_edges = boundary;
     r->nonmanifold_edges = nonmanifold;
     r->misoriented_edges = misoriented;
