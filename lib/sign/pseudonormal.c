@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 
+#include "core/parallel.h"
 #include "mesh/topology.h"
 #include "query/triangle.h"
 #include "sdf/sdf.h"
@@ -68,6 +69,32 @@ static void store_unit(float *dst, double v[3])
         dst[i] = (float)v[i];
 }
 
+/* One triangle's unit normal and interior angles. */
+typedef struct face_terms {
+    double normal[3], angle[3];
+    int has_normal; /* 0: zero area, contributes nothing */
+} face_terms;
+
+typedef struct terms_job {
+    const float *positions;
+    const uint32_t *triangles;
+    face_terms *terms;
+} terms_job;
+
+static void compute_terms(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const terms_job *job = ctx;
+    for (size_t t = begin; t < end; t++) {
+        face_terms *f = &job->terms[t];
+        double p[3][3];
+        load_corners(job->positions, job->triangles + 3 * t, p);
+        f->has_normal = face_normal(p, f->normal) > 0;
+        for (int k = 0; k < 3 && f->has_normal; k++)
+            f->angle[k] = corner_angle(p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
+    }
+}
+
 int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
                               const uint32_t *triangles, const uint32_t *edge_of,
                               size_t triangle_count, size_t edge_count,
@@ -87,22 +114,32 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
         sdf__pseudonormals_destroy(pn);
         return SDF_ENOMEM;
     }
+    /* The normals and corner angles (the costly part: square roots and atan2) on all CPUs;
+     * the sums then in triangle order on one, so the result does not depend on threads. */
+    face_terms *terms = malloc((triangle_count + 1) * sizeof *terms);
+    if (!terms) {
+        free(edge_sum);
+        free(vertex_sum);
+        sdf__pseudonormals_destroy(pn);
+        return SDF_ENOMEM;
+    }
+    terms_job job = {positions, triangles, terms};
+    sdf__parallel_for(triangle_count, 4096, 0, compute_terms, &job);
     for (size_t t = 0; t < triangle_count; t++) {
         const uint32_t *tri = triangles + 3 * t;
-        double p[3][3], n[3];
-        load_corners(positions, tri, p);
-        if (face_normal(p, n) == 0)
+        const face_terms *f = &terms[t];
+        if (!f->has_normal)
             continue;
         for (int k = 0; k < 3; k++) {
-            double angle = corner_angle(p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
             uint32_t e = edge_of[3 * t + k];
             for (int i = 0; i < 3; i++) {
-                vertex_sum[3 * tri[k] + i] += angle * n[i];
+                vertex_sum[3 * tri[k] + i] += f->angle[k] * f->normal[i];
                 if (e != SDF__NO_EDGE)
-                    edge_sum[3 * e + i] += n[i]; /* the weight pi is common to all: dropped */
+                    edge_sum[3 * e + i] += f->normal[i]; /* the weight pi is common to all: dropped */
             }
         }
     }
+    free(terms);
     for (size_t e = 0; e < edge_count; e++)
         store_unit(pn->edge + 3 * e, edge_sum + 3 * e);
     for (size_t v = 0; v < vertex_count; v++)
