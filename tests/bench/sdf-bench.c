@@ -193,9 +193,10 @@ int main(int argc, char **argv)
                             .closest = closest ? vec3 : NULL, .triangle = tri};
     sdf_query_options opts = {.sign = a.sign, .threads = a.threads, .traversal = a.traversal};
     printf("mesh: %s triangles: %zu vertices: %zu closed: %d manifold: %d flipped: %d "
-           "auto sign: %s index: %.1f MB build: %.3f s\n",
+           "auto sign: %s index: %.1f MB (%.1f B/triangle) build: %.3f s\n",
            a.mesh, r.triangles, r.vertices, r.closed, r.edge_manifold, r.flipped,
-           sdf_sign_name(r.auto_sign), r.index_bytes / 1e6, r.build_seconds);
+           sdf_sign_name(r.auto_sign), r.index_bytes / 1e6,
+           r.triangles ? (double)r.index_bytes / (double)r.triangles : 0.0, r.build_seconds);
     printf("points: %zu source: %s mode: %s sign: %s threads: %d traversal: %s\n", n,
            a.points ? a.points : a.workload, a.mode,
            sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads,
