@@ -90,8 +90,10 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
     return 0;
 }
 
-/* -1 inside, +1 outside (or unsigned). */
-static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, const float normal[3])
+/* -1 inside, +1 outside (or unsigned). `winding`: the point's winding number when it was
+ * computed with its packet, else NAN. */
+static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, const float normal[3],
+                     double winding)
 {
     const sdf_mesh *m = b->mesh;
     switch (b->sign) {
@@ -103,7 +105,9 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
     }
     case SDF_SIGN_WINDING: {
         double q[3] = {p[0], p[1], p[2]};
-        return sdf__winding_number(m->winding, q) > 0.5 ? -1.0f : 1.0f;
+        if (isnan(winding))
+            winding = sdf__winding_number(m->winding, q);
+        return winding > 0.5 ? -1.0f : 1.0f;
     }
     case SDF_SIGN_RAYCAST:
         return sdf__raycast_inside(m->bvh, p) ? -1.0f : 1.0f;
@@ -112,8 +116,8 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
     }
 }
 
-/* Sign and outputs of point i, given its closest point. */
-static void finish(const batch *b, size_t i, const sdf__hit *h)
+/* Sign and outputs of point i, given its closest point (and its winding number, or NAN). */
+static void finish(const batch *b, size_t i, const sdf__hit *h, double winding)
 {
     const sdf_mesh *m = b->mesh;
     const float *p = point_at(b, i);
@@ -123,7 +127,7 @@ static void finish(const batch *b, size_t i, const sdf__hit *h)
     float normal[3] = {0, 0, 0};
     if (b->sign == SDF_SIGN_PSEUDONORMAL || (on_surface && b->out->gradient))
         sdf__pseudonormal(m->normals, m->triangles, m->edge_of, hit.triangle, hit.feature, normal);
-    float s = d > 0 ? sign_of(b, p, &hit, normal) : 1.0f;
+    float s = d > 0 ? sign_of(b, p, &hit, normal, winding) : 1.0f;
     sdf_query_result *o = b->out;
     if (o->distance)
         o->distance[i] = s * (float)d;
@@ -148,7 +152,7 @@ static void answer_range(void *ctx, size_t begin, size_t end, int worker)
     for (size_t i = begin; i < end; i++) {
         sdf__hit hit;
         sdf__bvh_closest(b->mesh->bvh, point_at(b, i), &hit);
-        finish(b, i, &hit);
+        finish(b, i, &hit, NAN);
     }
 }
 
@@ -157,8 +161,26 @@ static void single_points(const batch *b, const uint32_t *order, int n, sdf__hit
 {
     for (int i = 0; i < n; i++) {
         sdf__bvh_closest(b->mesh->bvh, point_at(b, order[i]), &hits[i]);
-        finish(b, order[i], &hits[i]);
+        finish(b, order[i], &hits[i], NAN);
     }
+}
+
+/* Winding numbers for a packet's points in one traversal when the sign needs them (sign/
+ * winding.h: the same values as one point at a time), else NAN. */
+static void packet_winding(const batch *b, const sdf__packet *pk, double *winding)
+{
+    _Static_assert(SDF__WINDING_LANES >= SDF__PACKET, "a packet fits the winding lanes");
+    if (b->sign != SDF_SIGN_WINDING) {
+        for (int i = 0; i < pk->n; i++)
+            winding[i] = NAN;
+        return;
+    }
+    double qx[SDF__WINDING_LANES], qy[SDF__WINDING_LANES], qz[SDF__WINDING_LANES];
+    for (int i = 0; i < SDF__WINDING_LANES; i++) { /* padded lanes repeat the last point */
+        int j = i < pk->n ? i : pk->n - 1;
+        qx[i] = pk->x[j], qy[i] = pk->y[j], qz[i] = pk->z[j];
+    }
+    sdf__winding_packet(b->mesh->winding, qx, qy, qz, pk->n, winding);
 }
 
 /* Positions [begin, end) of the Morton order, packet by packet. Each packet's bounds are
@@ -193,17 +215,33 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
             for (int i = pk.n; i < SDF__PACKET; i++) /* pad: the box tests run on every lane */
                 pk.x[i] = pk.x[pk.n - 1], pk.y[i] = pk.y[pk.n - 1], pk.z[i] = pk.z[pk.n - 1];
             sdf__closest_packet(&m->tree, m->positions, m->triangles, m->diagonal, &pk, hits);
+            double winding[SDF__PACKET];
+            packet_winding(b, &pk, winding);
             for (int i = 0; i < pk.n; i++) {
                 size_t idx = b->order[k + (size_t)i];
                 if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
                     sdf__bvh_closest(m->bvh, point_at(b, idx), &hits[i]);
-                finish(b, idx, &hits[i]);
+                finish(b, idx, &hits[i], winding[i]);
             }
         }
         const float *last = point_at(b, b->order[k + (size_t)pk.n - 1]);
         prev[0] = last[0], prev[1] = last[1], prev[2] = last[2];
         prev_d = sqrt(hits[pk.n - 1].dist2);
     }
+}
+
+/* The Morton visit order for the packet traversal; NULL for the single traversal, a batch of
+ * one, or no memory (the single traversal then gives the same answers). */
+static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_options *opts)
+{
+    if ((opts && opts->traversal == SDF_TRAVERSAL_SINGLE) || count < 2 || count > UINT32_MAX)
+        return NULL;
+    uint32_t *order = malloc(count * sizeof *order);
+    if (order && sdf__morton_order(b->points, b->stride, count, order)) {
+        free(order);
+        order = NULL;
+    }
+    return order;
 }
 
 int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
@@ -217,14 +255,7 @@ int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
         return rc;
     b.out = out;
     int threads = opts ? opts->threads : 0;
-    uint32_t *order = NULL;
-    if (!(opts && opts->traversal == SDF_TRAVERSAL_SINGLE) && count > 1 && count <= UINT32_MAX) {
-        order = malloc(count * sizeof *order);
-        if (order && sdf__morton_order(b.points, b.stride, count, order)) {
-            free(order);
-            order = NULL;
-        }
-    }
+    uint32_t *order = packet_order(&b, count, opts);
     if (order) {
         /* Small batches still need a few work items per thread to keep every core busy. */
         int workers = sdf__effective_threads(threads, count, CHUNK);
@@ -250,6 +281,25 @@ static void winding_range(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
+/* Positions [begin, end) of the Morton order, SDF__WINDING_LANES points per traversal. */
+static void winding_packet_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const batch *b = ctx;
+    for (size_t k = begin; k < end; k += SDF__WINDING_LANES) {
+        int n = (int)(end - k < SDF__WINDING_LANES ? end - k : SDF__WINDING_LANES);
+        double qx[SDF__WINDING_LANES], qy[SDF__WINDING_LANES], qz[SDF__WINDING_LANES];
+        double w[SDF__WINDING_LANES];
+        for (int i = 0; i < SDF__WINDING_LANES; i++) { /* padded lanes repeat the last point */
+            const float *p = point_at(b, b->order[k + (size_t)(i < n ? i : n - 1)]);
+            qx[i] = p[0], qy[i] = p[1], qz[i] = p[2];
+        }
+        sdf__winding_packet(b->mesh->winding, qx, qy, qz, n, w);
+        for (int i = 0; i < n; i++)
+            b->winding[b->order[k + (size_t)i]] = (float)w[i];
+    }
+}
+
 int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
                         const sdf_query_options *opts, float *winding, size_t *bad_index)
 {
@@ -260,6 +310,14 @@ int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
     if (rc)
         return rc;
     b.winding = winding;
-    sdf__parallel_for(count, CHUNK, opts ? opts->threads : 0, winding_range, &b);
+    int threads = opts ? opts->threads : 0;
+    uint32_t *order = packet_order(&b, count, opts);
+    if (order) { /* packets of nearby points share the tree's upper levels */
+        b.order = order;
+        sdf__parallel_for(count, 1024, threads, winding_packet_range, &b);
+        free(order);
+    } else {
+        sdf__parallel_for(count, CHUNK, threads, winding_range, &b);
+    }
     return 0;
 }

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "bvh/tree.h"
+#include "core/simd.h"
 #include "sdf/sdf.h"
 
 /* Far-field accuracy: a node is approximated when |q - p~| > BETA * r. Barill et al. use 2
@@ -45,7 +46,7 @@ static void corners(const sdf__winding *w, uint32_t tri, double p[3][3])
             p[k][i] = w->positions[3 * w->triangles[3 * (size_t)tri + k] + i];
 }
 
-static double length(const double v[3]) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+SDF__HOT_INLINE double length(const double v[3]) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 /* Moments of a leaf, summed directly over its triangles. */
 static void leaf_moments(const sdf__winding *w, const sdf__tree_node *node, moments *mo)
@@ -195,7 +196,7 @@ double sdf__solid_angle(const double q[3], const double a[3], const double b[3],
 /* Solid angle of a far node: integral over its triangles of (x - q).n / |x - q|^3 dA,
  * with f(r) = r/|r|^3 expanded about r0 = p~ - q to first order (J = df/dr):
  *   f(r0) . N  +  trace(J M),   J = I/|r0|^3 - 3 r0 r0^T / |r0|^5. */
-static double far_field(const stored_moments *mo, const double r[3], double d)
+SDF__HOT_INLINE double far_field(const stored_moments *mo, const double r[3], double d)
 {
     double d3 = d * d * d, d5 = d3 * d * d;
     double first = (r[0] * mo->normal[0] + r[1] * mo->normal[1] + r[2] * mo->normal[2]) / d3;
@@ -205,6 +206,38 @@ static double far_field(const stored_moments *mo, const double r[3], double d)
         for (int b = 0; b < 3; b++)
             rmr += r[a] * mo->m[a][b] * r[b];
     return first + trace / d3 - 3 * rmr / d5;
+}
+
+/* One triangle of a near leaf: its exact solid angle when q is close to it, else the first
+ * term of the same expansion with the triangle as its own node (centre the centroid, where
+ * the second term vanishes): r . A / |r|^3, r = centroid - q, A the area vector. The
+ * criterion is the nodes' (|r| > BETA * radius), so the accuracy is theirs, and most of a
+ * near leaf's atan2 calls go (fandisk band, sign=winding, 2 threads: 0.26 -> 0.30 Mq/s). */
+static double triangle_term(const double q[3], const double p[3][3])
+{
+    double c[3], r[3], radius2 = 0;
+    for (int i = 0; i < 3; i++) {
+        c[i] = (p[0][i] + p[1][i] + p[2][i]) / 3;
+        r[i] = c[i] - q[i];
+    }
+    for (int k = 0; k < 3; k++) {
+        double e2 = 0;
+        for (int i = 0; i < 3; i++)
+            e2 += (p[k][i] - c[i]) * (p[k][i] - c[i]);
+        radius2 = e2 > radius2 ? e2 : radius2;
+    }
+    double d2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    if (d2 <= BETA * BETA * radius2)
+        return sdf__solid_angle(q, p[0], p[1], p[2]);
+    double u[3], v[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = p[1][i] - p[0][i];
+        v[i] = p[2][i] - p[0][i];
+    }
+    double a[3] = {0.5 * (u[1] * v[2] - u[2] * v[1]), 0.5 * (u[2] * v[0] - u[0] * v[2]),
+                   0.5 * (u[0] * v[1] - u[1] * v[0])};
+    double d = sqrt(d2);
+    return (r[0] * a[0] + r[1] * a[1] + r[2] * a[2]) / (d2 * d);
 }
 
 double sdf__winding_number(const sdf__winding *w, const double q[3])
@@ -225,7 +258,7 @@ double sdf__winding_number(const sdf__winding *w, const double q[3])
             for (uint32_t k = 0; k < node->count; k++) {
                 double p[3][3];
                 corners(w, w->tree->prims[node->first + k], p);
-                omega += sdf__solid_angle(q, p[0], p[1], p[2]);
+                omega += triangle_term(q, p);
             }
         } else {
             stack[top++] = node->first;
@@ -233,4 +266,66 @@ double sdf__winding_number(const sdf__winding *w, const double q[3])
         }
     }
     return omega / (4 * M_PI);
+}
+
+/* The packet version: one traversal for up to SDF__WINDING_LANES points. Each node carries
+ * the mask of lanes for which it is still near; every lane receives exactly the terms, in
+ * exactly the order, of sdf__winding_number (the same depth-first order restricted to its
+ * mask), so the two agree to the last bit when compiled alike. The far-field terms of all
+ * lanes are computed together in straight-line double loops the compiler vectorizes; lanes
+ * outside the mask add 0. */
+SDF__SIMD_CLONES
+void sdf__winding_packet(const sdf__winding *w, const double *qx, const double *qy,
+                         const double *qz, int n, double *winding)
+{
+    typedef uint64_t lane_mask;
+    double omega[SDF__WINDING_LANES];
+    for (int i = 0; i < SDF__WINDING_LANES; i++)
+        omega[i] = 0;
+    struct { uint32_t node; lane_mask lanes; } stack[SDF__TREE_MAX_DEPTH + 2];
+    int top = 0;
+    stack[top].node = 0;
+    stack[top++].lanes = n >= 64 ? ~(lane_mask)0 : (((lane_mask)1 << n) - 1);
+    while (top > 0) {
+        uint32_t index = stack[--top].node;
+        lane_mask lanes = stack[top].lanes;
+        const sdf__tree_node *node = &w->tree->nodes[index];
+        const stored_moments *mo = &w->moments[index];
+        double far_term[SDF__WINDING_LANES];
+        int far[SDF__WINDING_LANES];
+        for (int i = 0; i < SDF__WINDING_LANES; i++) {
+            double r[3] = {mo->center[0] - qx[i], mo->center[1] - qy[i], mo->center[2] - qz[i]};
+            double d = length(r);
+            far[i] = d > BETA * mo->radius;
+            far_term[i] = far[i] ? far_field(mo, r, d) : 0.0;
+        }
+        lane_mask near = 0;
+        for (int i = 0; i < n; i++) {
+            if (!(lanes >> i & 1))
+                continue;
+            if (far[i])
+                omega[i] += far_term[i];
+            else
+                near |= (lane_mask)1 << i;
+        }
+        if (!near)
+            continue;
+        if (node->count) {
+            for (uint32_t k = 0; k < node->count; k++) {
+                double p[3][3];
+                corners(w, w->tree->prims[node->first + k], p);
+                for (int i = 0; i < n; i++) {
+                    if (near >> i & 1) {
+                        double q[3] = {qx[i], qy[i], qz[i]};
+                        omega[i] += triangle_term(q, p);
+                    }
+                }
+            }
+        } else {
+            stack[top].node = node->first, stack[top++].lanes = near;
+            stack[top].node = node->first + 1, stack[top++].lanes = near;
+        }
+    }
+    for (int i = 0; i < n; i++)
+        winding[i] = omega[i] / (4 * M_PI);
 }

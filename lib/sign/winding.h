@@ -30,6 +30,12 @@ size_t sdf__winding_bytes(const sdf__winding *w);
 /* The winding number at q. Thread-safe. */
 double sdf__winding_number(const sdf__winding *w, const double q[3]);
 
+/* The winding numbers of n <= SDF__WINDING_LANES points (coordinates SoA; all lanes are read,
+ * so pad past n with copies) in one traversal: the same values as sdf__winding_number. */
+#define SDF__WINDING_LANES 32
+void sdf__winding_packet(const sdf__winding *w, const double *qx, const double *qy,
+                         const double *qz, int n, double *winding);
+
 /* The exact solid angle of triangle (a, b, c) seen from q, in steradians, positive when q
  * sees the triangle's back (van Oosterom & Strackee 1983). */
 double sdf__solid_angle(const double q[3], const double a[3], const double b[3],

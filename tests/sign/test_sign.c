@@ -3,11 +3,13 @@
  *  - closed meshes: pseudonormal, winding and raycast agree with the reference on 100 % of
  *    points farther than 1e-4 x diagonal from the surface;
  *  - open / defective meshes: winding agrees on >= 99.9 %;
- *  - the hierarchical winding number stays close to the brute-force value;
+ *  - the hierarchical winding number stays close to the brute-force value, and evaluated per
+ *    packet it gives the same signed distances as per point;
  *  - auto picks pseudonormal for closed meshes that do not intersect themselves, winding
  *    otherwise (cow.off is closed once welded, but self-intersecting). */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "../common/check.h"
 #include "../common/reference.h"
@@ -111,6 +113,22 @@ static void test_open(const char *name, sdf_mesh *mesh)
     double a_auto = agreement(mesh, &s, SDF_SIGN_AUTO, 1e-4 * r.diagonal, &bad);
     CHECK(a_auto == a, "%s: auto differs from winding", name);
     printf("%s winding agreement %.4f%%\n", name, 100 * a);
+    /* Winding numbers per packet (packet traversal) and per point (single traversal) are the
+     * same numbers, so the signed distances agree bit for bit. */
+    float *d[2];
+    for (int v = 0; v < 2; v++) {
+        d[v] = malloc(s.n * sizeof *d[v]);
+        sdf_query_options o = {.sign = SDF_SIGN_WINDING, .threads = 2,
+                               .traversal = v ? SDF_TRAVERSAL_SINGLE : SDF_TRAVERSAL_PACKETS};
+        sdf_query_result res = {.distance = d[v]};
+        CHECK(sdf_query(mesh, s.p, s.n, &o, &res) == 0, "query");
+    }
+    size_t differ = 0;
+    for (size_t i = 0; i < s.n; i++)
+        differ += memcmp(&d[0][i], &d[1][i], sizeof(float)) != 0;
+    CHECK(differ == 0, "%s: winding signs per packet and per point differ on %zu points", name,
+          differ);
+    free(d[0]), free(d[1]);
     free_sample(&s);
 }
 
@@ -125,6 +143,16 @@ static void test_winding_values(const char *name, sdf_mesh *mesh)
     for (size_t i = 0; i < s.n; i++)
         worst = fmax(worst, fabs(w[i] - s.w[i]));
     CHECK(worst < 0.05, "%s: fast winding number off by %g", name, worst);
+    /* Per packet (the default) and per point: the same numbers, bit for bit. */
+    float *single = malloc(s.n * sizeof *single);
+    sdf_query_options o = {.traversal = SDF_TRAVERSAL_SINGLE};
+    CHECK(sdf_winding_numbers(mesh, s.p, s.n, &o, single, &bad) == 0, "winding numbers");
+    size_t differ = 0;
+    for (size_t i = 0; i < s.n; i++)
+        differ += memcmp(&w[i], &single[i], sizeof *w) != 0;
+    CHECK(differ == 0, "%s: winding numbers per packet and per point differ on %zu points", name,
+          differ);
+    free(single);
     printf("%s fast winding number max error %.2e\n", name, worst);
     free(w);
     free_sample(&s);

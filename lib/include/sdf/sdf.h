@@ -214,7 +214,9 @@ int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
 
 /* Generalized winding number (Jacobson et al. 2013) at each point, evaluated
  * hierarchically (Barill et al. 2018): ~1 inside, ~0 outside a closed mesh; fractional
- * near holes. Same argument rules as sdf_query; writes `count` floats to `winding`. */
+ * near holes. Same argument rules as sdf_query; writes `count` floats to `winding`. With
+ * SDF_TRAVERSAL_PACKETS (the default) nearby points share one traversal; the values are the
+ * same as with SDF_TRAVERSAL_SINGLE. */
 int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
                         const sdf_query_options *opts, float *winding, size_t *bad_index);
 
