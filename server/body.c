@@ -1,6 +1,8 @@
 /* body.c - query bodies in JSON, octet-stream and npy (see body.h). */
 #include "body.h"
 
+#include "numtext.h"
+
 #include <ctype.h>
 #include <math.h>
 #include <stdarg.h>
@@ -128,8 +130,7 @@ static int number(json *j, double *v)
         s++;
     if (s >= j->end || !isdigit((unsigned char)*s))
         return syntax(j, "expected a number");
-    char *q;
-    *v = strtod(j->p, &q);
+    const char *q = sdfd_parse_number(j->p, v);
     if (q == j->p || q > j->end)
         return syntax(j, "malformed number");
     j->p = q;
@@ -440,10 +441,8 @@ static int json_field(text *t, const char *name, const sdfd_reply *r, int word, 
                 t->s[t->len++] = ',';
             if (is_uint)
                 t->len += (size_t)sprintf(t->s + t->len, "%u", src[k]);
-            else if (f == 0 && signbit(f)) /* "-0" would read back as the integer 0 */
-                t->len += (size_t)sprintf(t->s + t->len, "-0.0");
             else
-                t->len += (size_t)sprintf(t->s + t->len, "%.9g", (double)f);
+                t->len += sdfd_format_float(f, t->s + t->len);
         }
         if (width > 1)
             t->s[t->len++] = ']';
