@@ -129,6 +129,7 @@ static bool visit_triangle(struct RTCPointQueryFunctionArguments *args)
         return false;
     sdf__hit *h = q->hit;
     h->dist2 = d2;
+    sdf__triangle_normal(a, b, c, h->face_normal);
     h->triangle = args->primID;
     h->feature = feature;
     for (int i = 0; i < 3; i++) {

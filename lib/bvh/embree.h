@@ -19,6 +19,7 @@ typedef struct sdf__hit {
     double point[3];
     double bary[3];
     double dist2;
+    double face_normal[3]; /* (b - a) x (c - a) of the triangle, not normalized */
     uint32_t triangle;
     int feature; /* enum sdf__feature */
 } sdf__hit;

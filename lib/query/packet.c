@@ -293,6 +293,7 @@ static void exact_lane(const float *positions, const uint32_t *triangles, const 
         double d2 = sdf__closest_on_triangle(p, v[0], v[1], v[2], closest, bary, &feature);
         if (d2 < hit->dist2 || (d2 == hit->dist2 && s->tri[c] < hit->triangle)) {
             hit->dist2 = d2;
+            sdf__triangle_normal(v[0], v[1], v[2], hit->face_normal);
             hit->triangle = s->tri[c];
             hit->feature = feature;
             memcpy(hit->point, closest, sizeof closest);

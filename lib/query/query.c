@@ -126,7 +126,8 @@ static void finish(const batch *b, size_t i, const sdf__hit *h, double winding)
     int on_surface = d <= m->surface_epsilon;
     float normal[3] = {0, 0, 0};
     if (b->sign == SDF_SIGN_PSEUDONORMAL || (on_surface && b->out->gradient))
-        sdf__pseudonormal(m->normals, m->triangles, m->edge_of, hit.triangle, hit.feature, normal);
+        sdf__pseudonormal(m->normals, m->triangles, m->edge_of, hit.triangle, hit.feature,
+                          hit.face_normal, normal);
     float s = d > 0 ? sign_of(b, p, &hit, normal, winding) : 1.0f;
     sdf_query_result *o = b->out;
     if (o->distance)

@@ -20,4 +20,15 @@ double sdf__closest_on_triangle(const double p[3], const double a[3], const doub
                                 const double c[3], double closest[3], double bary[3],
                                 int *feature);
 
+/* (b - a) x (c - a): the face normal times twice the area. */
+static inline void sdf__triangle_normal(const double a[3], const double b[3], const double c[3],
+                                        double n[3])
+{
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    n[0] = u[1] * v[2] - u[2] * v[1];
+    n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+}
+
 #endif

@@ -24,9 +24,8 @@ static double normalize(double v[3])
     return len;
 }
 
-/* The unit normal of triangle `tri` in double (zero for zero area), from its corners `p`.
- * Face normals are not stored (12 bytes per triangle): the sign needs one only for points
- * whose closest feature is a face, and recomputing it costs less than the cache miss. */
+/* The unit normal of a triangle in double (zero for zero area), from its corners `p`, for
+ * the edge and vertex sums. */
 static double face_normal(const double p[3][3], double n[3])
 {
     double u[3], v[3];
@@ -104,7 +103,6 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
     double *edge_sum = calloc(3 * edge_count + 1, sizeof *edge_sum);
     double *vertex_sum = calloc(3 * vertex_count + 1, sizeof *vertex_sum);
     if (pn) {
-        pn->positions = positions;
         pn->edge = malloc((3 * edge_count + 1) * sizeof(float));
         pn->vertex = malloc((3 * vertex_count + 1) * sizeof(float));
     }
@@ -169,7 +167,8 @@ static int copy_if_nonzero(const float *src, float n[3])
 }
 
 void sdf__pseudonormal(const sdf__pseudonormals *pn, const uint32_t *triangles,
-                       const uint32_t *edge_of, uint32_t tri, int feature, float n[3])
+                       const uint32_t *edge_of, uint32_t tri, int feature, const double face[3],
+                       float n[3])
 {
     const uint32_t *t = triangles + 3 * (size_t)tri;
     if (feature >= SDF__VERT0 && copy_if_nonzero(pn->vertex + 3 * (size_t)t[feature - SDF__VERT0], n))
@@ -179,10 +178,10 @@ void sdf__pseudonormal(const sdf__pseudonormals *pn, const uint32_t *triangles,
         if (e != SDF__NO_EDGE && copy_if_nonzero(pn->edge + 3 * (size_t)e, n))
             return;
     }
-    double p[3][3], face[3];
-    load_corners(pn->positions, t, p);
-    if (face_normal(p, face) > 0) {
-        n[0] = (float)face[0], n[1] = (float)face[1], n[2] = (float)face[2];
+    double len = sqrt(face[0] * face[0] + face[1] * face[1] + face[2] * face[2]);
+    if (len > 0 && isfinite(len)) {
+        double inv = 1 / len;
+        n[0] = (float)(face[0] * inv), n[1] = (float)(face[1] * inv), n[2] = (float)(face[2] * inv);
         return;
     }
     for (int k = 0; k < 3; k++)

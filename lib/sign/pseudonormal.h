@@ -6,8 +6,8 @@
  *   edge:   the sum of the two adjacent face normals (each weighted by pi);
  *   vertex: sum over incident faces of (angle at the vertex) * (face normal).
  * Zero-area triangles have no normal and contribute nothing. Edge and vertex normals are
- * stored; face normals are recomputed from the corners (the mesh's positions must outlive
- * the pseudonormals). */
+ * stored; face normals are not (12 bytes per triangle): the caller passes the one its
+ * closest-point search computed. */
 #ifndef SDF_SIGN_PSEUDONORMAL_H
 #define SDF_SIGN_PSEUDONORMAL_H
 
@@ -15,7 +15,6 @@
 #include <stdint.h>
 
 typedef struct sdf__pseudonormals {
-    const float *positions; /* the mesh's; face normals are computed from it when asked */
     float *edge;   /* 3 per edge, unit (or zero) */
     float *vertex; /* 3 per vertex, unit (or zero) */
     size_t bytes;
@@ -27,10 +26,12 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
                               sdf__pseudonormals **out);
 void sdf__pseudonormals_destroy(sdf__pseudonormals *pn);
 
-/* The unit pseudonormal of `feature` (enum sdf__feature) of triangle `tri`. Falls back to
- * the face normal, then to a corner's normal, when a feature has none (degenerate
+/* The unit pseudonormal of `feature` (enum sdf__feature) of triangle `tri`, whose face
+ * normal (any length; the closest-point search has it at hand) is `face`. Falls back to the
+ * face normal, then to a corner's normal, when a feature has none (degenerate
  * neighbourhoods); all zero only if the whole neighbourhood is degenerate. */
 void sdf__pseudonormal(const sdf__pseudonormals *pn, const uint32_t *triangles,
-                       const uint32_t *edge_of, uint32_t tri, int feature, float n[3]);
+                       const uint32_t *edge_of, uint32_t tri, int feature, const double face[3],
+                       float n[3]);
 
 #endif
