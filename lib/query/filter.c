@@ -1,0 +1,307 @@
+/* filter.c - the convolution-filtered signed distance and its gradient (see sdf.h and
+ * filter.h; paper: ../shared/papers/convolution-filtering-sdf.md).
+ *
+ * Evaluation is two batches of ordinary queries: f and grad f at the points themselves (for
+ * the kernel size h), then at every displaced sample p - s_i h(p). The samples of one point
+ * lie within a few kernel widths of it, so in Morton order they form coherent packets that
+ * share their traversals and seed each other's bounds: the paper's "packet sampling" is
+ * sdf_query's packet traversal. Large requests go in blocks of at most BLOCK_SAMPLES sample
+ * points, so memory stays bounded. */
+#include "query/filter.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/diag.h"
+
+#define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (28 MB of scratch) */
+#define DEFAULT_SAMPLES 64
+#define DEFAULT_CAP_OF_DIAGONAL 0.02
+
+/* ---- sample sets ------------------------------------------------------------------------ */
+
+/* splitmix64: a tiny, well-mixed generator, so a seed means the same samples everywhere. */
+static uint64_t next_random(uint64_t *state)
+{
+    uint64_t z = (*state += 0x9e3779b97f4a7c15u);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9u;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebu;
+    return z ^ (z >> 31);
+}
+
+/* Uniform in (0, 1]: never 0, so log() below is finite. */
+static double uniform01(uint64_t *state)
+{
+    return ((double)(next_random(state) >> 11) + 1.0) / 9007199254740992.0;
+}
+
+/* The bump's shape without its constant: exp(1 / (t^2 - 1)) for t = |u| / b < 1. */
+static double bump_shape(double t2)
+{
+    return t2 < 1 ? exp(1 / (t2 - 1)) : 0;
+}
+
+/* Gaussian w_a has standard deviation sigma = 1 / sqrt(2a) per axis. */
+static double gaussian_sigma(double a) { return 1 / sqrt(2 * a); }
+
+static int draw_random(const sdf_filter_options *f, sdf__samples *s)
+{
+    uint64_t state = f->seed;
+    double sigma = gaussian_sigma(f->a);
+    for (int i = 0; i < s->n; i++) {
+        double *o = s->offset[i];
+        if (f->kernel == SDF_KERNEL_GAUSSIAN) {
+            /* Box-Muller: two uniforms give two independent standard normals. */
+            double z[4];
+            for (int k = 0; k < 4; k += 2) {
+                double radius = sqrt(-2 * log(uniform01(&state)));
+                double angle = 2 * M_PI * uniform01(&state);
+                z[k] = radius * cos(angle);
+                z[k + 1] = radius * sin(angle);
+            }
+            for (int k = 0; k < 3; k++)
+                o[k] = sigma * z[k];
+        } else {
+            /* Rejection from the uniform cube [-1, 1]^3: accept with w(u) / max w, where
+             * max w = w(0) = e^-1 (then scale by b, eq. 6). Acceptance is ~15 %. */
+            for (;;) {
+                double u[3], t2 = 0;
+                for (int k = 0; k < 3; k++) {
+                    u[k] = 2 * uniform01(&state) - 1;
+                    t2 += u[k] * u[k];
+                }
+                if (uniform01(&state) <= bump_shape(t2) * M_E) {
+                    for (int k = 0; k < 3; k++)
+                        o[k] = f->b * u[k];
+                    break;
+                }
+            }
+        }
+        s->weight[i] = 1.0 / s->n;
+    }
+    return 0;
+}
+
+/* Eq. (9): the 3^3 grid at 0 and +-spacing on each axis, weighted by the kernel there. */
+static void draw_grid(const sdf_filter_options *f, sdf__samples *s)
+{
+    double spacing = f->kernel == SDF_KERNEL_GAUSSIAN ? gaussian_sigma(f->a) : f->b / 2;
+    double total = 0;
+    int i = 0;
+    for (int x = -1; x <= 1; x++)
+        for (int y = -1; y <= 1; y++)
+            for (int z = -1; z <= 1; z++, i++) {
+                double k2 = x * x + y * y + z * z;
+                s->offset[i][0] = x * spacing, s->offset[i][1] = y * spacing;
+                s->offset[i][2] = z * spacing;
+                /* Gaussian at distance sqrt(k2) sigma: exp(-k2/2); bump at t = sqrt(k2)/2. */
+                s->weight[i] = f->kernel == SDF_KERNEL_GAUSSIAN ? exp(-k2 / 2) : bump_shape(k2 / 4);
+                total += s->weight[i];
+            }
+    for (i = 0; i < 27; i++)
+        s->weight[i] /= total;
+}
+
+int sdf__samples_draw(const sdf_filter_options *f, sdf__samples *out)
+{
+    int n = f->grid ? 27 : f->samples;
+    out->n = n;
+    out->offset = malloc((size_t)n * sizeof *out->offset);
+    out->weight = malloc((size_t)n * sizeof *out->weight);
+    if (!out->offset || !out->weight) {
+        sdf__samples_free(out);
+        return SDF_ENOMEM;
+    }
+    if (f->grid)
+        draw_grid(f, out);
+    else
+        draw_random(f, out);
+    return 0;
+}
+
+void sdf__samples_free(sdf__samples *s)
+{
+    free(s->offset);
+    free(s->weight);
+    memset(s, 0, sizeof *s);
+}
+
+/* ---- parameters ------------------------------------------------------------------------- */
+
+static int positive(double v) { return isfinite(v) && v > 0; }
+
+int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
+                        sdf_filter_options *out, sdf_diag *diag)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    *out = in ? *in : (sdf_filter_options){0};
+    if (out->kernel != SDF_KERNEL_GAUSSIAN && out->kernel != SDF_KERNEL_BUMP)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown kernel %d", (int)out->kernel);
+    if (out->cap == 0)
+        out->cap = DEFAULT_CAP_OF_DIAGONAL * (r.diagonal > 0 ? r.diagonal : 1);
+    if (!positive(out->cap))
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "cap (f_c) must be a positive number");
+    if (out->a == 0)
+        out->a = 8 / (out->cap * out->cap);
+    if (out->b == 0)
+        out->b = 8 * out->cap / 9;
+    if (!positive(out->a))
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the Gaussian's a must be a positive number");
+    if (!positive(out->b))
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the bump's width b must be a positive number");
+    if (out->samples == 0)
+        out->samples = DEFAULT_SAMPLES;
+    if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "samples must be 1..%d, not %d",
+                             SDF_FILTER_MAX_SAMPLES, out->samples);
+    /* Eq. (7): the kernel must not reach across the surface, b h(p) <= |f(p)| for all p. */
+    if (out->kernel == SDF_KERNEL_BUMP && !out->allow_wide_bump &&
+        out->b > 8 * out->cap / 9 * (1 + 1e-12))
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                             "bump width b = %g exceeds 8 f_c / 9 = %g (f_c = %g), which may "
+                             "create extra zero level sets; lower b, raise the cap, or allow "
+                             "a wide bump explicitly",
+                             out->b, 8 * out->cap / 9, out->cap);
+    return 0;
+}
+
+/* ---- evaluation --------------------------------------------------------------------------- */
+
+/* Kernel size h(p) (eq. 4) and its gradient, from f(p) and grad f(p). */
+static double kernel_size(double f, const float *grad_f, double cap, double grad_h[3])
+{
+    double r = fabs(f) / cap;
+    grad_h[0] = grad_h[1] = grad_h[2] = 0;
+    if (r >= 1)
+        return 1;
+    /* dh/dr = 6 r (1 - r), grad r = sign(f) grad f / f_c (|f| is smooth where f != 0). */
+    double scale = f == 0 ? 0 : 6 * r * (1 - r) * (f < 0 ? -1 : 1) / cap;
+    for (int k = 0; k < 3; k++)
+        grad_h[k] = scale * grad_f[k];
+    return r * r * (3 - 2 * r);
+}
+
+typedef struct scratch {
+    float *centre_f, *centre_grad;   /* f and grad f at the query points */
+    float *sample_p, *sample_f, *sample_grad;
+} scratch;
+
+static void free_scratch(scratch *s)
+{
+    free(s->centre_f), free(s->centre_grad);
+    free(s->sample_p), free(s->sample_f), free(s->sample_grad);
+}
+
+int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
+                       const sdf_query_options *opts, const sdf_filter_options *filter,
+                       sdf_query_result *out, sdf_diag *diag)
+{
+    if (!mesh || !out || (!points && count))
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "missing mesh, points or outputs");
+    if (out->closest || out->triangle || out->barycentric)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                             "the filtered field has a value and a gradient only");
+    sdf_filter_options f;
+    int rc = sdf__filter_resolve(mesh, filter, &f, diag);
+    if (rc)
+        return rc;
+    size_t stride = opts && opts->point_stride ? opts->point_stride : 3 * sizeof(float);
+    sdf_query_options inner = opts ? *opts : (sdf_query_options){0};
+    inner.point_stride = 0;
+    scratch s = {0};
+    s.centre_f = malloc((count + 1) * sizeof(float));
+    s.centre_grad = malloc((3 * count + 1) * sizeof(float));
+    if (!s.centre_f || !s.centre_grad) {
+        free_scratch(&s);
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for %zu points", count);
+    }
+    /* f and grad f at the points; this also checks them (NaN -> SDF_ENONFINITE, index). */
+    sdf_query_options centre_opts = inner;
+    centre_opts.point_stride = stride;
+    sdf_query_result centre = {.distance = s.centre_f, .gradient = s.centre_grad};
+    rc = sdf_query(mesh, points, count, &centre_opts, &centre);
+    if (rc) {
+        out->bad_index = centre.bad_index;
+        free_scratch(&s);
+        return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
+    }
+    sdf__samples samples;
+    if (sdf__samples_draw(&f, &samples)) {
+        free_scratch(&s);
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for the samples");
+    }
+    int n = samples.n;
+    size_t block = BLOCK_SAMPLES / (size_t)n;
+    block = block < 1 ? 1 : block;
+    size_t per_block = block * (size_t)n;
+    s.sample_p = malloc(3 * per_block * sizeof(float));
+    s.sample_f = malloc(per_block * sizeof(float));
+    s.sample_grad = malloc(3 * per_block * sizeof(float));
+    if (!s.sample_p || !s.sample_f || !s.sample_grad) {
+        sdf__samples_free(&samples);
+        free_scratch(&s);
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for the samples");
+    }
+    for (size_t first = 0; first < count && !rc; first += block) {
+        size_t m = count - first < block ? count - first : block;
+        /* The displaced sample points p - s_i h(p) (eq. 10) of this block, point by point. */
+        for (size_t j = 0; j < m; j++) {
+            const float *p = (const float *)((const char *)points + (first + j) * stride);
+            double grad_h[3];
+            double h = kernel_size(s.centre_f[first + j], s.centre_grad + 3 * (first + j), f.cap,
+                                   grad_h);
+            for (int i = 0; i < n; i++)
+                for (int k = 0; k < 3; k++)
+                    s.sample_p[3 * (j * (size_t)n + (size_t)i) + k] =
+                        (float)(p[k] - samples.offset[i][k] * h);
+        }
+        sdf_query_result at = {.distance = s.sample_f, .gradient = s.sample_grad};
+        rc = sdf_query(mesh, s.sample_p, m * (size_t)n, &inner, &at);
+        if (rc) /* finite points displaced by finite offsets: only memory can fail here */
+            break;
+        for (size_t j = 0; j < m; j++) {
+            size_t q = first + j;
+            double fp = s.centre_f[q], grad_h[3];
+            const float *grad_fp = s.centre_grad + 3 * q;
+            double h = kernel_size(fp, grad_fp, f.cap, grad_h);
+            double value = 0, grad[3] = {0, 0, 0}, along = 0;
+            for (int i = 0; i < n; i++) {
+                size_t k = j * (size_t)n + (size_t)i;
+                double v = s.sample_f[k], sgn = 1;
+                if (f.unsigned_integrand) { /* |f| and its gradient sign(f) grad f */
+                    sgn = v < 0 ? -1 : 1;
+                    v = fabs(v);
+                }
+                const float *gs = s.sample_grad + 3 * k;
+                double w = samples.weight[i];
+                value += w * v;
+                for (int c = 0; c < 3; c++)
+                    grad[c] += w * sgn * gs[c];
+                along += w * sgn *
+                         (samples.offset[i][0] * gs[0] + samples.offset[i][1] * gs[1] +
+                          samples.offset[i][2] * gs[2]);
+            }
+            /* grad g = sum w_i (I - grad h s_i^T) grad f(x_i), x_i = p - s_i h(p). */
+            for (int c = 0; c < 3; c++)
+                grad[c] -= grad_h[c] * along;
+            double outer = f.unsigned_integrand ? (fp < 0 ? -1 : 1) : 1;
+            if (h == 0) { /* on the surface: every sample is p itself, g = f */
+                value = fp, outer = 1;
+                for (int c = 0; c < 3; c++)
+                    grad[c] = grad_fp[c];
+            }
+            if (out->distance)
+                out->distance[q] = (float)(outer * value);
+            if (out->gradient)
+                for (int c = 0; c < 3; c++)
+                    out->gradient[3 * q + c] = (float)(outer * grad[c]);
+        }
+    }
+    sdf__samples_free(&samples);
+    free_scratch(&s);
+    if (rc)
+        return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
+    return 0;
+}
