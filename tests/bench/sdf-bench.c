@@ -26,14 +26,15 @@ typedef struct args {
     uint64_t seed;
     sdf_sign_method sign;
     sdf_traversal traversal;
-    int threads, repeat;
+    int threads, repeat, samples;
 } args;
 
 static void usage(void)
 {
     fprintf(stderr,
             "usage: sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid] [--n N] [--seed S]\n"
-            "                 [--mode distance|signed|gradient|closest]\n"
+            "                 [--mode distance|signed|gradient|closest|filtered|filtered-gradient]\n"
+            "                 [--samples N (filtered: n, default 64)]\n"
             "                 [--sign auto|pseudonormal|winding|raycast|none]\n"
             "                 [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]\n");
     exit(2);
@@ -79,6 +80,7 @@ static args parse_args(int argc, char **argv)
         else if (!strcmp(s, "--n")) a.n = (size_t)parse_long(v, s);
         else if (!strcmp(s, "--seed")) a.seed = (uint64_t)parse_long(v, s);
         else if (!strcmp(s, "--mode")) a.mode = v;
+        else if (!strcmp(s, "--samples")) a.samples = (int)parse_long(v, s);
         else if (!strcmp(s, "--threads")) a.threads = (int)parse_long(v, s);
         else if (!strcmp(s, "--repeat")) a.repeat = (int)parse_long(v, s);
         else if (!strcmp(s, "--out")) a.out = v;
@@ -99,7 +101,8 @@ static args parse_args(int argc, char **argv)
     if (!a.mesh || a.repeat < 1)
         usage();
     if (strcmp(a.mode, "distance") && strcmp(a.mode, "signed") && strcmp(a.mode, "gradient") &&
-        strcmp(a.mode, "closest")) {
+        strcmp(a.mode, "closest") && strcmp(a.mode, "filtered") &&
+        strcmp(a.mode, "filtered-gradient")) {
         fprintf(stderr, "sdf-bench: unknown mode '%s'\n", a.mode);
         exit(2);
     }
@@ -185,7 +188,9 @@ int main(int argc, char **argv)
             return 2;
         }
     }
-    int gradient = !strcmp(a.mode, "gradient"), closest = !strcmp(a.mode, "closest");
+    int filtered = !strncmp(a.mode, "filtered", 8);
+    int gradient = !strcmp(a.mode, "gradient") || !strcmp(a.mode, "filtered-gradient");
+    int closest = !strcmp(a.mode, "closest");
     float *dist = malloc((n + 1) * sizeof *dist);
     float *vec3 = gradient || closest ? malloc((3 * n + 1) * sizeof *vec3) : NULL;
     uint32_t *tri = closest ? malloc((n + 1) * sizeof *tri) : NULL;
@@ -201,16 +206,21 @@ int main(int argc, char **argv)
            a.points ? a.points : a.workload, a.mode,
            sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads,
            a.traversal == SDF_TRAVERSAL_SINGLE ? "single" : "packets");
-    rc = sdf_query(mesh, points, n < 1000 ? n : 1000, &opts, &out); /* warm-up */
+    sdf_filter_options filter = {.samples = a.samples};
+    /* The mode's query: raw, or filtered (sdf_query_filtered, docs/filtered.md). */
+#define RUN(count) (filtered ? sdf_query_filtered(mesh, points, (count), &opts, &filter, &out, &diag) \
+                             : sdf_query(mesh, points, (count), &opts, &out))
+    rc = RUN(n < 1000 ? n : 1000); /* warm-up */
     double best = 1e300;
     for (int i = 0; !rc && i < a.repeat; i++) {
         double t0 = now();
-        rc = sdf_query(mesh, points, n, &opts, &out);
+        rc = RUN(n);
         double t = now() - t0;
         best = t < best ? t : best;
     }
     if (rc) {
-        fprintf(stderr, "sdf-bench: query failed: %s (point %zu)\n", sdf_strerror(rc), out.bad_index);
+        fprintf(stderr, "sdf-bench: query failed: %s (point %zu) %s\n", sdf_strerror(rc),
+                out.bad_index, filtered ? diag.message : "");
         return 1;
     }
     if (a.out)
