@@ -43,11 +43,12 @@ static int fail(const char **reason, int code, const char *why)
     return code;
 }
 
-static const char *const mode_names[] = {"signed", "distance", "gradient", "closest"};
+static const char *const mode_names[] = {"signed",   "distance", "gradient",
+                                         "closest",  "filtered", "filtered-gradient"};
 
 int sdf_proto_mode_from_name(const char *name, sdf_proto_mode *out)
 {
-    for (int m = 0; m < 4 && name; m++) {
+    for (int m = 0; m <= SDF_MODE_LAST && name; m++) {
         if (!strcmp(name, mode_names[m])) {
             *out = (sdf_proto_mode)m;
             return 0;
@@ -58,13 +59,18 @@ int sdf_proto_mode_from_name(const char *name, sdf_proto_mode *out)
 
 const char *sdf_proto_mode_name(sdf_proto_mode mode)
 {
-    return mode <= SDF_MODE_CLOSEST ? mode_names[mode] : "?";
+    return mode <= SDF_MODE_LAST ? mode_names[mode] : "?";
 }
 
 unsigned sdf_proto_words(sdf_proto_mode mode)
 {
-    static const unsigned words[] = {1, 1, 4, 5};
-    return mode <= SDF_MODE_CLOSEST ? words[mode] : 0;
+    static const unsigned words[] = {1, 1, 4, 5, 1, 4};
+    return mode <= SDF_MODE_LAST ? words[mode] : 0;
+}
+
+int sdf_proto_mode_filtered(sdf_proto_mode mode)
+{
+    return mode == SDF_MODE_FILTERED || mode == SDF_MODE_FILTERED_GRADIENT;
 }
 
 /* ---- header ------------------------------------------------------------------------------ */
@@ -102,11 +108,58 @@ void sdf_proto_encode_header(void *dst, uint8_t type, uint32_t request_id, uint3
 
 /* ---- QUERY ------------------------------------------------------------------------------- */
 
-size_t sdf_proto_query_size(size_t name_len, uint32_t count)
+size_t sdf_proto_query_size(sdf_proto_mode mode, size_t name_len, uint32_t count)
 {
     if (name_len == 0 || name_len > SDF_PROTO_MAX_NAME)
         return 0;
-    return 8 + pad4(name_len) + 12 * (size_t)count;
+    return 8 + pad4(name_len) + (sdf_proto_mode_filtered(mode) ? SDF_PROTO_FILTER_SIZE : 0) +
+           12 * (size_t)count;
+}
+
+/* The FILTER block (PROTOCOL.md): kernel, flags, reserved, samples, cap, a, b, seed. */
+enum { FILTER_GRID = 1, FILTER_UNSIGNED = 2, FILTER_WIDE_BUMP = 4 };
+
+static double get_f64(const unsigned char *p)
+{
+    uint64_t bits = get64(p);
+    double v;
+    memcpy(&v, &bits, sizeof v);
+    return v;
+}
+
+static void put_f64(unsigned char *p, double v)
+{
+    uint64_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    put64(p, bits);
+}
+
+static void decode_filter(const unsigned char *p, sdf_filter_options *f)
+{
+    *f = (sdf_filter_options){0};
+    f->kernel = (sdf_kernel)p[0];
+    f->grid = (p[1] & FILTER_GRID) != 0;
+    f->unsigned_integrand = (p[1] & FILTER_UNSIGNED) != 0;
+    f->allow_wide_bump = (p[1] & FILTER_WIDE_BUMP) != 0;
+    uint32_t samples = get32(p + 4);
+    f->samples = samples > SDF_FILTER_MAX_SAMPLES ? -1 : (int)samples; /* -1: refused later */
+    f->cap = get_f64(p + 8);
+    f->a = get_f64(p + 16);
+    f->b = get_f64(p + 24);
+    f->seed = get64(p + 32);
+}
+
+static void encode_filter(unsigned char *p, const sdf_filter_options *f)
+{
+    p[0] = (unsigned char)f->kernel;
+    p[1] = (unsigned char)((f->grid ? FILTER_GRID : 0) | (f->unsigned_integrand ? FILTER_UNSIGNED : 0) |
+                           (f->allow_wide_bump ? FILTER_WIDE_BUMP : 0));
+    put16(p + 2, 0);
+    put32(p + 4, f->samples < 0 ? 0 : (uint32_t)f->samples);
+    put_f64(p + 8, f->cap);
+    put_f64(p + 16, f->a);
+    put_f64(p + 24, f->b);
+    put64(p + 32, f->seed);
 }
 
 int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points,
@@ -119,8 +172,9 @@ int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points
     q->sign = (sdf_sign_method)p[1];
     q->name_len = get16(p + 2);
     q->count = get32(p + 4);
-    if (p[0] > SDF_MODE_CLOSEST)
-        return fail(reason, SDF_EINVAL, "unknown mode (0 signed, 1 distance, 2 gradient, 3 closest)");
+    if (p[0] > SDF_MODE_LAST)
+        return fail(reason, SDF_EINVAL, "unknown mode (0 signed, 1 distance, 2 gradient, "
+                                        "3 closest, 4 filtered, 5 filtered-gradient)");
     if (p[1] > SDF_SIGN_NONE)
         return fail(reason, SDF_EINVAL,
                     "unknown sign (0 auto, 1 pseudonormal, 2 winding, 3 raycast, 4 none)");
@@ -128,17 +182,24 @@ int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points
         return fail(reason, SDF_EPROTO, "mesh name length must be 1..255");
     if (q->count > max_points)
         return fail(reason, SDF_ELIMIT, "more points than max_points");
-    if (size != sdf_proto_query_size(q->name_len, q->count))
+    if (size != sdf_proto_query_size(q->mode, q->name_len, q->count))
         return fail(reason, SDF_EPROTO,
-                    "QUERY payload length is not 8 + pad4(name_length) + 12 * count");
+                    "QUERY payload length is not 8 + pad4(name_length) [+ 40 for a filtered "
+                    "mode] + 12 * count");
     q->name = (const char *)p + 8;
-    q->points = p + 8 + pad4(q->name_len);
+    size_t at = 8 + pad4(q->name_len);
+    q->filter = (sdf_filter_options){0};
+    if (sdf_proto_mode_filtered(q->mode)) {
+        decode_filter(p + at, &q->filter);
+        at += SDF_PROTO_FILTER_SIZE;
+    }
+    q->points = p + at;
     return 0;
 }
 
 size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const sdf_proto_query *q)
 {
-    size_t payload = sdf_proto_query_size(q->name_len, q->count);
+    size_t payload = sdf_proto_query_size(q->mode, q->name_len, q->count);
     if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
         return 0;
     unsigned char *p = dst;
@@ -150,7 +211,12 @@ size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const 
     put32(p + 4, q->count);
     memset(p + 8, 0, pad4(q->name_len));
     memcpy(p + 8, q->name, q->name_len);
-    memcpy(p + 8 + pad4(q->name_len), q->points, 12 * (size_t)q->count);
+    size_t at = 8 + pad4(q->name_len);
+    if (sdf_proto_mode_filtered(q->mode)) {
+        encode_filter(p + at, &q->filter);
+        at += SDF_PROTO_FILTER_SIZE;
+    }
+    memcpy(p + at, q->points, 12 * (size_t)q->count);
     return SDF_PROTO_HEADER_SIZE + payload;
 }
 

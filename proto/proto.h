@@ -31,13 +31,18 @@ typedef enum sdf_proto_mode {
     SDF_MODE_DISTANCE = 1,
     SDF_MODE_GRADIENT = 2,
     SDF_MODE_CLOSEST = 3,
+    SDF_MODE_FILTERED = 4,          /* the convolution-filtered field g (docs/filtered.md) */
+    SDF_MODE_FILTERED_GRADIENT = 5, /* g and its gradient */
 } sdf_proto_mode;
+#define SDF_MODE_LAST SDF_MODE_FILTERED_GRADIENT
 
-/* "signed", "distance", "gradient", "closest" <-> mode. */
+/* "signed", "distance", "gradient", "closest", "filtered", "filtered-gradient" <-> mode. */
 int sdf_proto_mode_from_name(const char *name, sdf_proto_mode *out);
 const char *sdf_proto_mode_name(sdf_proto_mode mode);
-/* 32-bit words per point in a result: 1, 1, 4, 5; 0 for an unknown mode. */
+/* 32-bit words per point in a result: 1, 1, 4, 5, 1, 4; 0 for an unknown mode. */
 unsigned sdf_proto_words(sdf_proto_mode mode);
+/* Does the mode take the filter's parameters (a FILTER block in a QUERY)? */
+int sdf_proto_mode_filtered(sdf_proto_mode mode);
 
 typedef struct sdf_proto_header {
     uint8_t version, type;
@@ -53,7 +58,9 @@ int sdf_proto_decode_header(const void *buf, size_t size, uint32_t max_payload,
 void sdf_proto_encode_header(void *dst, uint8_t type, uint32_t request_id, uint32_t length);
 
 /* QUERY. `points` holds 12 * count bytes of little-endian float32 xyz (4-byte aligned
- * relative to the payload start). */
+ * relative to the payload start). Filtered modes carry the filter's parameters in a
+ * SDF_PROTO_FILTER_SIZE-byte block after the name (decoded values are not validated here:
+ * the library refuses bad ones with a message). */
 typedef struct sdf_proto_query {
     sdf_proto_mode mode;
     sdf_sign_method sign;
@@ -61,10 +68,13 @@ typedef struct sdf_proto_query {
     size_t name_len;
     uint32_t count;
     const void *points;
+    sdf_filter_options filter; /* filtered modes only */
 } sdf_proto_query;
 
+#define SDF_PROTO_FILTER_SIZE 40
+
 /* Payload size of a QUERY, or 0 if name_len is 0 or too long. */
-size_t sdf_proto_query_size(size_t name_len, uint32_t count);
+size_t sdf_proto_query_size(sdf_proto_mode mode, size_t name_len, uint32_t count);
 int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points,
                            sdf_proto_query *q, const char **reason);
 /* Write a whole QUERY frame (header + payload, points copied from q->points); returns its

@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -33,9 +34,30 @@ double sdfd_now(void)
     return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
+static int same_filter(const sdf_filter_options *a, const sdf_filter_options *b)
+{
+    return a->kernel == b->kernel && a->cap == b->cap && a->a == b->a && a->b == b->b &&
+           a->samples == b->samples && a->grid == b->grid &&
+           a->unsigned_integrand == b->unsigned_integrand &&
+           a->allow_wide_bump == b->allow_wide_bump && a->seed == b->seed;
+}
+
+/* Jobs run together only when every parameter of the answer is the same. */
 static int same_batch(const sdfd_job *a, const sdfd_job *b)
 {
-    return a->mesh == b->mesh && a->mode == b->mode && a->sign == b->sign;
+    return a->mesh == b->mesh && a->mode == b->mode && a->sign == b->sign &&
+           (!sdf_proto_mode_filtered(a->mode) || same_filter(&a->filter, &b->filter));
+}
+
+int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, char *msg,
+                         size_t cap)
+{
+    sdf_query_result none = {0};
+    sdf_diag diag = {0};
+    int rc = sdf_query_filtered(mesh, NULL, 0, NULL, f, &none, &diag);
+    if (rc)
+        snprintf(msg, cap, "%s", diag.message);
+    return rc;
 }
 
 /* Take the head job and every queued job of the same key (up to max_points); caller holds
@@ -124,11 +146,15 @@ static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t p
         sdf_proto_mode mode = list->mode;
         sdf_query_options opts = {.sign = mode == SDF_MODE_DISTANCE ? SDF_SIGN_NONE : list->sign,
                                   .threads = b->threads};
+        int with_gradient = mode == SDF_MODE_GRADIENT || mode == SDF_MODE_FILTERED_GRADIENT;
         sdf_query_result res = {.distance = b->distance,
-                                .gradient = mode == SDF_MODE_GRADIENT ? b->vec3 : NULL,
+                                .gradient = with_gradient ? b->vec3 : NULL,
                                 .closest = mode == SDF_MODE_CLOSEST ? b->vec3 : NULL,
                                 .triangle = mode == SDF_MODE_CLOSEST ? b->triangle : NULL};
-        rc = sdf_query(list->mesh, p, points, &opts, &res);
+        if (sdf_proto_mode_filtered(mode)) /* parameters were validated at submission */
+            rc = sdf_query_filtered(list->mesh, p, points, &opts, &list->filter, &res, NULL);
+        else
+            rc = sdf_query(list->mesh, p, points, &opts, &res);
     }
     sdfd_metrics_batch(b->metrics, requests, points, sdfd_now() - start);
     size_t offset = 0;

@@ -2,7 +2,8 @@
  *
  * Every query, HTTP or binary, becomes a job submitted here. One dispatcher thread takes
  * the oldest job, waits up to the batch window (or until enough points wait) for more jobs
- * with the same mesh, mode and sign, and runs them all as ONE library batch (sdf_query with
+ * with the same mesh, mode, sign (and filter parameters), and runs them all as ONE library
+ * batch (sdf_query, or sdf_query_filtered for the filtered modes, with
  * the configured worker threads), so points from many small requests are traversed
  * together. Results are written into each job's own `words` buffer in the wire layout
  * (PROTOCOL.md: W 32-bit words per point), then each job's `done` callback runs on the
@@ -27,6 +28,7 @@ struct sdfd_job {
     sdf_mesh *mesh;          /* a reference the job holds; the batcher does not release it */
     sdf_proto_mode mode;
     sdf_sign_method sign;
+    sdf_filter_options filter; /* filtered modes: checked with sdfd_filter_validate first */
     const float *points;     /* 3 * count */
     size_t count;
     uint32_t *words;         /* out: count * sdf_proto_words(mode) words */
@@ -51,6 +53,11 @@ void sdfd_batcher_destroy(sdfd_batcher *b);
 /* Queue a job. Returns 0 (done will be called), or an error and done is NOT called:
  * SDF_ENONFINITE (*bad_index set), SDF_EBUSY (queue full), SDF_EUNAVAILABLE (shutting down). */
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
+
+/* Check a filtered query's parameters against the mesh before submitting it, so one bad
+ * request never fails a batch. 0, or SDF_EINVAL with the library's message in `msg`. */
+int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, char *msg,
+                         size_t cap);
 
 /* Seconds on a monotonic clock. */
 double sdfd_now(void);

@@ -180,6 +180,14 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         refuse(b, c, id, SDF_ENOTFOUND, message, start, bytes_in);
         return;
     }
+    if (sdf_proto_mode_filtered(q.mode)) {
+        char message[300];
+        if (sdfd_filter_validate(mesh, &q.filter, message, sizeof message)) {
+            sdf_mesh_release(mesh);
+            refuse(b, c, id, SDF_EINVAL, message, start, bytes_in);
+            return;
+        }
+    }
     bin_job *bj = calloc(1, sizeof *bj);
     size_t words = (size_t)sdf_proto_words(q.mode) * q.count;
     if (bj) {
@@ -200,7 +208,8 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
     bj->request_id = id;
     bj->start = start;
     bj->bytes_in = bytes_in;
-    bj->job = (sdfd_job){.mesh = mesh, .mode = q.mode, .sign = q.sign, .points = bj->points,
+    bj->job = (sdfd_job){.mesh = mesh, .mode = q.mode, .sign = q.sign, .filter = q.filter,
+                         .points = bj->points,
                          .count = q.count, .words = (uint32_t *)(bj->frame + head),
                          .done = query_done, .user = b};
     pthread_mutex_lock(&c->lock);

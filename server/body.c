@@ -289,6 +289,14 @@ static int json_object(json *j, sdfd_query_params *params, int *have_points)
                 params->mode = s, params->mode_len = sn;
             else
                 params->sign = s, params->sign_len = sn;
+        } else if (n == 6 && !memcmp(key, "filter", 6)) { /* kept as text: filterparams.c */
+            ws(j);
+            const char *start = j->p;
+            if (j->p >= j->end || *j->p != '{')
+                return fail(j->err, j->err_cap, SDF_EINVAL, "\"filter\" must be an object");
+            if ((rc = skip_value(j, 1)))
+                return rc;
+            params->filter = start, params->filter_len = (size_t)(j->p - start);
         } else if ((rc = skip_value(j, 1))) {
             return rc;
         }
@@ -464,7 +472,7 @@ char *sdfd_reply_render(sdfd_reply *r, sdfd_form form, size_t *len)
         return NULL;
     t.s[t.len++] = '{';
     int rc = json_field(&t, "distance", r, 0, 1, 0);
-    if (!rc && r->mode == SDF_MODE_GRADIENT)
+    if (!rc && (r->mode == SDF_MODE_GRADIENT || r->mode == SDF_MODE_FILTERED_GRADIENT))
         rc = json_field(&t, "gradient", r, 1, 3, 0);
     if (!rc && r->mode == SDF_MODE_CLOSEST)
         rc = json_field(&t, "closest", r, 1, 3, 0) || json_field(&t, "triangle", r, 4, 1, 1);

@@ -1,5 +1,6 @@
 /* body.h - query bodies in and out, in the three forms the HTTP API speaks:
- *   application/json          {"points": [[x,y,z],...] | [x,y,z,...], "mode": ..., "sign": ...}
+ *   application/json          {"points": [[x,y,z],...] | [x,y,z,...], "mode": ..., "sign": ...,
+ *                              "filter": {...}}
  *   application/octet-stream  little-endian float32 xyz triples (parameters in the URL)
  *   application/x-npy         float32 or float64 (N, 3) (parameters in the URL)
  * Results always start as the wire layout of PROTOCOL.md (W 32-bit words per point, held
@@ -27,6 +28,8 @@ const char *sdfd_form_type(sdfd_form form);
 typedef struct sdfd_query_params {
     const char *mode, *sign;
     size_t mode_len, sign_len;
+    const char *filter; /* JSON: the text of the "filter" object (filterparams.h) */
+    size_t filter_len;
 } sdfd_query_params;
 
 /* Parse a query body. On success *points is either `body` itself (octet/npy float32 data,

@@ -22,6 +22,7 @@
 #include <unistd.h>
 
 #include "body.h"
+#include "filterparams.h"
 #include "log.h"
 
 struct sdfd_http {
@@ -259,6 +260,12 @@ static const char *param(request *req, const char *body_value, size_t n, const c
     return MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, key);
 }
 
+/* URL argument `name` of a connection (for sdfd_filter_from_strings). */
+static const char *url_argument(void *conn, const char *name)
+{
+    return MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, name);
+}
+
 static int reply_form(request *req, sdfd_form request_form)
 {
     const char *accept = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
@@ -288,20 +295,36 @@ static enum MHD_Result start_query(request *req)
     sdf_proto_mode m = SDF_MODE_SIGNED;
     sdf_sign_method s = SDF_SIGN_AUTO;
     if (mode && sdf_proto_mode_from_name(mode, &m))
-        return send_error(req, SDF_EINVAL, "unknown mode '%s' (signed, distance, gradient, closest)", mode);
+        return send_error(req, SDF_EINVAL,
+                          "unknown mode '%s' (signed, distance, gradient, closest, filtered, "
+                          "filtered-gradient)", mode);
     if (sign && sdf_sign_from_name(sign, &s))
         return send_error(req, SDF_EINVAL,
                           "unknown sign '%s' (auto, pseudonormal, winding, raycast, none)", sign);
+    sdf_filter_options filter = {0};
+    if (sdf_proto_mode_filtered(m)) {
+        rc = params.filter ? sdfd_filter_from_json(params.filter, params.filter_len, &filter, err,
+                                                   sizeof err)
+                           : sdfd_filter_from_strings(url_argument, req->conn, &filter, err,
+                                                      sizeof err);
+        if (rc)
+            return send_error(req, rc, "%s", err);
+    }
     sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
     if (!mesh)
         return send_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+    if (sdf_proto_mode_filtered(m) && sdfd_filter_validate(mesh, &filter, err, sizeof err)) {
+        sdf_mesh_release(mesh);
+        return send_error(req, SDF_EINVAL, "%s", err);
+    }
     req->points = count;
     req->reply_form = (sdfd_form)reply_form(req, (sdfd_form)form);
     if (sdfd_reply_init(&req->reply, req->reply_form, m, count)) {
         sdf_mesh_release(mesh);
         return send_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
     }
-    req->job = (sdfd_job){.mesh = mesh, .mode = m, .sign = s, .points = req->points_buf,
+    req->job = (sdfd_job){.mesh = mesh, .mode = m, .sign = s, .filter = filter,
+                          .points = req->points_buf,
                           .count = count, .words = req->reply.words, .done = query_done,
                           .user = req};
     req->work = WORK_QUERY;

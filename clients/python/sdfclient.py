@@ -10,9 +10,13 @@
     r = b.query("demo", points, mode="closest")  # distance, closest, triangle
     rs = b.query_many([("demo", p1), ("demo", p2)])   # pipelined on one connection
 
-Results are dicts of numpy arrays: "distance" always; "gradient" (mode gradient); "closest"
-and "triangle" (mode closest). Errors raise SdfError with the HTTP status, the error code
-(e.g. "ENOTFOUND") and the server's message.
+    # the convolution-filtered field (docs/filtered.md); filter= takes its parameters
+    r = c.query("demo", points, mode="filtered-gradient", filter={"samples": 32, "seed": 1})
+
+Results are dicts of numpy arrays: "distance" always (the filtered value g in the filtered
+modes); "gradient" (modes gradient and filtered-gradient); "closest" and "triangle" (mode
+closest). Errors raise SdfError with the HTTP status, the error code (e.g. "ENOTFOUND") and
+the server's message.
 """
 import http.client
 import io
@@ -25,9 +29,12 @@ import numpy as np
 
 __all__ = ["Client", "BinaryClient", "SdfError"]
 
-MODES = {"signed": 0, "distance": 1, "gradient": 2, "closest": 3}
+MODES = {"signed": 0, "distance": 1, "gradient": 2, "closest": 3, "filtered": 4,
+         "filtered-gradient": 5}
 SIGNS = {"auto": 0, "pseudonormal": 1, "winding": 2, "raycast": 3, "none": 4}
-WORDS = {0: 1, 1: 1, 2: 4, 3: 5}
+WORDS = {0: 1, 1: 1, 2: 4, 3: 5, 4: 1, 5: 4}
+FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "grid", "unsigned", "allow_wide_bump", "seed")
+KERNELS = {"gaussian": 0, "bump": 1}
 
 
 class SdfError(Exception):
@@ -47,10 +54,23 @@ def _points(points):
     return p
 
 
+def _filter(filter):
+    f = dict(filter or {})
+    unknown = set(f) - set(FILTER_KEYS)
+    if unknown:
+        raise ValueError(f"unknown filter parameters {sorted(unknown)} (known: {FILTER_KEYS})")
+    return f
+
+
+def _url_filter(f):
+    """Filter parameters as URL arguments (booleans as 1/0)."""
+    return {k: (int(v) if isinstance(v, bool) else v) for k, v in f.items()}
+
+
 def _split_words(words, mode):
     """(N, W) uint32 words in the wire layout -> result dict."""
     out = {"distance": words[:, 0].view(np.float32).copy()}
-    if mode == "gradient":
+    if mode in ("gradient", "filtered-gradient"):
         out["gradient"] = words[:, 1:4].copy().view(np.float32)
     if mode == "closest":
         out["closest"] = words[:, 1:4].copy().view(np.float32)
@@ -123,12 +143,18 @@ class Client:
     def metrics(self):
         return self._request("GET", "/metrics")[1].decode()
 
-    def query(self, name, points, mode="signed", sign="auto", form="npy"):
-        """Query points ((N, 3) array-like) in body form "npy", "octet" or "json"."""
+    def query(self, name, points, mode="signed", sign="auto", form="npy", filter=None):
+        """Query points ((N, 3) array-like) in body form "npy", "octet" or "json"; `filter`
+        holds the filtered modes' parameters (kernel, cap, a, b, samples, grid, unsigned,
+        allow_wide_bump, seed)."""
         p = _points(points)
+        f = _filter(filter)
         path = f"/v1/meshes/{name}/query"
         if form == "json":
-            body = json.dumps({"points": p.tolist(), "mode": mode, "sign": sign})
+            req = {"points": p.tolist(), "mode": mode, "sign": sign}
+            if f:
+                req["filter"] = f
+            body = json.dumps(req)
             _, data = self._request("POST", path, body, {"Content-Type": "application/json"})
             r = json.loads(data)
             out = {"distance": np.asarray(r["distance"], np.float32)}
@@ -138,7 +164,7 @@ class Client:
             if "triangle" in r:
                 out["triangle"] = np.asarray(r["triangle"], np.uint32)
             return out
-        path += "?" + urllib.parse.urlencode({"mode": mode, "sign": sign})
+        path += "?" + urllib.parse.urlencode({"mode": mode, "sign": sign, **_url_filter(f)})
         if form == "octet":
             _, data = self._request("POST", path, p.tobytes(),
                                     {"Content-Type": "application/octet-stream"})
@@ -227,12 +253,23 @@ class BinaryClient:
         return out
 
     @staticmethod
-    def _query_payload(name, points, mode, sign):
+    def _filter_block(filter):
+        """The 40-byte FILTER block of a filtered QUERY (PROTOCOL.md)."""
+        f = _filter(filter)
+        flags = (1 if f.get("grid") else 0) | (2 if f.get("unsigned") else 0) \
+            | (4 if f.get("allow_wide_bump") else 0)
+        return struct.pack("<BBHIdddQ", KERNELS[f.get("kernel", "gaussian")], flags, 0,
+                           f.get("samples", 0), f.get("cap", 0.0), f.get("a", 0.0),
+                           f.get("b", 0.0), f.get("seed", 0))
+
+    @classmethod
+    def _query_payload(cls, name, points, mode, sign, filter=None):
         p = _points(points)
         nb = name.encode()
         pad = (-len(nb)) % 4
+        block = cls._filter_block(filter) if mode.startswith("filtered") else b""
         return struct.pack("<BBHI", MODES[mode], SIGNS[sign], len(nb), len(p)) + nb + b"\0" * pad \
-            + p.tobytes()
+            + block + p.tobytes()
 
     @staticmethod
     def _result(payload, mode):
@@ -240,18 +277,18 @@ class BinaryClient:
         words = np.frombuffer(payload, np.uint32, offset=8).reshape(count, w)
         return _split_words(words, mode)
 
-    def query(self, name, points, mode="signed", sign="auto"):
-        _, p = self._call(0x03, self._query_payload(name, points, mode, sign))
+    def query(self, name, points, mode="signed", sign="auto", filter=None):
+        _, p = self._call(0x03, self._query_payload(name, points, mode, sign, filter))
         return self._result(p, mode)
 
-    def query_many(self, requests, mode="signed", sign="auto", window=32):
+    def query_many(self, requests, mode="signed", sign="auto", window=32, filter=None):
         """Pipeline [(name, points), ...] with up to `window` requests in flight; replies may
         arrive in any order. Returns results (or SdfError objects) in request order."""
         ids, got = [], {}
         for name, points in requests:
             if len(ids) - len(got) >= window:
                 self._collect(got, mode)
-            ids.append(self._send(0x03, self._query_payload(name, points, mode, sign)))
+            ids.append(self._send(0x03, self._query_payload(name, points, mode, sign, filter)))
         while len(got) < len(ids):
             self._collect(got, mode)
         return [got[i] for i in ids]

@@ -31,7 +31,8 @@ static void test_header(void)
 static void test_query(void)
 {
     float pts[6] = {1, 2, 3, -4, 5.5f, 1e-30f};
-    sdf_proto_query q = {SDF_MODE_CLOSEST, SDF_SIGN_WINDING, "elephant", 8, 2, pts}, back;
+    sdf_proto_query q = {.mode = SDF_MODE_CLOSEST, .sign = SDF_SIGN_WINDING, .name = "elephant",
+                         .name_len = 8, .count = 2, .points = pts}, back;
     size_t n = sdf_proto_encode_query(frame, sizeof frame, 42, &q);
     CHECK(n == 16 + 8 + 8 + 24, "query frame size %zu", n);
     sdf_proto_header h;
@@ -47,6 +48,9 @@ static void test_query(void)
     CHECK(sdf_proto_decode_query(frame + 16, h.length, 1, &back, &why) == SDF_ELIMIT, "max points");
     frame[16] = 9;
     CHECK(sdf_proto_decode_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL, "mode 9");
+    frame[16] = SDF_MODE_FILTERED; /* a filtered mode needs the 40-byte FILTER block */
+    CHECK(sdf_proto_decode_query(frame + 16, h.length, 100, &back, &why) == SDF_EPROTO,
+          "filtered query without its FILTER block");
     frame[16] = SDF_MODE_CLOSEST;
     frame[17] = 5;
     CHECK(sdf_proto_decode_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL, "sign 5");
@@ -68,9 +72,35 @@ static void test_query(void)
         0x00, 0x00, 0x00, 0x04, 0x00, 0x01, 0x00, 0x00, 0x00, 0x64, 0x65, 0x6d, 0x6f, 0, 0, 0,
         0, 0, 0, 0, 0, 0, 0, 0, 0};
     float origin[3] = {0, 0, 0};
-    sdf_proto_query ex = {SDF_MODE_SIGNED, SDF_SIGN_AUTO, "demo", 4, 1, origin};
+    sdf_proto_query ex = {.mode = SDF_MODE_SIGNED, .sign = SDF_SIGN_AUTO, .name = "demo",
+                          .name_len = 4, .count = 1, .points = origin};
     n = sdf_proto_encode_query(frame, sizeof frame, 7, &ex);
     CHECK(n == sizeof example && !memcmp(frame, example, n), "PROTOCOL.md example differs");
+}
+
+/* Filtered queries carry their parameters, bit for bit. */
+static void test_filtered_query(void)
+{
+    float pts[3] = {0.5f, -1, 2};
+    sdf_proto_query q = {.mode = SDF_MODE_FILTERED_GRADIENT, .sign = SDF_SIGN_NONE, .name = "m",
+                         .name_len = 1, .count = 1, .points = pts,
+                         .filter = {.kernel = SDF_KERNEL_BUMP, .cap = 0.125, .a = 3e5, .b = 0.1,
+                                    .samples = 96, .unsigned_integrand = 1, .allow_wide_bump = 1,
+                                    .seed = 0x0123456789abcdefu}},
+                    back;
+    size_t n = sdf_proto_encode_query(frame, sizeof frame, 5, &q);
+    CHECK(n == 16 + 8 + 4 + 40 + 12, "filtered query frame size %zu", n);
+    const char *why;
+    CHECK(sdf_proto_decode_query(frame + 16, n - 16, 10, &back, &why) == 0, "decode: %s", why);
+    const sdf_filter_options *f = &back.filter;
+    CHECK(f->kernel == SDF_KERNEL_BUMP && f->cap == 0.125 && f->a == 3e5 && f->b == 0.1 &&
+              f->samples == 96 && f->unsigned_integrand && f->allow_wide_bump && !f->grid &&
+              f->seed == 0x0123456789abcdefu && !memcmp(back.points, pts, sizeof pts),
+          "filter round trip");
+    for (size_t len = 0; len < n - 16; len++)
+        CHECK(sdf_proto_decode_query(frame + 16, len, 10, &back, &why) != 0, "prefix %zu", len);
+    CHECK(sdf_proto_words(SDF_MODE_FILTERED) == 1 && sdf_proto_words(SDF_MODE_FILTERED_GRADIENT) == 4,
+          "filtered words");
 }
 
 static void test_result(void)
@@ -135,6 +165,7 @@ int main(void)
 {
     test_header();
     test_query();
+    test_filtered_query();
     test_result();
     test_error_and_hello();
     sdf_proto_mode m;

@@ -20,13 +20,16 @@ import harness  # noqa: E402
 from harness import DATA, SDF_BENCH, Server, wait_until  # noqa: E402
 
 
-def library_results(mesh, points, mode, sign="auto"):
-    """sdf-bench --out: (N,) or (N, 4) float32 straight from sdf_query."""
+def library_results(mesh, points, mode, sign="auto", samples=None):
+    """sdf-bench --out: (N,) or (N, 4) float32 straight from sdf_query (or, for the filtered
+    modes, sdf_query_filtered with `samples` and the default seed)."""
     with tempfile.TemporaryDirectory() as d:
         np.save(os.path.join(d, "p.npy"), points)
         out = os.path.join(d, "out.npy")
+        extra = ["--samples", str(samples)] if samples else []
         subprocess.run([SDF_BENCH, mesh, os.path.join(d, "p.npy"), "--mode", mode, "--sign", sign,
-                        "--repeat", "1", "--out", out], check=True, stdout=subprocess.DEVNULL)
+                        "--repeat", "1", "--out", out] + extra, check=True,
+                       stdout=subprocess.DEVNULL)
         return np.load(out)
 
 
@@ -51,15 +54,17 @@ class Exactness(unittest.TestCase):
         cls.bin.close()
         cls.server.stop()
 
-    def check_mode(self, mode, sign="auto"):
-        ref = library_results(self.mesh, self.points, mode, sign)
+    def check_mode(self, mode, sign="auto", samples=None):
+        ref = library_results(self.mesh, self.points, mode, sign, samples)
         ref_d = ref if ref.ndim == 1 else ref[:, 0]
-        answers = {f: self.http.query("fandisk", self.points, mode=mode, sign=sign, form=f)
-                   for f in ("json", "octet", "npy")}
-        answers["binary"] = self.bin.query("fandisk", self.points, mode=mode, sign=sign)
+        f = {"samples": samples} if samples else None
+        answers = {form: self.http.query("fandisk", self.points, mode=mode, sign=sign, form=form,
+                                         filter=f)
+                   for form in ("json", "octet", "npy")}
+        answers["binary"] = self.bin.query("fandisk", self.points, mode=mode, sign=sign, filter=f)
         for form, r in answers.items():
             self.assertTrue(same_bits(r["distance"], ref_d), f"{mode}/{sign} {form}: distance")
-            if mode == "gradient":
+            if mode in ("gradient", "filtered-gradient"):
                 self.assertTrue(same_bits(r["gradient"], ref[:, 1:4]), f"{form}: gradient")
             if mode == "closest":
                 self.assertTrue(same_bits(r["closest"], ref[:, 1:4]), f"{form}: closest")
@@ -79,6 +84,27 @@ class Exactness(unittest.TestCase):
 
     def test_closest(self):
         self.check_mode("closest")
+
+    def test_filtered(self):
+        self.check_mode("filtered", samples=16)
+
+    def test_filtered_gradient(self):
+        self.check_mode("filtered-gradient", samples=8)
+
+    def test_filtered_parameters_reach_the_library(self):
+        """Every filter parameter travels in all forms: the same non-default request gives
+        the same floats over JSON, octet-stream, npy and the binary protocol, and they differ
+        from the defaults."""
+        f = {"kernel": "bump", "cap": 0.05, "b": 0.04, "samples": 12, "unsigned": True,
+             "seed": 99, "grid": False, "allow_wide_bump": False}
+        p = self.points[:500]
+        answers = [self.http.query("fandisk", p, mode="filtered", form=form, filter=f)["distance"]
+                   for form in ("json", "octet", "npy")]
+        answers.append(self.bin.query("fandisk", p, mode="filtered", filter=f)["distance"])
+        for a in answers[1:]:
+            self.assertTrue(same_bits(a, answers[0]))
+        default = self.http.query("fandisk", p, mode="filtered", filter={"samples": 12})
+        self.assertFalse(same_bits(default["distance"], answers[0]))
 
     def test_accept_overrides_form(self):
         body = json.dumps({"points": self.points[:10].tolist()}).encode()

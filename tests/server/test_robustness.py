@@ -80,6 +80,14 @@ class BadInput(unittest.TestCase):
             (b'{"points": [0,0,0], "sign": "guess"}', 422, "EINVAL"),
             (b'{"points": [0,0,0, 1e999,0,0]}', 422, "ENONFINITE"),
             (b'{"nopoints": 1}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": 3}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"kernal": "bump"}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"samples": 0}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"samples": 2.5}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"cap": "big"}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"cap": -1}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"kernel": "bump", "cap": 0.01, '
+             b'"b": 0.5}}', 422, "EINVAL"),
             (b'{"points": [' + b"0," * 3003 + b"0]}", 413, "ELIMIT"),
         ]:
             with self.subTest(body=body[:40]):
@@ -95,6 +103,12 @@ class BadInput(unittest.TestCase):
         self.expect(404, "ENOTFOUND", "POST", "/v1/meshes/nope/query", b"\0" * 12, self.OCTET)
         self.expect(422, "EINVAL", "POST", self.Q + "?mode=fast", b"\0" * 12, self.OCTET)
         self.expect(422, "EINVAL", "POST", self.Q + "?sign=maybe", b"\0" * 12, self.OCTET)
+        self.expect(422, "EINVAL", "POST", self.Q + "?mode=filtered&kernel=box", b"\0" * 12,
+                    self.OCTET)
+        self.expect(422, "EINVAL", "POST", self.Q + "?mode=filtered&samples=9999", b"\0" * 12,
+                    self.OCTET)
+        self.expect(422, "EINVAL", "POST", self.Q + "?mode=filtered&grid=maybe", b"\0" * 12,
+                    self.OCTET)
         self.expect(404, "ENOTFOUND", "GET", "/nowhere")
         self.expect(405, "EMETHOD", "GET", self.Q)
         self.expect(405, "EMETHOD", "POST", "/v1/meshes")
@@ -170,6 +184,12 @@ class BadInput(unittest.TestCase):
             with self.assertRaises(sdfclient.SdfError) as e:
                 b.query(name, pts, mode=mode)
             self.assertEqual(e.exception.code, code)
+        # A bump wider than eq. (7) allows: refused with the bound in the message.
+        with self.assertRaises(sdfclient.SdfError) as e:
+            b.query("demo", np.zeros((2, 3)), mode="filtered",
+                    filter={"kernel": "bump", "cap": 0.01, "b": 0.5})
+        self.assertEqual((e.exception.status, e.exception.code), (422, "EINVAL"))
+        self.assertIn("8 f_c / 9", e.exception.message)
         # A wrongly sized QUERY and an unknown type: ERROR replies, connection kept.
         b.sock.sendall(struct.pack("<4sBBHII", b"SDFP", 1, 3, 0, 77, 9) + b"\0" * 9)
         b.sock.sendall(struct.pack("<4sBBHII", b"SDFP", 1, 0x42, 0, 78, 0))

@@ -1,0 +1,24 @@
+/* filterparams.h - the filtered modes' parameters as HTTP clients write them: a "filter"
+ * object in a JSON body, or the same names as URL arguments for octet-stream and npy bodies
+ * (docs/api.md):
+ *   kernel gaussian|bump, cap, a, b (numbers > 0), samples (1..4096), grid, unsigned,
+ *   allow_wide_bump (true|false, or 1|0 in a URL), seed (integer 0..2^53).
+ * Only the syntax is checked here (types, integers, unknown names); the values are the
+ * library's to judge (sdfd_filter_validate), so both front ends give the same messages. */
+#ifndef SDFD_FILTERPARAMS_H
+#define SDFD_FILTERPARAMS_H
+
+#include <stddef.h>
+
+#include "sdf/sdf.h"
+
+/* From the text of a JSON object (parsed with cJSON). 0, or SDF_EINVAL with a message. */
+int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out, char *err,
+                          size_t cap);
+
+/* From named string values, e.g. URL arguments: lookup(ctx, name) returns the value or NULL.
+ * 0, or SDF_EINVAL with a message. */
+int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name), void *ctx,
+                             sdf_filter_options *out, char *err, size_t cap);
+
+#endif
