@@ -156,8 +156,41 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
     if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "samples must be 1..%d, not %d",
                              SDF_FILTER_MAX_SAMPLES, out->samples);
-    /* Eq. (7): the kernel must not reach across the surface, b h(p) <= |f(p)| for all p. */
-    if (out->kernel == SDF_KERNEL_BUMP && !out->allow_wide_bump &&
+    sdf_smoothing_volume *v = &out->smooth;
+    switch (v->shape) {
+    case SDF_VOLUME_NONE:
+        break;
+    case SDF_VOLUME_SPHERE:
+        if (!isfinite(v->center[0]) || !isfinite(v->center[1]) || !isfinite(v->center[2]) ||
+            !positive(v->radius))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "a smoothing sphere needs a finite centre and a radius > 0");
+        break;
+    case SDF_VOLUME_BOX:
+        for (int k = 0; k < 3; k++)
+            if (!isfinite(v->lo[k]) || !isfinite(v->hi[k]) || !(v->lo[k] < v->hi[k]))
+                return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                     "a smoothing box needs finite corners with lo < hi on every axis");
+        break;
+    case SDF_VOLUME_MESH:
+        if (!v->mesh)
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "a smoothing mesh is missing");
+        break;
+    default:
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown smoothing volume %d", (int)v->shape);
+    }
+    if (v->shape != SDF_VOLUME_NONE) {
+        if (v->depth == 0)
+            v->depth = out->cap;
+        if (v->scale == 0)
+            v->scale = 1;
+        if (!positive(v->depth) || !positive(v->scale))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "smoothing depth and scale must be positive numbers");
+    }
+    /* Eq. (7): the kernel must not reach across the surface, b h(p) <= |f(p)| for all p. It
+     * bounds eq. (4)'s kernel size; localized smoothing edits the surface on purpose. */
+    if (v->shape == SDF_VOLUME_NONE && out->kernel == SDF_KERNEL_BUMP && !out->allow_wide_bump &&
         out->b > 8 * out->cap / 9 * (1 + 1e-12))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                              "bump width b = %g exceeds 8 f_c / 9 = %g (f_c = %g), which may "
@@ -183,15 +216,87 @@ static double kernel_size(double f, const float *grad_f, double cap, double grad
     return r * r * (3 - 2 * r);
 }
 
+/* The smoothing volume's signed distance f_s at p and its gradient (sphere and box are
+ * closed forms; a mesh volume's come from a query, passed in `mesh_f`, `mesh_grad`). */
+static double volume_distance(const sdf_smoothing_volume *v, const float *p, double mesh_f,
+                              const float *mesh_grad, double grad[3])
+{
+    if (v->shape == SDF_VOLUME_MESH) {
+        for (int k = 0; k < 3; k++)
+            grad[k] = mesh_grad[k];
+        return mesh_f;
+    }
+    if (v->shape == SDF_VOLUME_SPHERE) {
+        double d[3], len = 0;
+        for (int k = 0; k < 3; k++) {
+            d[k] = p[k] - v->center[k];
+            len += d[k] * d[k];
+        }
+        len = sqrt(len);
+        for (int k = 0; k < 3; k++)
+            grad[k] = len > 0 ? d[k] / len : (k == 0);
+        return len - v->radius;
+    }
+    /* Box: q = |p - centre| - half extents, per axis. */
+    double q[3], sgn[3], out2 = 0, inside = -INFINITY;
+    int axis = 0;
+    for (int k = 0; k < 3; k++) {
+        double c = 0.5 * (v->lo[k] + v->hi[k]), half = 0.5 * (v->hi[k] - v->lo[k]);
+        sgn[k] = p[k] < c ? -1 : 1;
+        q[k] = fabs(p[k] - c) - half;
+        out2 += q[k] > 0 ? q[k] * q[k] : 0;
+        if (q[k] > inside)
+            inside = q[k], axis = k;
+    }
+    if (out2 > 0) {
+        double len = sqrt(out2);
+        for (int k = 0; k < 3; k++)
+            grad[k] = q[k] > 0 ? sgn[k] * q[k] / len : 0;
+        return len;
+    }
+    for (int k = 0; k < 3; k++)
+        grad[k] = k == axis ? sgn[k] : 0;
+    return inside;
+}
+
+/* h_m(p) (sec. 6.1) and its gradient, from the volume's f_s and grad f_s. */
+static double local_kernel_size(const sdf_smoothing_volume *v, double fs, const double grad_fs[3],
+                                double grad_h[3])
+{
+    grad_h[0] = grad_h[1] = grad_h[2] = 0;
+    if (fs >= 0)
+        return 0; /* outside: g = f */
+    double t = -fs / v->depth;
+    if (t >= 1)
+        return v->scale;
+    double scale = v->scale * 6 * t * (1 - t) / v->depth; /* d/dp of smoothstep(-f_s / s_d) */
+    for (int k = 0; k < 3; k++)
+        grad_h[k] = -scale * grad_fs[k];
+    return v->scale * t * t * (3 - 2 * t);
+}
+
 typedef struct scratch {
     float *centre_f, *centre_grad;   /* f and grad f at the query points */
+    float *volume_f, *volume_grad;   /* a mesh smoothing volume's f_s and grad f_s there */
     float *sample_p, *sample_f, *sample_grad;
 } scratch;
 
 static void free_scratch(scratch *s)
 {
-    free(s->centre_f), free(s->centre_grad);
+    free(s->centre_f), free(s->centre_grad), free(s->volume_f), free(s->volume_grad);
     free(s->sample_p), free(s->sample_f), free(s->sample_grad);
+}
+
+/* The kernel size at point q (eq. 4, or sec. 6.1's h_m inside a smoothing volume). */
+static double size_at(const sdf_filter_options *f, const scratch *s, const float *p, size_t q,
+                      double grad_h[3])
+{
+    if (f->smooth.shape == SDF_VOLUME_NONE)
+        return kernel_size(s->centre_f[q], s->centre_grad + 3 * q, f->cap, grad_h);
+    double grad_fs[3];
+    double fs = volume_distance(&f->smooth, p, s->volume_f ? s->volume_f[q] : 0,
+                                s->volume_grad ? s->volume_grad + 3 * q : NULL, grad_fs);
+    return local_kernel_size(&f->smooth, fs, grad_fs, grad_h);
 }
 
 int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
@@ -227,6 +332,19 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
         free_scratch(&s);
         return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
     }
+    if (f.smooth.shape == SDF_VOLUME_MESH) { /* f_s and grad f_s from the volume's mesh */
+        s.volume_f = malloc((count + 1) * sizeof(float));
+        s.volume_grad = malloc((3 * count + 1) * sizeof(float));
+        sdf_query_result vol = {.distance = s.volume_f, .gradient = s.volume_grad};
+        sdf_query_options vol_opts = centre_opts;
+        vol_opts.sign = SDF_SIGN_AUTO;
+        rc = s.volume_f && s.volume_grad ? sdf_query(f.smooth.mesh, points, count, &vol_opts, &vol)
+                                         : SDF_ENOMEM;
+        if (rc) {
+            free_scratch(&s);
+            return sdf__diag_set(diag, rc, 0, -1, "smoothing mesh: %s", sdf_strerror(rc));
+        }
+    }
     sdf__samples samples;
     if (sdf__samples_draw(&f, &samples)) {
         free_scratch(&s);
@@ -250,8 +368,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
         for (size_t j = 0; j < m; j++) {
             const float *p = (const float *)((const char *)points + (first + j) * stride);
             double grad_h[3];
-            double h = kernel_size(s.centre_f[first + j], s.centre_grad + 3 * (first + j), f.cap,
-                                   grad_h);
+            double h = size_at(&f, &s, p, first + j, grad_h);
             for (int i = 0; i < n; i++)
                 for (int k = 0; k < 3; k++)
                     s.sample_p[3 * (j * (size_t)n + (size_t)i) + k] =
@@ -265,7 +382,8 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
             size_t q = first + j;
             double fp = s.centre_f[q], grad_h[3];
             const float *grad_fp = s.centre_grad + 3 * q;
-            double h = kernel_size(fp, grad_fp, f.cap, grad_h);
+            const float *p = (const float *)((const char *)points + q * stride);
+            double h = size_at(&f, &s, p, q, grad_h);
             double value = 0, grad[3] = {0, 0, 0}, along = 0;
             for (int i = 0; i < n; i++) {
                 size_t k = j * (size_t)n + (size_t)i;
@@ -287,7 +405,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
             for (int c = 0; c < 3; c++)
                 grad[c] -= grad_h[c] * along;
             double outer = f.unsigned_integrand ? (fp < 0 ? -1 : 1) : 1;
-            if (h == 0) { /* on the surface: every sample is p itself, g = f */
+            if (h == 0) { /* on the surface or outside a smoothing volume: g = f */
                 value = fp, outer = 1;
                 for (int c = 0; c < 3; c++)
                     grad[c] = grad_fp[c];

@@ -10,6 +10,9 @@
  *  - the same request gives the same floats on 1 and 2 threads and for the same seed;
  *  - no extra zero crossings: with a bump within eq. (7)'s bound and with the unsigned
  *    integrand, g has the sign of f along lines through the mesh;
+ *  - localized smoothing (sec. 6.1): outside the volume g = f bit for bit, deep inside it g
+ *    is the global filter's value, its gradient matches central differences, and a box given
+ *    as a box and as a mesh gives the same field;
  *  - bad parameters are refused with a message (the bump bound states its value). */
 #include <math.h>
 #include <stdlib.h>
@@ -106,14 +109,15 @@ static void test_far_matches_convolution(const sdf_mesh *m, double diag)
  * except where a displaced sample crosses a kink of f; such a point is recognised and skipped
  * because its differences are not linear in the step: for smooth g, D+ - D- (the forward
  * minus the backward difference) doubles when the step doubles. */
-static void test_gradient(const sdf_mesh *m, double diag, const char *kind)
+static void test_gradient(const sdf_mesh *m, double diag, const char *kind,
+                          const sdf_filter_options *options)
 {
     size_t n = 300;
     float *p = malloc(3 * n * sizeof *p), *g = malloc(n * sizeof *g);
     float *grad = malloc(3 * n * sizeof *grad), *s = malloc(3 * n * sizeof *s);
     float *gs = malloc(n * sizeof *gs);
     sdf_workload(m, kind, &n, 21, p);
-    sdf_filter_options opt = {.samples = 32, .seed = 5};
+    sdf_filter_options opt = options ? *options : (sdf_filter_options){.samples = 32, .seed = 5};
     filtered(m, p, n, &opt, 2, g, grad);
     const double h = 1e-4 * diag;
     const double steps[4] = {h, -h, 2 * h, -2 * h};
@@ -155,6 +159,85 @@ static void test_gradient(const sdf_mesh *m, double diag, const char *kind)
           kind, checked, n);
     printf("filtered gradient, %s points: %zu of %zu checked, %zu off\n", kind, checked, n, bad);
     free(p), free(g), free(grad), free(s), free(gs), free(diff);
+}
+
+/* A closed axis-aligned box as a mesh (12 triangles, outward). */
+static sdf_mesh *box_mesh(const double lo[3], const double hi[3])
+{
+    float v[24];
+    for (int i = 0; i < 8; i++)
+        for (int k = 0; k < 3; k++)
+            v[3 * i + k] = (float)((i >> k & 1) ? hi[k] : lo[k]);
+    static const uint32_t t[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                                   2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+    sdf_mesh *box = NULL;
+    CHECK(sdf_mesh_create(v, 8, t, 12, NULL, &box, NULL) == 0, "box mesh");
+    return box;
+}
+
+/* Sec. 6.1: filtering only inside a smoothing volume. */
+static void test_localized(const sdf_mesh *m, double diag)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(m, &r);
+    double c[3], radius = 0.25 * diag;
+    for (int k = 0; k < 3; k++)
+        c[k] = 0.5 * (r.bbox_min[k] + r.bbox_max[k]);
+    size_t n = 4000;
+    float *p = malloc(3 * n * sizeof *p), *f = malloc(n * sizeof *f), *fg = malloc(3 * n * sizeof *fg);
+    float *g = malloc(n * sizeof *g), *gg = malloc(3 * n * sizeof *gg), *global = malloc(n * sizeof *global);
+    sdf_workload(m, "box", &n, 41, p);
+    sdf_query_result raw_r = {.distance = f, .gradient = fg};
+    CHECK(sdf_query(m, p, n, NULL, &raw_r) == 0, "raw");
+    sdf_filter_options local = {.samples = 24, .seed = 2,
+                                .smooth = {.shape = SDF_VOLUME_SPHERE, .center = {c[0], c[1], c[2]},
+                                           .radius = radius, .depth = 0.05 * diag}};
+    filtered(m, p, n, &local, 2, g, gg);
+    sdf_filter_options everywhere = {.samples = 24, .seed = 2};
+    filtered(m, p, n, &everywhere, 2, global, NULL);
+    double cap = 0.02 * diag;
+    size_t outside = 0, deep = 0, outside_bad = 0, deep_bad = 0;
+    for (size_t i = 0; i < n; i++) {
+        double d2 = 0;
+        for (int k = 0; k < 3; k++)
+            d2 += (p[3 * i + k] - c[k]) * (p[3 * i + k] - c[k]);
+        double fs = sqrt(d2) - radius;
+        if (fs > 1e-6 * diag) { /* outside the volume: the raw field, bit for bit */
+            outside++;
+            outside_bad += memcmp(&g[i], &f[i], 4) || memcmp(gg + 3 * i, fg + 3 * i, 12);
+        } else if (-fs > 0.05 * diag * 1.001 && fabs(f[i]) >= 1.5 * cap) {
+            deep++; /* full kernel size, where eq. (4) also gives 1: the same floats */
+            deep_bad += memcmp(&g[i], &global[i], 4) != 0;
+        }
+    }
+    CHECK(outside > 100 && outside_bad == 0, "outside the volume %zu of %zu differ from f",
+          outside_bad, outside);
+    CHECK(deep > 20 && deep_bad == 0, "deep inside %zu of %zu differ from the global filter",
+          deep_bad, deep);
+    test_gradient(m, diag, "box", &local);
+    test_gradient(m, diag, "band", &local);
+
+    /* A box volume and the same box as a mesh volume agree (to float rounding of f_s). */
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; k++)
+        lo[k] = c[k] - 0.2 * diag, hi[k] = c[k] + 0.15 * diag;
+    sdf_mesh *box = box_mesh(lo, hi);
+    if (box) {
+        sdf_filter_options as_box = {.samples = 8, .seed = 4,
+                                     .smooth = {.shape = SDF_VOLUME_BOX, .lo = {lo[0], lo[1], lo[2]},
+                                                .hi = {hi[0], hi[1], hi[2]}, .scale = 2}};
+        sdf_filter_options as_mesh = as_box;
+        as_mesh.smooth.shape = SDF_VOLUME_MESH;
+        as_mesh.smooth.mesh = box;
+        filtered(m, p, n, &as_box, 2, g, NULL);
+        filtered(m, p, n, &as_mesh, 2, global, NULL);
+        double worst = 0;
+        for (size_t i = 0; i < n; i++)
+            worst = fmax(worst, fabs(g[i] - global[i]));
+        CHECK(worst <= 1e-4 * diag, "box volume vs the same box as a mesh: %g apart", worst);
+        sdf_mesh_release(box);
+    }
+    free(p), free(f), free(fg), free(g), free(gg), free(global);
 }
 
 static void test_deterministic(const sdf_mesh *m)
@@ -226,6 +309,13 @@ static void test_bad_parameters(const sdf_mesh *m, double diag)
     expect_refused(m, (sdf_filter_options){.cap = -1}, "cap");
     expect_refused(m, (sdf_filter_options){.a = NAN}, "a must");
     expect_refused(m, (sdf_filter_options){.kernel = (sdf_kernel)7}, "kernel");
+    expect_refused(m, (sdf_filter_options){.smooth = {.shape = SDF_VOLUME_SPHERE}}, "radius");
+    expect_refused(m, (sdf_filter_options){.smooth = {.shape = SDF_VOLUME_BOX, .hi = {1, 1, 0}}},
+                   "lo < hi");
+    expect_refused(m, (sdf_filter_options){.smooth = {.shape = SDF_VOLUME_MESH}}, "mesh");
+    expect_refused(m, (sdf_filter_options){.smooth = {.shape = SDF_VOLUME_SPHERE, .radius = 1,
+                                                      .depth = -1}}, "depth");
+    expect_refused(m, (sdf_filter_options){.smooth = {.shape = (sdf_volume_shape)9}}, "volume");
     /* Opting in to a wide bump is allowed. */
     float p[3] = {0, 0, 0}, g[1];
     sdf_query_result r = {.distance = g};
@@ -251,8 +341,9 @@ int main(void)
     double diag = diagonal_of(m);
     test_surface_kept(m, diag);
     test_far_matches_convolution(m, diag);
-    test_gradient(m, diag, "box");
-    test_gradient(m, diag, "band");
+    test_gradient(m, diag, "box", NULL);
+    test_gradient(m, diag, "band", NULL);
+    test_localized(m, diag);
     test_deterministic(m);
     test_no_extra_zeros(m, diag);
     test_bad_parameters(m, diag);

@@ -233,6 +233,29 @@ typedef enum sdf_kernel {
                                 sampled by rejection from the uniform cube [-b, b]^3 */
 } sdf_kernel;
 
+/* Localized smoothing (sec. 6.1): only inside a smoothing volume is the field filtered, with
+ * the kernel size driven by the depth into the volume instead of eq. (4):
+ *   h_m(p) = smoothstep(min(-f_s(p) / s_d, 1)) * s_r  where f_s(p) < 0 (inside), else 0,
+ * f_s the volume's signed distance, smoothstep(t) = 3t^2 - 2t^3. Outside the volume g = f
+ * exactly; at the boundary h_m = 0, so g is continuous; inside, the surface itself is smoothed
+ * (the kernel does not vanish there: this is shape editing). */
+typedef enum sdf_volume_shape {
+    SDF_VOLUME_NONE = 0, /* no volume: eq. (4) everywhere */
+    SDF_VOLUME_SPHERE,
+    SDF_VOLUME_BOX,
+    SDF_VOLUME_MESH,     /* another mesh; inside where its signed distance (auto sign) < 0 */
+} sdf_volume_shape;
+
+typedef struct sdf_smoothing_volume {
+    sdf_volume_shape shape;
+    double center[3], radius; /* SPHERE */
+    double lo[3], hi[3];      /* BOX: opposite corners, lo < hi on every axis */
+    const sdf_mesh *mesh;     /* MESH: must outlive the call */
+    double depth;             /* s_d, a length; 0 = f_c */
+    double scale;             /* s_r, the largest kernel size as a multiple of the kernel's
+                                 width (sigma or b); 0 = 1 */
+} sdf_smoothing_volume;
+
 typedef struct sdf_filter_options {
     sdf_kernel kernel;
     double cap;             /* f_c; 0 = 0.02 x the mesh's bounding-box diagonal */
@@ -244,6 +267,7 @@ typedef struct sdf_filter_options {
     int unsigned_integrand; /* 1: g = sign(f(p)) (1/n) sum |f(p - s_i h)|: no extra zero sets */
     int allow_wide_bump;    /* 1: accept b > 8 f_c / 9 (may create extra zero level sets) */
     uint64_t seed;          /* the sample set is drawn once from this seed */
+    sdf_smoothing_volume smooth; /* localized smoothing; shape NONE (default) = everywhere */
 } sdf_filter_options;
 
 #define SDF_FILTER_MAX_SAMPLES 4096
