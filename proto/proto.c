@@ -108,12 +108,22 @@ void sdf_proto_encode_header(void *dst, uint8_t type, uint32_t request_id, uint3
 
 /* ---- QUERY ------------------------------------------------------------------------------- */
 
-size_t sdf_proto_query_size(sdf_proto_mode mode, size_t name_len, uint32_t count)
+/* Bytes of the FILTER block, 0 for other modes. */
+static size_t filter_size(const sdf_proto_query *q)
 {
-    if (name_len == 0 || name_len > SDF_PROTO_MAX_NAME)
+    if (!sdf_proto_mode_filtered(q->mode))
         return 0;
-    return 8 + pad4(name_len) + (sdf_proto_mode_filtered(mode) ? SDF_PROTO_FILTER_SIZE : 0) +
-           12 * (size_t)count;
+    return SDF_PROTO_FILTER_SIZE + pad4(q->filter.smooth.shape == SDF_VOLUME_MESH ? q->volume_name_len : 0);
+}
+
+size_t sdf_proto_query_size(const sdf_proto_query *q)
+{
+    if (q->name_len == 0 || q->name_len > SDF_PROTO_MAX_NAME)
+        return 0;
+    if (sdf_proto_mode_filtered(q->mode) && q->filter.smooth.shape == SDF_VOLUME_MESH &&
+        (q->volume_name_len == 0 || q->volume_name_len > SDF_PROTO_MAX_NAME))
+        return 0;
+    return 8 + pad4(q->name_len) + filter_size(q) + 12 * (size_t)q->count;
 }
 
 /* The FILTER block (PROTOCOL.md): kernel, flags, reserved, samples, cap, a, b, seed. */
@@ -134,32 +144,68 @@ static void put_f64(unsigned char *p, double v)
     put64(p, bits);
 }
 
-static void decode_filter(const unsigned char *p, sdf_filter_options *f)
+/* Decode the fixed part of a FILTER block (the volume name, if any, follows it). */
+static void decode_filter(const unsigned char *p, sdf_proto_query *q)
 {
+    sdf_filter_options *f = &q->filter;
     *f = (sdf_filter_options){0};
     f->kernel = (sdf_kernel)p[0];
     f->grid = (p[1] & FILTER_GRID) != 0;
     f->unsigned_integrand = (p[1] & FILTER_UNSIGNED) != 0;
     f->allow_wide_bump = (p[1] & FILTER_WIDE_BUMP) != 0;
+    f->smooth.shape = (sdf_volume_shape)p[2];
+    q->volume_name_len = f->smooth.shape == SDF_VOLUME_MESH ? p[3] : 0;
     uint32_t samples = get32(p + 4);
     f->samples = samples > SDF_FILTER_MAX_SAMPLES ? -1 : (int)samples; /* -1: refused later */
     f->cap = get_f64(p + 8);
     f->a = get_f64(p + 16);
     f->b = get_f64(p + 24);
     f->seed = get64(p + 32);
+    f->smooth.depth = get_f64(p + 40);
+    f->smooth.scale = get_f64(p + 48);
+    double x[6];
+    for (int i = 0; i < 6; i++)
+        x[i] = get_f64(p + 56 + 8 * i);
+    if (f->smooth.shape == SDF_VOLUME_SPHERE) {
+        memcpy(f->smooth.center, x, sizeof f->smooth.center);
+        f->smooth.radius = x[3];
+    } else if (f->smooth.shape == SDF_VOLUME_BOX) {
+        memcpy(f->smooth.lo, x, sizeof f->smooth.lo);
+        memcpy(f->smooth.hi, x + 3, sizeof f->smooth.hi);
+    }
 }
 
-static void encode_filter(unsigned char *p, const sdf_filter_options *f)
+static void encode_filter(unsigned char *p, const sdf_proto_query *q)
 {
+    const sdf_filter_options *f = &q->filter;
+    int mesh = f->smooth.shape == SDF_VOLUME_MESH;
+    memset(p, 0, SDF_PROTO_FILTER_SIZE);
     p[0] = (unsigned char)f->kernel;
     p[1] = (unsigned char)((f->grid ? FILTER_GRID : 0) | (f->unsigned_integrand ? FILTER_UNSIGNED : 0) |
                            (f->allow_wide_bump ? FILTER_WIDE_BUMP : 0));
-    put16(p + 2, 0);
+    p[2] = (unsigned char)f->smooth.shape;
+    p[3] = (unsigned char)(mesh ? q->volume_name_len : 0);
     put32(p + 4, f->samples < 0 ? 0 : (uint32_t)f->samples);
     put_f64(p + 8, f->cap);
     put_f64(p + 16, f->a);
     put_f64(p + 24, f->b);
     put64(p + 32, f->seed);
+    put_f64(p + 40, f->smooth.depth);
+    put_f64(p + 48, f->smooth.scale);
+    double x[6] = {0, 0, 0, 0, 0, 0};
+    if (f->smooth.shape == SDF_VOLUME_SPHERE) {
+        memcpy(x, f->smooth.center, sizeof f->smooth.center);
+        x[3] = f->smooth.radius;
+    } else if (f->smooth.shape == SDF_VOLUME_BOX) {
+        memcpy(x, f->smooth.lo, sizeof f->smooth.lo);
+        memcpy(x + 3, f->smooth.hi, sizeof f->smooth.hi);
+    }
+    for (int i = 0; i < 6; i++)
+        put_f64(p + 56 + 8 * i, x[i]);
+    if (mesh) {
+        memset(p + SDF_PROTO_FILTER_SIZE, 0, pad4(q->volume_name_len));
+        memcpy(p + SDF_PROTO_FILTER_SIZE, q->volume_name, q->volume_name_len);
+    }
 }
 
 int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points,
@@ -182,24 +228,33 @@ int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points
         return fail(reason, SDF_EPROTO, "mesh name length must be 1..255");
     if (q->count > max_points)
         return fail(reason, SDF_ELIMIT, "more points than max_points");
-    if (size != sdf_proto_query_size(q->mode, q->name_len, q->count))
-        return fail(reason, SDF_EPROTO,
-                    "QUERY payload length is not 8 + pad4(name_length) [+ 40 for a filtered "
-                    "mode] + 12 * count");
     q->name = (const char *)p + 8;
     size_t at = 8 + pad4(q->name_len);
     q->filter = (sdf_filter_options){0};
+    q->volume_name = NULL;
+    q->volume_name_len = 0;
     if (sdf_proto_mode_filtered(q->mode)) {
-        decode_filter(p + at, &q->filter);
-        at += SDF_PROTO_FILTER_SIZE;
+        if (size < at + SDF_PROTO_FILTER_SIZE)
+            return fail(reason, SDF_EPROTO, "QUERY payload is too short for its FILTER block");
+        decode_filter(p + at, q);
+        if (q->filter.smooth.shape == SDF_VOLUME_MESH) {
+            if (q->volume_name_len == 0)
+                return fail(reason, SDF_EPROTO, "smoothing mesh name length must be 1..255");
+            q->volume_name = (const char *)p + at + SDF_PROTO_FILTER_SIZE;
+        }
     }
+    if (size != sdf_proto_query_size(q))
+        return fail(reason, SDF_EPROTO,
+                    "QUERY payload length is not 8 + pad4(name_length) [+ the FILTER block of a "
+                    "filtered mode] + 12 * count");
+    at += filter_size(q);
     q->points = p + at;
     return 0;
 }
 
 size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const sdf_proto_query *q)
 {
-    size_t payload = sdf_proto_query_size(q->mode, q->name_len, q->count);
+    size_t payload = sdf_proto_query_size(q);
     if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
         return 0;
     unsigned char *p = dst;
@@ -212,10 +267,9 @@ size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const 
     memset(p + 8, 0, pad4(q->name_len));
     memcpy(p + 8, q->name, q->name_len);
     size_t at = 8 + pad4(q->name_len);
-    if (sdf_proto_mode_filtered(q->mode)) {
-        encode_filter(p + at, &q->filter);
-        at += SDF_PROTO_FILTER_SIZE;
-    }
+    if (sdf_proto_mode_filtered(q->mode))
+        encode_filter(p + at, q);
+    at += filter_size(q);
     memcpy(p + at, q->points, 12 * (size_t)q->count);
     return SDF_PROTO_HEADER_SIZE + payload;
 }

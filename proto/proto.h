@@ -68,13 +68,16 @@ typedef struct sdf_proto_query {
     size_t name_len;
     uint32_t count;
     const void *points;
-    sdf_filter_options filter; /* filtered modes only */
+    sdf_filter_options filter;   /* filtered modes only; filter.smooth.mesh is never set */
+    const char *volume_name;     /* filtered modes with a mesh smoothing volume: its name */
+    size_t volume_name_len;      /* 1..255 then, else 0 */
 } sdf_proto_query;
 
-#define SDF_PROTO_FILTER_SIZE 40
+/* The FILTER block's size without the smoothing mesh's name (PROTOCOL.md). */
+#define SDF_PROTO_FILTER_SIZE 104
 
-/* Payload size of a QUERY, or 0 if name_len is 0 or too long. */
-size_t sdf_proto_query_size(sdf_proto_mode mode, size_t name_len, uint32_t count);
+/* Payload size of a QUERY, or 0 if a name is empty or too long. */
+size_t sdf_proto_query_size(const sdf_proto_query *q);
 int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points,
                            sdf_proto_query *q, const char **reason);
 /* Write a whole QUERY frame (header + payload, points copied from q->points); returns its

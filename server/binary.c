@@ -46,6 +46,7 @@ typedef struct bin_job {
     uint32_t request_id;
     char *frame;  /* header + result prefix + words */
     float *points;
+    sdf_mesh *volume; /* a filtered query's smoothing mesh, held until the reply */
     double start;
     size_t bytes_in;
 } bin_job;
@@ -139,6 +140,7 @@ static void query_done(sdfd_job *job)
     account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", status, job->count, bj->start, bj->bytes_in,
             job->status ? 0 : len);
     sdf_mesh_release(job->mesh);
+    sdf_mesh_release(bj->volume);
     free(bj->points);
     free(bj);
     pthread_mutex_lock(&c->lock);
@@ -180,10 +182,23 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         refuse(b, c, id, SDF_ENOTFOUND, message, start, bytes_in);
         return;
     }
+    sdf_mesh *volume = NULL;
     if (sdf_proto_mode_filtered(q.mode)) {
         char message[300];
+        if (q.volume_name) {
+            volume = sdfd_registry_get(srv->registry, q.volume_name, q.volume_name_len);
+            if (!volume) {
+                snprintf(message, sizeof message, "no smoothing mesh named '%.*s'",
+                         (int)q.volume_name_len, q.volume_name);
+                sdf_mesh_release(mesh);
+                refuse(b, c, id, SDF_ENOTFOUND, message, start, bytes_in);
+                return;
+            }
+            q.filter.smooth.mesh = volume;
+        }
         if (sdfd_filter_validate(mesh, &q.filter, message, sizeof message)) {
             sdf_mesh_release(mesh);
+            sdf_mesh_release(volume);
             refuse(b, c, id, SDF_EINVAL, message, start, bytes_in);
             return;
         }
@@ -199,12 +214,14 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
             free(bj->frame), free(bj->points);
         free(bj);
         sdf_mesh_release(mesh);
+        sdf_mesh_release(volume);
         refuse(b, c, id, SDF_ENOMEM, "out of memory", start, bytes_in);
         return;
     }
     memcpy(bj->points, q.points, 12 * (size_t)q.count); /* the input buffer will move on */
     size_t head = sdf_proto_encode_result_head(bj->frame, id, q.mode, q.count);
     bj->conn = c;
+    bj->volume = volume;
     bj->request_id = id;
     bj->start = start;
     bj->bytes_in = bytes_in;
@@ -229,6 +246,7 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
             snprintf(message, sizeof message, "%s", sdf_strerror(rc));
         refuse(b, c, id, rc, message, start, bytes_in);
         sdf_mesh_release(mesh);
+        sdf_mesh_release(volume);
         free(bj->frame), free(bj->points), free(bj);
         pthread_mutex_lock(&c->lock);
         c->in_flight--;

@@ -83,10 +83,82 @@ static const struct field *find(const char *name)
     return NULL;
 }
 
-int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out, char *err,
-                          size_t cap)
+/* Fill `values` from a JSON array of exactly n finite numbers. */
+static int json_numbers(const cJSON *a, double *values, int n)
+{
+    if (!cJSON_IsArray(a) || cJSON_GetArraySize(a) != n)
+        return -1;
+    int i = 0;
+    for (const cJSON *e = a->child; e; e = e->next, i++) {
+        if (!cJSON_IsNumber(e) || !isfinite(e->valuedouble))
+            return -1;
+        values[i] = e->valuedouble;
+    }
+    return 0;
+}
+
+static int set_volume_numbers(sdf_smoothing_volume *v, sdf_volume_shape shape, const double *x)
+{
+    v->shape = shape;
+    if (shape == SDF_VOLUME_SPHERE) {
+        memcpy(v->center, x, sizeof v->center);
+        v->radius = x[3];
+    } else {
+        memcpy(v->lo, x, sizeof v->lo);
+        memcpy(v->hi, x + 3, sizeof v->hi);
+    }
+    return 0;
+}
+
+static int copy_name(char *dst, const char *name, char *err, size_t cap)
+{
+    size_t n = strlen(name);
+    if (n == 0 || n > SDFD_VOLUME_NAME_MAX)
+        return bad(err, cap, "smoothing mesh name must be 1..255 characters", NULL);
+    memcpy(dst, name, n + 1);
+    return 0;
+}
+
+static int json_smooth(const cJSON *o, sdf_filter_options *f, char *volume_mesh, char *err,
+                       size_t cap)
+{
+    if (!cJSON_IsObject(o))
+        return bad(err, cap, "filter smooth must be an object", NULL);
+    int shapes = 0;
+    for (const cJSON *item = o->child; item; item = item->next) {
+        const char *k = item->string ? item->string : "";
+        double x[6];
+        if (!strcmp(k, "sphere") || !strcmp(k, "box")) {
+            int sphere = k[0] == 's', n = sphere ? 4 : 6;
+            if (json_numbers(item, x, n))
+                return bad(err, cap, sphere ? "smooth sphere must be [x, y, z, radius]"
+                                            : "smooth box must be [x0, y0, z0, x1, y1, z1]", NULL);
+            set_volume_numbers(&f->smooth, sphere ? SDF_VOLUME_SPHERE : SDF_VOLUME_BOX, x);
+            shapes++;
+        } else if (!strcmp(k, "mesh")) {
+            if (!cJSON_IsString(item) || copy_name(volume_mesh, item->valuestring, err, cap))
+                return bad(err, cap, "smooth mesh must be the name of a loaded mesh", NULL);
+            f->smooth.shape = SDF_VOLUME_MESH;
+            shapes++;
+        } else if (!strcmp(k, "depth") || !strcmp(k, "scale")) {
+            if (!cJSON_IsNumber(item) || !isfinite(item->valuedouble))
+                return bad(err, cap, "smooth %s must be a finite number", k);
+            *(k[0] == 'd' ? &f->smooth.depth : &f->smooth.scale) = item->valuedouble;
+        } else {
+            return bad(err, cap, "unknown smooth parameter \"%.40s\" (sphere, box, mesh, depth, "
+                       "scale)", k);
+        }
+    }
+    if (shapes != 1)
+        return bad(err, cap, "filter smooth needs exactly one of sphere, box or mesh", NULL);
+    return 0;
+}
+
+int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
+                          char volume_mesh[SDFD_VOLUME_NAME_MAX + 1], char *err, size_t cap)
 {
     *out = (sdf_filter_options){0};
+    volume_mesh[0] = 0;
     cJSON *root = cJSON_ParseWithLength(text, len);
     if (!cJSON_IsObject(root)) {
         cJSON_Delete(root);
@@ -95,9 +167,11 @@ int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
     int rc = 0;
     for (cJSON *item = root->child; item && !rc; item = item->next) {
         const struct field *fd = item->string ? find(item->string) : NULL;
-        if (!fd) {
+        if (item->string && !strcmp(item->string, "smooth")) {
+            rc = json_smooth(item, out, volume_mesh, err, cap);
+        } else if (!fd) {
             rc = bad(err, cap, "unknown filter parameter \"%.40s\" (kernel, cap, a, b, samples, "
-                     "grid, unsigned, allow_wide_bump, seed)", item->string ? item->string : "");
+                     "grid, unsigned, allow_wide_bump, seed, smooth)", item->string ? item->string : "");
         } else if (fd->kind == KERNEL) {
             rc = cJSON_IsString(item) ? store(out, fd, 0, item->valuestring, err, cap)
                                       : bad(err, cap, "filter %s must be a string", fd->name);
@@ -113,10 +187,57 @@ int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
     return rc;
 }
 
+/* "x,y,z,..." -> exactly n finite numbers. */
+static int list_numbers(const char *v, double *x, int n)
+{
+    for (int i = 0; i < n; i++) {
+        char *end;
+        errno = 0;
+        x[i] = strtod(v, &end);
+        if (end == v || errno || !isfinite(x[i]) || *end != (i + 1 < n ? ',' : '\0'))
+            return -1;
+        v = end + 1;
+    }
+    return 0;
+}
+
+static int string_smooth(const char *(*lookup)(void *ctx, const char *name), void *ctx,
+                         sdf_filter_options *f, char *volume_mesh, char *err, size_t cap)
+{
+    const char *sphere = lookup(ctx, "smooth_sphere"), *box = lookup(ctx, "smooth_box"),
+               *mesh = lookup(ctx, "smooth_mesh"), *depth = lookup(ctx, "smooth_depth"),
+               *scale = lookup(ctx, "smooth_scale");
+    int shapes = !!sphere + !!box + !!mesh;
+    if (!shapes && !depth && !scale)
+        return 0;
+    if (shapes != 1)
+        return bad(err, cap, "give exactly one of smooth_sphere, smooth_box or smooth_mesh", NULL);
+    double x[6];
+    if (sphere && list_numbers(sphere, x, 4))
+        return bad(err, cap, "smooth_sphere must be x,y,z,radius", NULL);
+    if (box && list_numbers(box, x, 6))
+        return bad(err, cap, "smooth_box must be x0,y0,z0,x1,y1,z1", NULL);
+    if (sphere || box)
+        set_volume_numbers(&f->smooth, sphere ? SDF_VOLUME_SPHERE : SDF_VOLUME_BOX, x);
+    if (mesh) {
+        if (copy_name(volume_mesh, mesh, err, cap))
+            return SDF_EINVAL;
+        f->smooth.shape = SDF_VOLUME_MESH;
+    }
+    const char *values[2] = {depth, scale};
+    double *dst[2] = {&f->smooth.depth, &f->smooth.scale};
+    for (int i = 0; i < 2; i++)
+        if (values[i] && list_numbers(values[i], dst[i], 1))
+            return bad(err, cap, "smooth_%s must be a number", i ? "scale" : "depth");
+    return 0;
+}
+
 int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name), void *ctx,
-                             sdf_filter_options *out, char *err, size_t cap)
+                             sdf_filter_options *out, char volume_mesh[SDFD_VOLUME_NAME_MAX + 1],
+                             char *err, size_t cap)
 {
     *out = (sdf_filter_options){0};
+    volume_mesh[0] = 0;
     for (size_t i = 0; i < FIELDS; i++) {
         const struct field *fd = &fields[i];
         const char *v = lookup(ctx, fd->name);
@@ -139,5 +260,5 @@ int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name),
         if (rc)
             return rc;
     }
-    return 0;
+    return string_smooth(lookup, ctx, out, volume_mesh, err, cap);
 }

@@ -2,7 +2,12 @@
  * object in a JSON body, or the same names as URL arguments for octet-stream and npy bodies
  * (docs/api.md):
  *   kernel gaussian|bump, cap, a, b (numbers > 0), samples (1..4096), grid, unsigned,
- *   allow_wide_bump (true|false, or 1|0 in a URL), seed (integer 0..2^53).
+ *   allow_wide_bump (true|false, or 1|0 in a URL), seed (integer 0..2^53), and a smoothing
+ *   volume: JSON "smooth": {"sphere": [x,y,z,r]} | {"box": [x0,y0,z0,x1,y1,z1]} |
+ *   {"mesh": "name"}, with optional "depth" and "scale"; URL smooth_sphere=x,y,z,r |
+ *   smooth_box=x0,y0,z0,x1,y1,z1 | smooth_mesh=name, smooth_depth, smooth_scale.
+ * A mesh volume comes back as its name in `volume_mesh` (the caller looks it up and puts a
+ * reference in out->smooth.mesh); "" when there is none.
  * Only the syntax is checked here (types, integers, unknown names); the values are the
  * library's to judge (sdfd_filter_validate), so both front ends give the same messages. */
 #ifndef SDFD_FILTERPARAMS_H
@@ -13,12 +18,15 @@
 #include "sdf/sdf.h"
 
 /* From the text of a JSON object (parsed with cJSON). 0, or SDF_EINVAL with a message. */
-int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out, char *err,
-                          size_t cap);
+#define SDFD_VOLUME_NAME_MAX 255
+
+int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
+                          char volume_mesh[SDFD_VOLUME_NAME_MAX + 1], char *err, size_t cap);
 
 /* From named string values, e.g. URL arguments: lookup(ctx, name) returns the value or NULL.
  * 0, or SDF_EINVAL with a message. */
 int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name), void *ctx,
-                             sdf_filter_options *out, char *err, size_t cap);
+                             sdf_filter_options *out, char volume_mesh[SDFD_VOLUME_NAME_MAX + 1],
+                             char *err, size_t cap);
 
 #endif

@@ -57,6 +57,7 @@ typedef struct request {
     sdfd_reply reply;
     char format[16];              /* ?format= of an upload, copied on the MHD thread */
     sdf_mesh *uploaded;
+    sdf_mesh *volume; /* a filtered query's smoothing mesh, held until the request ends */
     int upload_rc, replaced;
     sdf_diag diag;
 } request;
@@ -302,13 +303,20 @@ static enum MHD_Result start_query(request *req)
         return send_error(req, SDF_EINVAL,
                           "unknown sign '%s' (auto, pseudonormal, winding, raycast, none)", sign);
     sdf_filter_options filter = {0};
+    char volume_name[SDFD_VOLUME_NAME_MAX + 1] = "";
     if (sdf_proto_mode_filtered(m)) {
-        rc = params.filter ? sdfd_filter_from_json(params.filter, params.filter_len, &filter, err,
-                                                   sizeof err)
-                           : sdfd_filter_from_strings(url_argument, req->conn, &filter, err,
-                                                      sizeof err);
+        rc = params.filter ? sdfd_filter_from_json(params.filter, params.filter_len, &filter,
+                                                   volume_name, err, sizeof err)
+                           : sdfd_filter_from_strings(url_argument, req->conn, &filter,
+                                                      volume_name, err, sizeof err);
         if (rc)
             return send_error(req, rc, "%s", err);
+        if (volume_name[0]) {
+            req->volume = sdfd_registry_get(srv->registry, volume_name, strlen(volume_name));
+            if (!req->volume)
+                return send_error(req, SDF_ENOTFOUND, "no smoothing mesh named '%s'", volume_name);
+            filter.smooth.mesh = req->volume;
+        }
     }
     sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
     if (!mesh)
@@ -550,6 +558,7 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
                          req->len, req->bytes_out);
     sdf_mesh_release(req->job.mesh);
     sdf_mesh_release(req->uploaded);
+    sdf_mesh_release(req->volume);
     if (req->points_owned)
         free(req->points_buf);
     free(req->reply.buffer);

@@ -33,8 +33,10 @@ MODES = {"signed": 0, "distance": 1, "gradient": 2, "closest": 3, "filtered": 4,
          "filtered-gradient": 5}
 SIGNS = {"auto": 0, "pseudonormal": 1, "winding": 2, "raycast": 3, "none": 4}
 WORDS = {0: 1, 1: 1, 2: 4, 3: 5, 4: 1, 5: 4}
-FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "grid", "unsigned", "allow_wide_bump", "seed")
+FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "grid", "unsigned", "allow_wide_bump", "seed",
+               "smooth")
 KERNELS = {"gaussian": 0, "bump": 1}
+VOLUMES = {"sphere": 1, "box": 2, "mesh": 3}
 
 
 class SdfError(Exception):
@@ -62,9 +64,24 @@ def _filter(filter):
     return f
 
 
+def _volume(smooth):
+    """The one volume of a "smooth" dict: (kind, value)."""
+    kinds = [k for k in VOLUMES if k in smooth]
+    if len(kinds) != 1:
+        raise ValueError('filter["smooth"] needs exactly one of "sphere", "box" or "mesh"')
+    return kinds[0], smooth[kinds[0]]
+
+
 def _url_filter(f):
-    """Filter parameters as URL arguments (booleans as 1/0)."""
-    return {k: (int(v) if isinstance(v, bool) else v) for k, v in f.items()}
+    """Filter parameters as URL arguments (booleans as 1/0, the volume as smooth_*)."""
+    out = {k: (int(v) if isinstance(v, bool) else v) for k, v in f.items() if k != "smooth"}
+    if "smooth" in f:
+        kind, value = _volume(f["smooth"])
+        out["smooth_" + kind] = value if kind == "mesh" else ",".join(repr(float(x)) for x in value)
+        for k in ("depth", "scale"):
+            if k in f["smooth"]:
+                out["smooth_" + k] = f["smooth"][k]
+    return out
 
 
 def _split_words(words, mode):
@@ -254,13 +271,25 @@ class BinaryClient:
 
     @staticmethod
     def _filter_block(filter):
-        """The 40-byte FILTER block of a filtered QUERY (PROTOCOL.md)."""
+        """The FILTER block of a filtered QUERY (PROTOCOL.md): 104 bytes, then a smoothing
+        mesh's name padded to 4."""
         f = _filter(filter)
         flags = (1 if f.get("grid") else 0) | (2 if f.get("unsigned") else 0) \
             | (4 if f.get("allow_wide_bump") else 0)
-        return struct.pack("<BBHIdddQ", KERNELS[f.get("kernel", "gaussian")], flags, 0,
-                           f.get("samples", 0), f.get("cap", 0.0), f.get("a", 0.0),
-                           f.get("b", 0.0), f.get("seed", 0))
+        smooth = f.get("smooth") or {}
+        volume, numbers, name = 0, [0.0] * 6, b""
+        if smooth:
+            kind, value = _volume(smooth)
+            volume = VOLUMES[kind]
+            if kind == "mesh":
+                name = value.encode()
+            else:
+                numbers = [float(x) for x in value] + [0.0] * (6 - len(value))
+        block = struct.pack("<BBBBIdddQdd6d", KERNELS[f.get("kernel", "gaussian")], flags,
+                            volume, len(name), f.get("samples", 0), f.get("cap", 0.0),
+                            f.get("a", 0.0), f.get("b", 0.0), f.get("seed", 0),
+                            smooth.get("depth", 0.0), smooth.get("scale", 0.0), *numbers)
+        return block + name + b"\0" * ((-len(name)) % 4)
 
     @classmethod
     def _query_payload(cls, name, points, mode, sign, filter=None):

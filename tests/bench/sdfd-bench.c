@@ -107,7 +107,7 @@ static request encode(const options *o, const float *p, size_t n, uint32_t id)
     if (o->form == BINARY) {
         sdf_proto_query q = {.mode = SDF_MODE_SIGNED, .sign = SDF_SIGN_AUTO, .name = o->name,
                              .name_len = strlen(o->name), .count = (uint32_t)n, .points = p};
-        size_t cap = SDF_PROTO_HEADER_SIZE + sdf_proto_query_size(q.mode, q.name_len, q.count);
+        size_t cap = SDF_PROTO_HEADER_SIZE + sdf_proto_query_size(&q);
         r.data = malloc(cap);
         r.len = sdf_proto_encode_query(r.data, cap, id, &q);
         return r;

@@ -89,7 +89,7 @@ static void test_filtered_query(void)
                                     .seed = 0x0123456789abcdefu}},
                     back;
     size_t n = sdf_proto_encode_query(frame, sizeof frame, 5, &q);
-    CHECK(n == 16 + 8 + 4 + 40 + 12, "filtered query frame size %zu", n);
+    CHECK(n == 16 + 8 + 4 + SDF_PROTO_FILTER_SIZE + 12, "filtered query frame size %zu", n);
     const char *why;
     CHECK(sdf_proto_decode_query(frame + 16, n - 16, 10, &back, &why) == 0, "decode: %s", why);
     const sdf_filter_options *f = &back.filter;
@@ -101,6 +101,34 @@ static void test_filtered_query(void)
         CHECK(sdf_proto_decode_query(frame + 16, len, 10, &back, &why) != 0, "prefix %zu", len);
     CHECK(sdf_proto_words(SDF_MODE_FILTERED) == 1 && sdf_proto_words(SDF_MODE_FILTERED_GRADIENT) == 4,
           "filtered words");
+
+    /* Smoothing volumes: a sphere, a box, and a mesh by name (padded after the block). */
+    q.filter.smooth = (sdf_smoothing_volume){.shape = SDF_VOLUME_SPHERE, .center = {1, 2, 3},
+                                             .radius = 0.5, .depth = 0.25, .scale = 2};
+    n = sdf_proto_encode_query(frame, sizeof frame, 6, &q);
+    CHECK(sdf_proto_decode_query(frame + 16, n - 16, 10, &back, &why) == 0 &&
+              back.filter.smooth.shape == SDF_VOLUME_SPHERE && back.filter.smooth.center[2] == 3 &&
+              back.filter.smooth.radius == 0.5 && back.filter.smooth.depth == 0.25 &&
+              back.filter.smooth.scale == 2 && !back.volume_name,
+          "sphere volume round trip");
+    q.filter.smooth = (sdf_smoothing_volume){.shape = SDF_VOLUME_BOX, .lo = {-1, -2, -3},
+                                             .hi = {4, 5, 6}};
+    n = sdf_proto_encode_query(frame, sizeof frame, 6, &q);
+    CHECK(sdf_proto_decode_query(frame + 16, n - 16, 10, &back, &why) == 0 &&
+              back.filter.smooth.lo[1] == -2 && back.filter.smooth.hi[2] == 6,
+          "box volume round trip");
+    q.filter.smooth = (sdf_smoothing_volume){.shape = SDF_VOLUME_MESH};
+    q.volume_name = "knife", q.volume_name_len = 5;
+    n = sdf_proto_encode_query(frame, sizeof frame, 6, &q);
+    CHECK(n == 16 + 8 + 4 + SDF_PROTO_FILTER_SIZE + 8 + 12, "mesh volume frame size %zu", n);
+    CHECK(sdf_proto_decode_query(frame + 16, n - 16, 10, &back, &why) == 0 &&
+              back.volume_name_len == 5 && !memcmp(back.volume_name, "knife", 5) &&
+              !memcmp(back.points, pts, sizeof pts),
+          "mesh volume round trip: %s", why);
+    for (size_t len = 0; len < n - 16; len++)
+        CHECK(sdf_proto_decode_query(frame + 16, len, 10, &back, &why) != 0, "prefix %zu", len);
+    q.volume_name_len = 0;
+    CHECK(sdf_proto_encode_query(frame, sizeof frame, 6, &q) == 0, "mesh volume without a name");
 }
 
 static void test_result(void)

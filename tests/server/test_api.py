@@ -91,6 +91,45 @@ class Exactness(unittest.TestCase):
     def test_filtered_gradient(self):
         self.check_mode("filtered-gradient", samples=8)
 
+    def test_localized_smoothing(self):
+        """A smoothing sphere travels in every form: outside it the answer is the raw signed
+        distance bit for bit, inside it differs; a box given as a loaded mesh matches the
+        same box given by its corners."""
+        p = self.points
+        centre, radius = [0.0, 0.0, 0.0], 0.15
+        f = {"samples": 8, "smooth": {"sphere": centre + [radius], "depth": 0.05}}
+        answers = [self.http.query("fandisk", p, mode="filtered", form=form, filter=f)["distance"]
+                   for form in ("json", "octet", "npy")]
+        answers.append(self.bin.query("fandisk", p, mode="filtered", filter=f)["distance"])
+        for a in answers[1:]:
+            self.assertTrue(same_bits(a, answers[0]))
+        raw = self.http.query("fandisk", p, mode="signed")["distance"]
+        outside = np.linalg.norm(p - np.array(centre, np.float32), axis=1) > radius * 1.0001
+        self.assertTrue(outside.sum() > 100 and (~outside).sum() > 100)
+        self.assertTrue(same_bits(answers[0][outside], raw[outside]))
+        self.assertFalse(same_bits(answers[0][~outside], raw[~outside]))
+        # The same box, by corners and as a loaded mesh volume.
+        lo, hi = np.array([-0.1, -0.12, -0.08]), np.array([0.11, 0.1, 0.12])
+        corners = np.array([[hi[k] if i >> k & 1 else lo[k] for k in range(3)] for i in range(8)])
+        tris = [(0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6), (0, 1, 4), (1, 5, 4),
+                (2, 6, 3), (3, 6, 7), (0, 4, 2), (2, 4, 6), (1, 3, 5), (3, 7, 5)]
+        with tempfile.NamedTemporaryFile("w", suffix=".off", delete=False) as off:
+            off.write(f"OFF\n8 12 0\n" + "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in corners)
+                      + "".join(f"3 {a} {b} {c}\n" for a, b, c in tris))
+        try:
+            self.http.upload("smoothbox", off.name)
+        finally:
+            os.unlink(off.name)
+        by_box = self.bin.query("fandisk", p, mode="filtered",
+                                filter={"samples": 8, "smooth": {"box": list(lo) + list(hi)}})
+        by_mesh = self.bin.query("fandisk", p, mode="filtered",
+                                 filter={"samples": 8, "smooth": {"mesh": "smoothbox"}})
+        by_mesh_url = self.http.query("fandisk", p, mode="filtered", form="octet",
+                                      filter={"samples": 8, "smooth": {"mesh": "smoothbox"}})
+        self.assertTrue(same_bits(by_mesh["distance"], by_mesh_url["distance"]))
+        self.assertLess(np.abs(by_box["distance"] - by_mesh["distance"]).max(), 1e-4)
+        self.http.delete("smoothbox")
+
     def test_filtered_parameters_reach_the_library(self):
         """Every filter parameter travels in all forms: the same non-default request gives
         the same floats over JSON, octet-stream, npy and the binary protocol, and they differ

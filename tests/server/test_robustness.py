@@ -88,6 +88,14 @@ class BadInput(unittest.TestCase):
             (b'{"points": [0,0,0], "mode": "filtered", "filter": {"cap": -1}}', 422, "EINVAL"),
             (b'{"points": [0,0,0], "mode": "filtered", "filter": {"kernel": "bump", "cap": 0.01, '
              b'"b": 0.5}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"smooth": {"sphere": [0,0,0]}}}',
+             422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"smooth": {"sphere": [0,0,0,-1]}}}',
+             422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"smooth": {"box": [0,0,0,1,1,1], '
+             b'"mesh": "demo"}}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"smooth": {"mesh": "nope"}}}',
+             404, "ENOTFOUND"),
             (b'{"points": [' + b"0," * 3003 + b"0]}", 413, "ELIMIT"),
         ]:
             with self.subTest(body=body[:40]):
@@ -109,6 +117,10 @@ class BadInput(unittest.TestCase):
                     self.OCTET)
         self.expect(422, "EINVAL", "POST", self.Q + "?mode=filtered&grid=maybe", b"\0" * 12,
                     self.OCTET)
+        self.expect(422, "EINVAL", "POST", self.Q + "?mode=filtered&smooth_box=0,0,0,1,1", b"\0" * 12,
+                    self.OCTET)
+        self.expect(404, "ENOTFOUND", "POST", self.Q + "?mode=filtered&smooth_mesh=nope",
+                    b"\0" * 12, self.OCTET)
         self.expect(404, "ENOTFOUND", "GET", "/nowhere")
         self.expect(405, "EMETHOD", "GET", self.Q)
         self.expect(405, "EMETHOD", "POST", "/v1/meshes")
@@ -190,6 +202,9 @@ class BadInput(unittest.TestCase):
                     filter={"kernel": "bump", "cap": 0.01, "b": 0.5})
         self.assertEqual((e.exception.status, e.exception.code), (422, "EINVAL"))
         self.assertIn("8 f_c / 9", e.exception.message)
+        with self.assertRaises(sdfclient.SdfError) as e:
+            b.query("demo", np.zeros((2, 3)), mode="filtered", filter={"smooth": {"mesh": "nope"}})
+        self.assertEqual((e.exception.status, e.exception.code), (404, "ENOTFOUND"))
         # A wrongly sized QUERY and an unknown type: ERROR replies, connection kept.
         b.sock.sendall(struct.pack("<4sBBHII", b"SDFP", 1, 3, 0, 77, 9) + b"\0" * 9)
         b.sock.sendall(struct.pack("<4sBBHII", b"SDFP", 1, 0x42, 0, 78, 0))
