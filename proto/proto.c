@@ -166,6 +166,9 @@ static void decode_filter(const unsigned char *p, sdf_proto_query *q)
     double x[6];
     for (int i = 0; i < 6; i++)
         x[i] = get_f64(p + 56 + 8 * i);
+    uint32_t min_samples = get32(p + 104);
+    f->min_samples = min_samples > SDF_FILTER_MAX_SAMPLES ? -1 : (int)min_samples;
+    f->medial = get_f64(p + 112);
     if (f->smooth.shape == SDF_VOLUME_SPHERE) {
         memcpy(f->smooth.center, x, sizeof f->smooth.center);
         f->smooth.radius = x[3];
@@ -202,6 +205,9 @@ static void encode_filter(unsigned char *p, const sdf_proto_query *q)
     }
     for (int i = 0; i < 6; i++)
         put_f64(p + 56 + 8 * i, x[i]);
+    put32(p + 104, f->min_samples < 0 ? 0 : (uint32_t)f->min_samples);
+    put32(p + 108, 0);
+    put_f64(p + 112, f->medial);
     if (mesh) {
         memset(p + SDF_PROTO_FILTER_SIZE, 0, pad4(q->volume_name_len));
         memcpy(p + SDF_PROTO_FILTER_SIZE, q->volume_name, q->volume_name_len);

@@ -74,7 +74,7 @@ typedef struct sdf_proto_query {
 } sdf_proto_query;
 
 /* The FILTER block's size without the smoothing mesh's name (PROTOCOL.md). */
-#define SDF_PROTO_FILTER_SIZE 104
+#define SDF_PROTO_FILTER_SIZE 120
 
 /* Payload size of a QUERY, or 0 if a name is empty or too long. */
 size_t sdf_proto_query_size(const sdf_proto_query *q);

@@ -17,7 +17,7 @@ static const struct field {
 } fields[] = {
     {"kernel", KERNEL}, {"cap", NUMBER},   {"a", NUMBER},       {"b", NUMBER},
     {"samples", COUNT}, {"grid", FLAG},    {"unsigned", FLAG},  {"allow_wide_bump", FLAG},
-    {"seed", SEED},
+    {"seed", SEED},     {"min_samples", COUNT}, {"medial", NUMBER},
 };
 #define FIELDS (sizeof fields / sizeof fields[0])
 
@@ -50,13 +50,15 @@ static int store(sdf_filter_options *f, const struct field *fd, double number, c
             f->cap = number;
         else if (!strcmp(fd->name, "a"))
             f->a = number;
-        else
+        else if (!strcmp(fd->name, "b"))
             f->b = number;
+        else
+            f->medial = number;
         return 0;
     case COUNT:
         if (number != floor(number) || number < 1 || number > SDF_FILTER_MAX_SAMPLES)
-            return bad(err, cap, "filter samples must be an integer 1..4096", NULL);
-        f->samples = (int)number;
+            return bad(err, cap, "filter %s must be an integer 1..4096", fd->name);
+        *(fd->name[0] == 's' ? &f->samples : &f->min_samples) = (int)number;
         return 0;
     case SEED:
         if (number != floor(number) || number < 0 || number > MAX_SEED)
@@ -171,7 +173,7 @@ int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
             rc = json_smooth(item, out, volume_mesh, err, cap);
         } else if (!fd) {
             rc = bad(err, cap, "unknown filter parameter \"%.40s\" (kernel, cap, a, b, samples, "
-                     "grid, unsigned, allow_wide_bump, seed, smooth)", item->string ? item->string : "");
+                     "min_samples, medial, grid, unsigned, allow_wide_bump, seed, smooth)", item->string ? item->string : "");
         } else if (fd->kind == KERNEL) {
             rc = cJSON_IsString(item) ? store(out, fd, 0, item->valuestring, err, cap)
                                       : bad(err, cap, "filter %s must be a string", fd->name);

@@ -1,7 +1,8 @@
 /* filterparams.h - the filtered modes' parameters as HTTP clients write them: a "filter"
  * object in a JSON body, or the same names as URL arguments for octet-stream and npy bodies
  * (docs/api.md):
- *   kernel gaussian|bump, cap, a, b (numbers > 0), samples (1..4096), grid, unsigned,
+ *   kernel gaussian|bump, cap, a, b, medial (numbers > 0), samples, min_samples (1..4096),
+ *   grid, unsigned,
  *   allow_wide_bump (true|false, or 1|0 in a URL), seed (integer 0..2^53), and a smoothing
  *   volume: JSON "smooth": {"sphere": [x,y,z,r]} | {"box": [x0,y0,z0,x1,y1,z1]} |
  *   {"mesh": "name"}, with optional "depth" and "scale"; URL smooth_sphere=x,y,z,r |

@@ -33,8 +33,8 @@ MODES = {"signed": 0, "distance": 1, "gradient": 2, "closest": 3, "filtered": 4,
          "filtered-gradient": 5}
 SIGNS = {"auto": 0, "pseudonormal": 1, "winding": 2, "raycast": 3, "none": 4}
 WORDS = {0: 1, 1: 1, 2: 4, 3: 5, 4: 1, 5: 4}
-FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "grid", "unsigned", "allow_wide_bump", "seed",
-               "smooth")
+FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "min_samples", "medial", "grid", "unsigned",
+               "allow_wide_bump", "seed", "smooth")
 KERNELS = {"gaussian": 0, "bump": 1}
 VOLUMES = {"sphere": 1, "box": 2, "mesh": 3}
 
@@ -271,7 +271,7 @@ class BinaryClient:
 
     @staticmethod
     def _filter_block(filter):
-        """The FILTER block of a filtered QUERY (PROTOCOL.md): 104 bytes, then a smoothing
+        """The FILTER block of a filtered QUERY (PROTOCOL.md): 120 bytes, then a smoothing
         mesh's name padded to 4."""
         f = _filter(filter)
         flags = (1 if f.get("grid") else 0) | (2 if f.get("unsigned") else 0) \
@@ -285,10 +285,11 @@ class BinaryClient:
                 name = value.encode()
             else:
                 numbers = [float(x) for x in value] + [0.0] * (6 - len(value))
-        block = struct.pack("<BBBBIdddQdd6d", KERNELS[f.get("kernel", "gaussian")], flags,
+        block = struct.pack("<BBBBIdddQdd6dIId", KERNELS[f.get("kernel", "gaussian")], flags,
                             volume, len(name), f.get("samples", 0), f.get("cap", 0.0),
                             f.get("a", 0.0), f.get("b", 0.0), f.get("seed", 0),
-                            smooth.get("depth", 0.0), smooth.get("scale", 0.0), *numbers)
+                            smooth.get("depth", 0.0), smooth.get("scale", 0.0), *numbers,
+                            f.get("min_samples", 0), 0, f.get("medial", 0.0))
         return block + name + b"\0" * ((-len(name)) % 4)
 
     @classmethod

@@ -18,6 +18,7 @@
 #define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (28 MB of scratch) */
 #define DEFAULT_SAMPLES 64
 #define DEFAULT_CAP_OF_DIAGONAL 0.02
+#define DEFAULT_MEDIAL 0.2
 
 /* ---- sample sets ------------------------------------------------------------------------ */
 
@@ -188,6 +189,19 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                  "smoothing depth and scale must be positive numbers");
     }
+    if (out->min_samples != 0) {
+        if (out->min_samples < 1 || out->min_samples > out->samples)
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "min_samples must be 1..samples (%d), not %d", out->samples,
+                                 out->min_samples);
+        if (out->grid)
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "adaptive quality draws random samples; it cannot use the grid");
+        if (out->medial == 0)
+            out->medial = DEFAULT_MEDIAL;
+        if (!positive(out->medial))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "medial must be a positive number");
+    }
     /* Eq. (7): the kernel must not reach across the surface, b h(p) <= |f(p)| for all p. It
      * bounds eq. (4)'s kernel size; localized smoothing edits the surface on purpose. */
     if (v->shape == SDF_VOLUME_NONE && out->kernel == SDF_KERNEL_BUMP && !out->allow_wide_bump &&
@@ -287,6 +301,90 @@ static void free_scratch(scratch *s)
     free(s->sample_p), free(s->sample_f), free(s->sample_grad);
 }
 
+/* What one point's filtered value needs: its kernel size and, with adaptive quality, how
+ * many samples (full ones, then one weighted by frac) and grad n_a. */
+typedef struct point_plan {
+    double h, grad_h[3];
+    int full;
+    double frac, grad_n[3];
+    size_t first; /* its first sample in the block's sample arrays */
+} point_plan;
+
+#define STENCIL 26 /* the 3^3 grid without its centre (the centre is p itself) */
+
+/* Smoothstep and its derivative on [0, 1], clamped. */
+static double smoothstep(double t) { return t >= 1 ? 1 : t <= 0 ? 0 : t * t * (3 - 2 * t); }
+static double smoothstep_slope(double t) { return t >= 1 || t <= 0 ? 0 : 6 * t * (1 - t); }
+
+/* Sec. 5.2 for a block of points: evaluate each point's 3^3 stencil (spacing delta h(p), the
+ * grid of eq. 9), detect the medial axis from how far the neighbours' mean is from the centre,
+ * and set n_a = N_min + (n_medial + n_distance) / 2 (N_max - N_min) with its gradient. */
+static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
+                        const sdf_filter_options *f, scratch *s, const float *points,
+                        size_t stride, size_t first, size_t m, point_plan *plan)
+{
+    double delta = f->kernel == SDF_KERNEL_GAUSSIAN ? gaussian_sigma(f->a) : f->b / 2;
+    double offset[STENCIL][3];
+    int o = 0;
+    for (int x = -1; x <= 1; x++)
+        for (int y = -1; y <= 1; y++)
+            for (int z = -1; z <= 1; z++)
+                if (x || y || z) {
+                    offset[o][0] = x * delta, offset[o][1] = y * delta, offset[o][2] = z * delta;
+                    o++;
+                }
+    for (size_t j = 0; j < m; j++) {
+        const float *p = (const float *)((const char *)points + (first + j) * stride);
+        for (int i = 0; i < STENCIL; i++)
+            for (int k = 0; k < 3; k++)
+                s->sample_p[3 * (j * STENCIL + (size_t)i) + k] =
+                    (float)(p[k] - offset[i][k] * plan[j].h);
+    }
+    sdf_query_result res = {.distance = s->sample_f, .gradient = s->sample_grad};
+    int rc = sdf_query(mesh, s->sample_p, m * STENCIL, inner, &res);
+    if (rc)
+        return rc;
+    double spread = 0.5 * (f->samples - f->min_samples);
+    for (size_t j = 0; j < m; j++) {
+        size_t q = first + j;
+        point_plan *pl = &plan[j];
+        double fp = s->centre_f[q];
+        const float *grad_fp = s->centre_grad + 3 * q;
+        /* D = mean of the neighbours - centre, and its gradient through x_i = p - o_i h(p). */
+        double mean = 0, grad_d[3] = {0, 0, 0};
+        for (int i = 0; i < STENCIL; i++) {
+            size_t k = j * STENCIL + (size_t)i;
+            const float *g = s->sample_grad + 3 * k;
+            double along = offset[i][0] * g[0] + offset[i][1] * g[1] + offset[i][2] * g[2];
+            mean += s->sample_f[k] / STENCIL;
+            for (int c = 0; c < 3; c++)
+                grad_d[c] += (g[c] - pl->grad_h[c] * along) / STENCIL;
+        }
+        double d = mean - fp, medial = 0, grad_medial[3] = {0, 0, 0};
+        if (pl->h > 0) { /* M = |D| / (delta h); at h = 0 the stencil collapses: M = 0 */
+            double scale = delta * pl->h, x = fabs(d) / scale / f->medial;
+            medial = smoothstep(x);
+            double slope = smoothstep_slope(x) / f->medial, sgn = d < 0 ? -1 : 1;
+            for (int c = 0; c < 3; c++) {
+                double grad_m = sgn * (grad_d[c] - grad_fp[c]) / scale -
+                                fabs(d) / (scale * pl->h) * pl->grad_h[c];
+                grad_medial[c] = slope * grad_m;
+            }
+        }
+        /* n_distance = 1 - eq. (4)'s h: many samples near the surface, few far away. */
+        double grad_h4[3];
+        double distance = 1 - kernel_size(fp, grad_fp, f->cap, grad_h4);
+        double n_a = f->min_samples + (medial + distance) * spread;
+        pl->full = (int)floor(n_a);
+        pl->frac = n_a - pl->full;
+        if (pl->full >= f->samples)
+            pl->full = f->samples, pl->frac = 0;
+        for (int c = 0; c < 3; c++)
+            pl->grad_n[c] = spread * (grad_medial[c] - grad_h4[c]);
+    }
+    return 0;
+}
+
 /* The kernel size at point q (eq. 4, or sec. 6.1's h_m inside a smoothing volume). */
 static double size_at(const sdf_filter_options *f, const scratch *s, const float *p, size_t q,
                       double grad_h[3])
@@ -350,62 +448,85 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
         free_scratch(&s);
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for the samples");
     }
-    int n = samples.n;
-    size_t block = BLOCK_SAMPLES / (size_t)n;
+    int n = samples.n, adaptive = f.min_samples > 0;
+    size_t per_point = (size_t)n + (adaptive ? STENCIL : 0);
+    size_t block = BLOCK_SAMPLES / per_point;
     block = block < 1 ? 1 : block;
-    size_t per_block = block * (size_t)n;
+    size_t per_block = block * per_point;
     s.sample_p = malloc(3 * per_block * sizeof(float));
     s.sample_f = malloc(per_block * sizeof(float));
     s.sample_grad = malloc(3 * per_block * sizeof(float));
-    if (!s.sample_p || !s.sample_f || !s.sample_grad) {
+    point_plan *plan = malloc(block * sizeof *plan);
+    if (!s.sample_p || !s.sample_f || !s.sample_grad || !plan) {
+        free(plan);
         sdf__samples_free(&samples);
         free_scratch(&s);
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for the samples");
     }
     for (size_t first = 0; first < count && !rc; first += block) {
         size_t m = count - first < block ? count - first : block;
-        /* The displaced sample points p - s_i h(p) (eq. 10) of this block, point by point. */
         for (size_t j = 0; j < m; j++) {
             const float *p = (const float *)((const char *)points + (first + j) * stride);
-            double grad_h[3];
-            double h = size_at(&f, &s, p, first + j, grad_h);
-            for (int i = 0; i < n; i++)
-                for (int k = 0; k < 3; k++)
-                    s.sample_p[3 * (j * (size_t)n + (size_t)i) + k] =
-                        (float)(p[k] - samples.offset[i][k] * h);
+            point_plan *pl = &plan[j];
+            pl->h = size_at(&f, &s, p, first + j, pl->grad_h);
+            pl->full = n, pl->frac = 0;
+            pl->grad_n[0] = pl->grad_n[1] = pl->grad_n[2] = 0;
         }
-        sdf_query_result at = {.distance = s.sample_f, .gradient = s.sample_grad};
-        rc = sdf_query(mesh, s.sample_p, m * (size_t)n, &inner, &at);
+        if (adaptive) { /* sec. 5.2: the stencil first, then how many samples each point gets */
+            rc = plan_samples(mesh, &inner, &f, &s, points, stride, first, m, plan);
+            if (rc)
+                break;
+        }
+        /* The displaced sample points p - s_i h(p) (eq. 10) of this block, point by point. */
+        size_t at = 0;
+        for (size_t j = 0; j < m; j++) {
+            const float *p = (const float *)((const char *)points + (first + j) * stride);
+            plan[j].first = at;
+            int used = plan[j].full + (plan[j].frac > 0);
+            for (int i = 0; i < used; i++, at++)
+                for (int k = 0; k < 3; k++)
+                    s.sample_p[3 * at + k] = (float)(p[k] - samples.offset[i][k] * plan[j].h);
+        }
+        sdf_query_result res = {.distance = s.sample_f, .gradient = s.sample_grad};
+        rc = sdf_query(mesh, s.sample_p, at, &inner, &res);
         if (rc) /* finite points displaced by finite offsets: only memory can fail here */
             break;
         for (size_t j = 0; j < m; j++) {
             size_t q = first + j;
-            double fp = s.centre_f[q], grad_h[3];
+            const point_plan *pl = &plan[j];
+            double fp = s.centre_f[q];
             const float *grad_fp = s.centre_grad + 3 * q;
-            const float *p = (const float *)((const char *)points + q * stride);
-            double h = size_at(&f, &s, p, q, grad_h);
-            double value = 0, grad[3] = {0, 0, 0}, along = 0;
-            for (int i = 0; i < n; i++) {
-                size_t k = j * (size_t)n + (size_t)i;
+            double total = pl->full + pl->frac; /* the weights' sum: n, or n_a */
+            double value = 0, grad[3] = {0, 0, 0}, along = 0, last = 0;
+            int used = pl->full + (pl->frac > 0);
+            for (int i = 0; i < used; i++) {
+                size_t k = pl->first + (size_t)i;
                 double v = s.sample_f[k], sgn = 1;
                 if (f.unsigned_integrand) { /* |f| and its gradient sign(f) grad f */
                     sgn = v < 0 ? -1 : 1;
                     v = fabs(v);
                 }
                 const float *gs = s.sample_grad + 3 * k;
-                double w = samples.weight[i];
+                /* 1/n each (eq. 10), w(s_i) for the grid (eq. 9); adaptive: the last sample
+                 * weighs the fractional part of n_a. */
+                double w = adaptive ? (i < pl->full ? 1 : pl->frac) / total : samples.weight[i];
                 value += w * v;
+                last = v;
                 for (int c = 0; c < 3; c++)
                     grad[c] += w * sgn * gs[c];
                 along += w * sgn *
                          (samples.offset[i][0] * gs[0] + samples.offset[i][1] * gs[1] +
                           samples.offset[i][2] * gs[2]);
             }
-            /* grad g = sum w_i (I - grad h s_i^T) grad f(x_i), x_i = p - s_i h(p). */
+            /* grad g = sum w_i (I - grad h s_i^T) grad f(x_i), x_i = p - s_i h(p), plus, when
+             * n_a varies, dg/dn_a grad n_a with dg/dn_a = (v_last - g) / n_a. */
             for (int c = 0; c < 3; c++)
-                grad[c] -= grad_h[c] * along;
+                grad[c] -= pl->grad_h[c] * along;
+            if (adaptive && pl->frac > 0)
+                for (int c = 0; c < 3; c++)
+                    grad[c] += (last - value) / total * pl->grad_n[c];
             double outer = f.unsigned_integrand ? (fp < 0 ? -1 : 1) : 1;
-            if (h == 0) { /* on the surface or outside a smoothing volume: g = f */
+            if (pl->h == 0) { /* on the surface or outside a smoothing volume: g = f */
                 value = fp, outer = 1;
                 for (int c = 0; c < 3; c++)
                     grad[c] = grad_fp[c];
@@ -417,6 +538,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                     out->gradient[3 * q + c] = (float)(outer * grad[c]);
         }
     }
+    free(plan);
     sdf__samples_free(&samples);
     free_scratch(&s);
     if (rc)

@@ -135,7 +135,8 @@ class Exactness(unittest.TestCase):
         the same floats over JSON, octet-stream, npy and the binary protocol, and they differ
         from the defaults."""
         f = {"kernel": "bump", "cap": 0.05, "b": 0.04, "samples": 12, "unsigned": True,
-             "seed": 99, "grid": False, "allow_wide_bump": False}
+             "seed": 99, "grid": False, "allow_wide_bump": False, "min_samples": 4,
+             "medial": 0.3}
         p = self.points[:500]
         answers = [self.http.query("fandisk", p, mode="filtered", form=form, filter=f)["distance"]
                    for form in ("json", "octet", "npy")]

@@ -96,6 +96,8 @@ class BadInput(unittest.TestCase):
              b'"mesh": "demo"}}}', 422, "EINVAL"),
             (b'{"points": [0,0,0], "mode": "filtered", "filter": {"smooth": {"mesh": "nope"}}}',
              404, "ENOTFOUND"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"samples": 8, "min_samples": 9}}',
+             422, "EINVAL"),
             (b'{"points": [' + b"0," * 3003 + b"0]}", 413, "ELIMIT"),
         ]:
             with self.subTest(body=body[:40]):

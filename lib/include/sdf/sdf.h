@@ -261,7 +261,14 @@ typedef struct sdf_filter_options {
     double cap;             /* f_c; 0 = 0.02 x the mesh's bounding-box diagonal */
     double a;               /* Gaussian parameter a; 0 = 8 / f_c^2 (sigma = f_c / 4) */
     double b;               /* bump width b; 0 = 8 f_c / 9, the largest eq. (7) allows */
-    int samples;            /* n, 1..SDF_FILTER_MAX_SAMPLES; 0 = 64 */
+    int samples;            /* n, 1..SDF_FILTER_MAX_SAMPLES; 0 = 64 (N_max when adaptive) */
+    int min_samples;        /* adaptive quality (sec. 5.2): N_min, 1..samples; 0 = off, every
+                               point gets `samples`. Then a 3^3 stencil first detects the
+                               medial axis and n_a = N_min + (n_medial + n_distance) / 2 *
+                               (N_max - N_min) samples are used, the last one weighted by the
+                               fractional part of n_a */
+    double medial;          /* adaptive: the stencil response |mean - centre| / spacing at
+                               which n_medial reaches 1; 0 = 0.2 */
     int grid;               /* 1: the weighted regular 3^3 grid of eq. (9) instead (27
                                samples at 0, +-s per axis, s = sigma or b/2, weights w(s_i)) */
     int unsigned_integrand; /* 1: g = sign(f(p)) (1/n) sum |f(p - s_i h)|: no extra zero sets */
