@@ -1,12 +1,12 @@
 /* filter.c - the convolution-filtered signed distance and its gradient (see sdf.h and
  * filter.h; paper: ../shared/papers/convolution-filtering-sdf.md).
  *
- * Evaluation is two batches of ordinary queries: f and grad f at the points themselves (for
- * the kernel size h), then at every displaced sample p - s_i h(p). The samples of one point
- * lie within a few kernel widths of it, so in Morton order they form coherent packets that
- * share their traversals and seed each other's bounds: the paper's "packet sampling" is
- * sdf_query's packet traversal. Large requests go in blocks of at most BLOCK_SAMPLES sample
- * points, so memory stays bounded. */
+ * Evaluation is batches of ordinary queries: f and grad f at the points themselves (for the
+ * kernel size h), the medial stencil when adaptive, then every displaced sample p - s_i h(p).
+ * A point's samples are stored consecutively and lie within a few kernel widths of it, so
+ * each run of SDF__PACKET is one coherent packet whose searches start from |f(p)| + |x - p|
+ * (sdf__query_seeded): the paper's "packet sampling". Large requests go in blocks of at most
+ * BLOCK_SAMPLES sample points, so memory stays bounded. */
 #include "query/filter.h"
 
 #include <math.h>
@@ -293,12 +293,13 @@ typedef struct scratch {
     float *centre_f, *centre_grad;   /* f and grad f at the query points */
     float *volume_f, *volume_grad;   /* a mesh smoothing volume's f_s and grad f_s there */
     float *sample_p, *sample_f, *sample_grad;
+    double *sample_bound;            /* |f(p)| + |x - p|: each sample's search starts there */
 } scratch;
 
 static void free_scratch(scratch *s)
 {
     free(s->centre_f), free(s->centre_grad), free(s->volume_f), free(s->volume_grad);
-    free(s->sample_p), free(s->sample_f), free(s->sample_grad);
+    free(s->sample_p), free(s->sample_f), free(s->sample_grad), free(s->sample_bound);
 }
 
 /* What one point's filtered value needs: its kernel size and, with adaptive quality, how
@@ -311,6 +312,20 @@ typedef struct point_plan {
 } point_plan;
 
 #define STENCIL 26 /* the 3^3 grid without its centre (the centre is p itself) */
+
+/* Sample slot k: the point p - offset h and its search bound |f(p)| + |x - p| (f is
+ * 1-Lipschitz; measured from the float point actually queried, grown for rounding). */
+static void displace(const float *p, const double offset[3], double h, double fp, scratch *s,
+                     size_t k)
+{
+    double gap2 = 0;
+    for (int c = 0; c < 3; c++) {
+        float x = (float)(p[c] - offset[c] * h);
+        s->sample_p[3 * k + c] = x;
+        gap2 += ((double)x - p[c]) * ((double)x - p[c]);
+    }
+    s->sample_bound[k] = (fabs(fp) + sqrt(gap2)) * (1 + 1e-6);
+}
 
 /* Smoothstep and its derivative on [0, 1], clamped. */
 static double smoothstep(double t) { return t >= 1 ? 1 : t <= 0 ? 0 : t * t * (3 - 2 * t); }
@@ -336,12 +351,10 @@ static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
     for (size_t j = 0; j < m; j++) {
         const float *p = (const float *)((const char *)points + (first + j) * stride);
         for (int i = 0; i < STENCIL; i++)
-            for (int k = 0; k < 3; k++)
-                s->sample_p[3 * (j * STENCIL + (size_t)i) + k] =
-                    (float)(p[k] - offset[i][k] * plan[j].h);
+            displace(p, offset[i], plan[j].h, s->centre_f[first + j], s, j * STENCIL + (size_t)i);
     }
     sdf_query_result res = {.distance = s->sample_f, .gradient = s->sample_grad};
-    int rc = sdf_query(mesh, s->sample_p, m * STENCIL, inner, &res);
+    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, m * STENCIL, inner, &res);
     if (rc)
         return rc;
     double spread = 0.5 * (f->samples - f->min_samples);
@@ -456,8 +469,9 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     s.sample_p = malloc(3 * per_block * sizeof(float));
     s.sample_f = malloc(per_block * sizeof(float));
     s.sample_grad = malloc(3 * per_block * sizeof(float));
+    s.sample_bound = malloc(per_block * sizeof(double));
     point_plan *plan = malloc(block * sizeof *plan);
-    if (!s.sample_p || !s.sample_f || !s.sample_grad || !plan) {
+    if (!s.sample_p || !s.sample_f || !s.sample_grad || !s.sample_bound || !plan) {
         free(plan);
         sdf__samples_free(&samples);
         free_scratch(&s);
@@ -484,11 +498,12 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
             plan[j].first = at;
             int used = plan[j].full + (plan[j].frac > 0);
             for (int i = 0; i < used; i++, at++)
-                for (int k = 0; k < 3; k++)
-                    s.sample_p[3 * at + k] = (float)(p[k] - samples.offset[i][k] * plan[j].h);
+                displace(p, samples.offset[i], plan[j].h, s.centre_f[first + j], &s, at);
         }
+        /* Packet sampling (sec. 3): a point's samples are consecutive, so they make coherent
+         * packets, each search bounded by |f(p)| + |x - p| (Lipschitz). */
         sdf_query_result res = {.distance = s.sample_f, .gradient = s.sample_grad};
-        rc = sdf_query(mesh, s.sample_p, at, &inner, &res);
+        rc = sdf__query_seeded(mesh, s.sample_p, s.sample_bound, at, &inner, &res);
         if (rc) /* finite points displaced by finite offsets: only memory can fail here */
             break;
         for (size_t j = 0; j < m; j++) {

@@ -26,4 +26,11 @@ void sdf__samples_free(sdf__samples *s);
 int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
                         sdf_filter_options *out, sdf_diag *diag);
 
+/* Answer `count` packed points in the given order, SDF__PACKET consecutive points to a
+ * packet, each search starting from bound[i] (an upper bound of point i's distance; the
+ * points of one packet should lie close together). The same answers as sdf_query. Defined in
+ * query.c. */
+int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
+                      size_t count, const sdf_query_options *opts, sdf_query_result *out);
+
 #endif

@@ -14,6 +14,7 @@
 #include "bvh/embree.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
+#include "query/filter.h"
 #include "query/packet.h"
 #include "sign/pseudonormal.h"
 #include "sign/raycast.h"
@@ -55,6 +56,7 @@ typedef struct batch {
     sdf_query_result *out;
     float *winding;
     const uint32_t *order; /* packet traversal: visit order */
+    const double *bound;   /* sdf__query_seeded: each point's distance bound */
 } batch;
 
 static const float *point_at(const batch *b, size_t i)
@@ -78,7 +80,7 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
         return SDF_EINVAL;
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
-    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL};
+    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL, NULL};
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -243,6 +245,47 @@ static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_opti
         order = NULL;
     }
     return order;
+}
+
+/* Packets of SDF__PACKET consecutive points, bounded by b->bound (sdf__query_seeded). */
+static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const batch *b = ctx;
+    const sdf_mesh *m = b->mesh;
+    sdf__packet pk;
+    sdf__hit hits[SDF__PACKET];
+    for (size_t k = begin; k < end; k += SDF__PACKET) {
+        pk.n = (int)(end - k < SDF__PACKET ? end - k : SDF__PACKET);
+        for (int i = 0; i < SDF__PACKET; i++) { /* lanes past n repeat the last point */
+            const float *p = point_at(b, k + (size_t)(i < pk.n ? i : pk.n - 1));
+            pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
+            pk.bound2[i] = b->bound[k + (size_t)(i < pk.n ? i : pk.n - 1)];
+            pk.bound2[i] *= pk.bound2[i];
+        }
+        sdf__closest_packet(&m->tree, m->positions, m->triangles, m->diagonal, &pk, hits);
+        double winding[SDF__PACKET];
+        packet_winding(b, &pk, winding);
+        for (int i = 0; i < pk.n; i++) {
+            size_t idx = k + (size_t)i;
+            if (!isfinite(hits[i].dist2))
+                sdf__bvh_closest(m->bvh, point_at(b, idx), &hits[i]);
+            finish(b, idx, &hits[i], winding[i]);
+        }
+    }
+}
+
+int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
+                      size_t count, const sdf_query_options *opts, sdf_query_result *out)
+{
+    batch b;
+    int rc = check_batch(mesh, points, count, opts, &b, &out->bad_index);
+    if (rc)
+        return rc;
+    b.out = out;
+    b.bound = bound;
+    sdf__parallel_for(count, 32 * SDF__PACKET, opts ? opts->threads : 0, seeded_range, &b);
+    return 0;
 }
 
 int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
