@@ -186,6 +186,25 @@ static void packet_winding(const batch *b, const sdf__packet *pk, double *windin
     sdf__winding_packet(b->mesh->winding, qx, qy, qz, pk->n, winding);
 }
 
+/* Traverse one packet (its points and bounds filled in for lanes < n) and finish its points:
+ * lane i is point order[i] or, without an order, point first + i. */
+static void answer_packet(const batch *b, sdf__packet *pk, const uint32_t *order, size_t first,
+                          sdf__hit *hits)
+{
+    const sdf_mesh *m = b->mesh;
+    for (int i = pk->n; i < SDF__PACKET; i++) /* pad: the box tests run on whole groups */
+        pk->x[i] = pk->x[pk->n - 1], pk->y[i] = pk->y[pk->n - 1], pk->z[i] = pk->z[pk->n - 1];
+    sdf__closest_packet(&m->tree, m->positions, m->triangles, m->diagonal, pk, hits);
+    double winding[SDF__PACKET];
+    packet_winding(b, pk, winding);
+    for (int i = 0; i < pk->n; i++) {
+        size_t idx = order ? order[i] : first + (size_t)i;
+        if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
+            sdf__bvh_closest(m->bvh, point_at(b, idx), &hits[i]);
+        finish(b, idx, &hits[i], winding[i]);
+    }
+}
+
 /* Positions [begin, end) of the Morton order, packet by packet. Each packet's bounds are
  * seeded from the last point answered before it (packet.h, lever 1); a work item's first
  * point is answered alone so no packet ever starts unbounded. A packet spread over a region
@@ -215,17 +234,7 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
         if (spread > PACKET_SPREAD * (prev_d + m->tree.leaf_size)) {
             single_points(b, b->order + k, pk.n, hits);
         } else {
-            for (int i = pk.n; i < SDF__PACKET; i++) /* pad: the box tests run on every lane */
-                pk.x[i] = pk.x[pk.n - 1], pk.y[i] = pk.y[pk.n - 1], pk.z[i] = pk.z[pk.n - 1];
-            sdf__closest_packet(&m->tree, m->positions, m->triangles, m->diagonal, &pk, hits);
-            double winding[SDF__PACKET];
-            packet_winding(b, &pk, winding);
-            for (int i = 0; i < pk.n; i++) {
-                size_t idx = b->order[k + (size_t)i];
-                if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
-                    sdf__bvh_closest(m->bvh, point_at(b, idx), &hits[i]);
-                finish(b, idx, &hits[i], winding[i]);
-            }
+            answer_packet(b, &pk, b->order + k, 0, hits);
         }
         const float *last = point_at(b, b->order[k + (size_t)pk.n - 1]);
         prev[0] = last[0], prev[1] = last[1], prev[2] = last[2];
@@ -252,26 +261,16 @@ static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     const batch *b = ctx;
-    const sdf_mesh *m = b->mesh;
     sdf__packet pk;
     sdf__hit hits[SDF__PACKET];
     for (size_t k = begin; k < end; k += SDF__PACKET) {
         pk.n = (int)(end - k < SDF__PACKET ? end - k : SDF__PACKET);
-        for (int i = 0; i < SDF__PACKET; i++) { /* lanes past n repeat the last point */
-            const float *p = point_at(b, k + (size_t)(i < pk.n ? i : pk.n - 1));
-            pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
-            pk.bound2[i] = b->bound[k + (size_t)(i < pk.n ? i : pk.n - 1)];
-            pk.bound2[i] *= pk.bound2[i];
-        }
-        sdf__closest_packet(&m->tree, m->positions, m->triangles, m->diagonal, &pk, hits);
-        double winding[SDF__PACKET];
-        packet_winding(b, &pk, winding);
         for (int i = 0; i < pk.n; i++) {
-            size_t idx = k + (size_t)i;
-            if (!isfinite(hits[i].dist2))
-                sdf__bvh_closest(m->bvh, point_at(b, idx), &hits[i]);
-            finish(b, idx, &hits[i], winding[i]);
+            const float *p = point_at(b, k + (size_t)i);
+            pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
+            pk.bound2[i] = b->bound[k + (size_t)i] * b->bound[k + (size_t)i];
         }
+        answer_packet(b, &pk, NULL, k, hits);
     }
 }
 
