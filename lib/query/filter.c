@@ -294,12 +294,15 @@ typedef struct scratch {
     float *volume_f, *volume_grad;   /* a mesh smoothing volume's f_s and grad f_s there */
     float *sample_p, *sample_f, *sample_grad;
     double *sample_bound;            /* |f(p)| + |x - p|: each sample's search starts there */
+    int8_t *sample_sign;             /* sign(f(p)) where it is certain, else 0 (displace) */
+    int closed;                      /* the mesh is closed: its sign only flips at the surface */
 } scratch;
 
 static void free_scratch(scratch *s)
 {
     free(s->centre_f), free(s->centre_grad), free(s->volume_f), free(s->volume_grad);
     free(s->sample_p), free(s->sample_f), free(s->sample_grad), free(s->sample_bound);
+    free(s->sample_sign);
 }
 
 /* What one point's filtered value needs: its kernel size and, with adaptive quality, how
@@ -324,7 +327,13 @@ static void displace(const float *p, const double offset[3], double h, double fp
         s->sample_p[3 * k + c] = x;
         gap2 += ((double)x - p[c]) * ((double)x - p[c]);
     }
-    s->sample_bound[k] = (fabs(fp) + sqrt(gap2)) * (1 + 1e-6);
+    double gap = sqrt(gap2);
+    s->sample_bound[k] = (fabs(fp) + gap) * (1 + 1e-6);
+    /* On a closed mesh every sign method flips only across the surface, and no surface lies
+     * nearer to p than |f(p)|: a sample that close shares p's sign, which spares its sign
+     * computation (a winding number traversal on self-intersecting meshes). Open meshes' winding
+     * signs also flip across holes, so there it is always computed. */
+    s->sample_sign[k] = s->closed && fp != 0 && gap < fabs(fp) * (1 - 1e-6) ? (fp < 0 ? -1 : 1) : 0;
 }
 
 /* Smoothstep and its derivative on [0, 1], clamped. */
@@ -354,7 +363,8 @@ static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
             displace(p, offset[i], plan[j].h, s->centre_f[first + j], s, j * STENCIL + (size_t)i);
     }
     sdf_query_result res = {.distance = s->sample_f, .gradient = s->sample_grad};
-    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, m * STENCIL, inner, &res);
+    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, s->sample_sign, m * STENCIL,
+                               inner, &res);
     if (rc)
         return rc;
     double spread = 0.5 * (f->samples - f->min_samples);
@@ -427,6 +437,9 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     sdf_query_options inner = opts ? *opts : (sdf_query_options){0};
     inner.point_stride = 0;
     scratch s = {0};
+    sdf_mesh_report report;
+    sdf_mesh_get_report(mesh, &report);
+    s.closed = report.closed;
     s.centre_f = malloc((count + 1) * sizeof(float));
     s.centre_grad = malloc((3 * count + 1) * sizeof(float));
     if (!s.centre_f || !s.centre_grad) {
@@ -470,8 +483,9 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     s.sample_f = malloc(per_block * sizeof(float));
     s.sample_grad = malloc(3 * per_block * sizeof(float));
     s.sample_bound = malloc(per_block * sizeof(double));
+    s.sample_sign = malloc(per_block * sizeof(int8_t));
     point_plan *plan = malloc(block * sizeof *plan);
-    if (!s.sample_p || !s.sample_f || !s.sample_grad || !s.sample_bound || !plan) {
+    if (!s.sample_p || !s.sample_f || !s.sample_grad || !s.sample_bound || !s.sample_sign || !plan) {
         free(plan);
         sdf__samples_free(&samples);
         free_scratch(&s);
@@ -503,7 +517,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
         /* Packet sampling (sec. 3): a point's samples are consecutive, so they make coherent
          * packets, each search bounded by |f(p)| + |x - p| (Lipschitz). */
         sdf_query_result res = {.distance = s.sample_f, .gradient = s.sample_grad};
-        rc = sdf__query_seeded(mesh, s.sample_p, s.sample_bound, at, &inner, &res);
+        rc = sdf__query_seeded(mesh, s.sample_p, s.sample_bound, s.sample_sign, at, &inner, &res);
         if (rc) /* finite points displaced by finite offsets: only memory can fail here */
             break;
         for (size_t j = 0; j < m; j++) {

@@ -57,6 +57,7 @@ typedef struct batch {
     float *winding;
     const uint32_t *order; /* packet traversal: visit order */
     const double *bound;   /* sdf__query_seeded: each point's distance bound */
+    const int8_t *sign_hint; /* sdf__query_seeded: a sign known in advance (+-1), or 0 */
 } batch;
 
 static const float *point_at(const batch *b, size_t i)
@@ -80,7 +81,7 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
         return SDF_EINVAL;
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
-    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL, NULL};
+    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL, NULL, NULL};
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -127,10 +128,11 @@ static void finish(const batch *b, size_t i, const sdf__hit *h, double winding)
     double d = sqrt(hit.dist2);
     int on_surface = d <= m->surface_epsilon;
     float normal[3] = {0, 0, 0};
-    if (b->sign == SDF_SIGN_PSEUDONORMAL || (on_surface && b->out->gradient))
+    int hinted = b->sign_hint && b->sign_hint[i] && d > 0;
+    if ((b->sign == SDF_SIGN_PSEUDONORMAL && !hinted) || (on_surface && b->out->gradient))
         sdf__pseudonormal(m->normals, m->triangles, m->edge_of, hit.triangle, hit.feature,
                           hit.face_normal, normal);
-    float s = d > 0 ? sign_of(b, p, &hit, normal, winding) : 1.0f;
+    float s = hinted ? (float)b->sign_hint[i] : d > 0 ? sign_of(b, p, &hit, normal, winding) : 1.0f;
     sdf_query_result *o = b->out;
     if (o->distance)
         o->distance[i] = s * (float)d;
@@ -196,7 +198,14 @@ static void answer_packet(const batch *b, sdf__packet *pk, const uint32_t *order
         pk->x[i] = pk->x[pk->n - 1], pk->y[i] = pk->y[pk->n - 1], pk->z[i] = pk->z[pk->n - 1];
     sdf__closest_packet(&m->tree, m->positions, m->triangles, m->diagonal, pk, hits);
     double winding[SDF__PACKET];
-    packet_winding(b, pk, winding);
+    int all_hinted = b->sign_hint != NULL;
+    for (int i = 0; i < pk->n && all_hinted; i++)
+        all_hinted = b->sign_hint[order ? order[i] : first + (size_t)i] != 0;
+    if (all_hinted) /* every sign is known: no winding traversal */
+        for (int i = 0; i < pk->n; i++)
+            winding[i] = NAN;
+    else
+        packet_winding(b, pk, winding);
     for (int i = 0; i < pk->n; i++) {
         size_t idx = order ? order[i] : first + (size_t)i;
         if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
@@ -275,7 +284,8 @@ static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
 }
 
 int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
-                      size_t count, const sdf_query_options *opts, sdf_query_result *out)
+                      const int8_t *sign_hint, size_t count, const sdf_query_options *opts,
+                      sdf_query_result *out)
 {
     batch b;
     int rc = check_batch(mesh, points, count, opts, &b, &out->bad_index);
@@ -283,6 +293,7 @@ int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *b
         return rc;
     b.out = out;
     b.bound = bound;
+    b.sign_hint = sign_hint;
     sdf__parallel_for(count, 32 * SDF__PACKET, opts ? opts->threads : 0, seeded_range, &b);
     return 0;
 }
