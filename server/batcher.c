@@ -34,12 +34,28 @@ double sdfd_now(void)
     return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
+static int same_volume(const sdf_smoothing_volume *a, const sdf_smoothing_volume *b)
+{
+    if (a->shape != b->shape)
+        return 0;
+    if (a->shape == SDF_VOLUME_NONE)
+        return 1;
+    for (int k = 0; k < 3; k++)
+        if (a->center[k] != b->center[k] || a->lo[k] != b->lo[k] || a->hi[k] != b->hi[k])
+            return 0;
+    return a->radius == b->radius && a->mesh == b->mesh && a->depth == b->depth &&
+           a->scale == b->scale;
+}
+
+/* Every field of sdf_filter_options: requests differing in any run apart. */
 static int same_filter(const sdf_filter_options *a, const sdf_filter_options *b)
 {
     return a->kernel == b->kernel && a->cap == b->cap && a->a == b->a && a->b == b->b &&
-           a->samples == b->samples && a->grid == b->grid &&
+           a->samples == b->samples && a->min_samples == b->min_samples &&
+           a->medial == b->medial && a->grid == b->grid &&
            a->unsigned_integrand == b->unsigned_integrand &&
-           a->allow_wide_bump == b->allow_wide_bump && a->seed == b->seed;
+           a->allow_wide_bump == b->allow_wide_bump && a->seed == b->seed &&
+           same_volume(&a->smooth, &b->smooth);
 }
 
 /* Jobs run together only when every parameter of the answer is the same. */

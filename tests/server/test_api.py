@@ -130,6 +130,26 @@ class Exactness(unittest.TestCase):
         self.assertLess(np.abs(by_box["distance"] - by_mesh["distance"]).max(), 1e-4)
         self.http.delete("smoothbox")
 
+    def test_pipelined_filters_are_not_mixed(self):
+        """Filtered requests that differ in any parameter (here only the smoothing volume, or
+        only adaptivity) are never run as one batch: pipelined together, each gets the answer
+        it gets alone."""
+        p = self.points[:400]
+        filters = [{"samples": 8}, {"samples": 8, "smooth": {"sphere": [0, 0, 0, 0.1]}},
+                   {"samples": 8, "smooth": {"sphere": [0, 0, 0, 0.2]}},
+                   {"samples": 8, "min_samples": 2}, {"samples": 8, "seed": 1}]
+        alone = [self.bin.query("fandisk", p, mode="filtered", filter=f)["distance"]
+                 for f in filters]
+        for rounds in range(3):
+            ids = [self.bin._send(0x03, self.bin._query_payload("fandisk", p, "filtered", "auto", f))
+                   for f in filters]
+            got = {}
+            while len(got) < len(ids):
+                rid, _, payload = self.bin._recv()
+                got[rid] = self.bin._result(payload, "filtered")["distance"]
+            for i, rid in enumerate(ids):
+                self.assertTrue(same_bits(got[rid], alone[i]), f"filter {filters[i]}")
+
     def test_filtered_parameters_reach_the_library(self):
         """Every filter parameter travels in all forms: the same non-default request gives
         the same floats over JSON, octet-stream, npy and the binary protocol, and they differ
