@@ -261,9 +261,13 @@ class Limits(unittest.TestCase):
             a.close()
             self.assertTrue(wait_until(lambda: self._third_connects(s)))
             b.close()
-            lines = [e for e in s.logs if e.get("event") == "request" and e.get("proto") == "binary"]
-            self.assertTrue(any(e["method"] == "QUERY" and e["points"] == 3 and e["status"] == 200
-                                for e in lines), lines)
+
+            def binary_lines():
+                return [e for e in s.logs if e.get("event") == "request" and e.get("proto") == "binary"]
+            # The reply goes out before its log line is written: wait for the line.
+            self.assertTrue(wait_until(lambda: any(
+                e["method"] == "QUERY" and e["points"] == 3 and e["status"] == 200
+                for e in binary_lines())), binary_lines())
 
     @staticmethod
     def _third_connects(s):
