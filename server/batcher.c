@@ -65,15 +65,25 @@ static int same_batch(const sdfd_job *a, const sdfd_job *b)
            (!sdf_proto_mode_filtered(a->mode) || same_filter(&a->filter, &b->filter));
 }
 
-int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, char *msg,
-                         size_t cap)
+int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, size_t count,
+                         size_t max_queries, char *msg, size_t cap)
 {
     sdf_query_result none = {0};
     sdf_diag diag = {0};
     int rc = sdf_query_filtered(mesh, NULL, 0, NULL, f, &none, &diag);
-    if (rc)
+    if (rc) {
         snprintf(msg, cap, "%s", diag.message);
-    return rc;
+        return rc;
+    }
+    /* n samples (sdf.h's default 64), the point itself, and the adaptive stencil's 26. */
+    size_t per_point = (size_t)(f->samples ? f->samples : 64) + 1 + (f->min_samples ? 26 : 0);
+    if (count > max_queries / per_point) {
+        snprintf(msg, cap, "%zu points x %zu queries each exceeds the %zu distance queries one "
+                 "filtered request may cost; send fewer points or samples", count, per_point,
+                 max_queries);
+        return SDF_ELIMIT;
+    }
+    return 0;
 }
 
 /* Take the head job and every queued job of the same key (up to max_points); caller holds

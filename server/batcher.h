@@ -54,10 +54,15 @@ void sdfd_batcher_destroy(sdfd_batcher *b);
  * SDF_ENONFINITE (*bad_index set), SDF_EBUSY (queue full), SDF_EUNAVAILABLE (shutting down). */
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
 
-/* Check a filtered query's parameters against the mesh before submitting it, so one bad
- * request never fails a batch. 0, or SDF_EINVAL with the library's message in `msg`. */
-int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, char *msg,
-                         size_t cap);
+/* Check a filtered query of `count` points before submitting it, so one bad request never
+ * fails a batch: its parameters (SDF_EINVAL with the library's message in `msg`) and its cost,
+ * at most `max_queries` distance queries (SDF_ELIMIT), so one request cannot hold the batcher
+ * for minutes. */
+int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, size_t count,
+                         size_t max_queries, char *msg, size_t cap);
+
+/* The filtered-query cost limit for a server whose requests hold at most max_points points. */
+#define SDFD_FILTER_QUERIES_PER_POINT_LIMIT 16
 
 /* Seconds on a monotonic clock. */
 double sdfd_now(void);

@@ -196,10 +196,13 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
             }
             q.filter.smooth.mesh = volume;
         }
-        if (sdfd_filter_validate(mesh, &q.filter, message, sizeof message)) {
+        int bad = sdfd_filter_validate(mesh, &q.filter, q.count,
+                                       SDFD_FILTER_QUERIES_PER_POINT_LIMIT * srv->cfg.max_points,
+                                       message, sizeof message);
+        if (bad) {
             sdf_mesh_release(mesh);
             sdf_mesh_release(volume);
-            refuse(b, c, id, SDF_EINVAL, message, start, bytes_in);
+            refuse(b, c, id, bad, message, start, bytes_in);
             return;
         }
     }

@@ -321,9 +321,12 @@ static enum MHD_Result start_query(request *req)
     sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
     if (!mesh)
         return send_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
-    if (sdf_proto_mode_filtered(m) && sdfd_filter_validate(mesh, &filter, err, sizeof err)) {
+    if (sdf_proto_mode_filtered(m) &&
+        (rc = sdfd_filter_validate(mesh, &filter, count,
+                                   SDFD_FILTER_QUERIES_PER_POINT_LIMIT * srv->cfg.max_points, err,
+                                   sizeof err))) {
         sdf_mesh_release(mesh);
-        return send_error(req, SDF_EINVAL, "%s", err);
+        return send_error(req, rc, "%s", err);
     }
     req->points = count;
     req->reply_form = (sdfd_form)reply_form(req, (sdfd_form)form);

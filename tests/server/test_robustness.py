@@ -123,6 +123,11 @@ class BadInput(unittest.TestCase):
                     self.OCTET)
         self.expect(404, "ENOTFOUND", "POST", self.Q + "?mode=filtered&smooth_mesh=nope",
                     b"\0" * 12, self.OCTET)
+        # Cost: 1000 points x (64 + 1) queries > 16 x max-points (1000): refused up front.
+        self.expect(413, "ELIMIT", "POST", self.Q + "?mode=filtered", b"\0" * 12 * 1000,
+                    self.OCTET)
+        self.expect(200, None, "POST", self.Q + "?mode=filtered&samples=8", b"\0" * 12 * 100,
+                    self.OCTET)
         self.expect(404, "ENOTFOUND", "GET", "/nowhere")
         self.expect(405, "EMETHOD", "GET", self.Q)
         self.expect(405, "EMETHOD", "POST", "/v1/meshes")
