@@ -15,7 +15,7 @@
 
 #include "core/diag.h"
 
-#define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (28 MB of scratch) */
+#define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (~37 MB of scratch) */
 #define DEFAULT_SAMPLES 64
 #define DEFAULT_CAP_OF_DIAGONAL 0.02
 #define DEFAULT_MEDIAL 0.2
