@@ -5,7 +5,8 @@
  *   application/x-npy         float32 or float64 (N, 3) (parameters in the URL)
  * Results always start as the wire layout of PROTOCOL.md (W 32-bit words per point, held
  * in a sdfd_reply), which is the octet-stream body as is, the npy body after a header, and
- * the source the JSON text is printed from (%.9g: every float32 round-trips exactly).
+ * the source the JSON text is printed from (9 significant digits, numtext.h: every float32
+ * round-trips exactly).
  *
  * The JSON reader is hand-written for the one shape it needs, because bulk float arrays are
  * the whole payload: it scans numbers straight into a float array (cJSON would build a node
