@@ -173,7 +173,8 @@ int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
             rc = json_smooth(item, out, volume_mesh, err, cap);
         } else if (!fd) {
             rc = bad(err, cap, "unknown filter parameter \"%.40s\" (kernel, cap, a, b, samples, "
-                     "min_samples, medial, grid, unsigned, allow_wide_bump, seed, smooth)", item->string ? item->string : "");
+                     "min_samples, medial, grid, unsigned, allow_wide_bump, seed, smooth)",
+                     item->string ? item->string : "");
         } else if (fd->kind == KERNEL) {
             rc = cJSON_IsString(item) ? store(out, fd, 0, item->valuestring, err, cap)
                                       : bad(err, cap, "filter %s must be a string", fd->name);
@@ -249,7 +250,8 @@ int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name),
         if (fd->kind == KERNEL) {
             rc = store(out, fd, 0, v, err, cap);
         } else if (fd->kind == FLAG) {
-            int on = !strcmp(v, "1") || !strcmp(v, "true"), off = !strcmp(v, "0") || !strcmp(v, "false");
+            int on = !strcmp(v, "1") || !strcmp(v, "true");
+            int off = !strcmp(v, "0") || !strcmp(v, "false");
             rc = on || off ? store(out, fd, on, NULL, err, cap)
                            : bad(err, cap, "filter %s must be true, false, 1 or 0", fd->name);
         } else {

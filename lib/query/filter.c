@@ -151,7 +151,8 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
     if (!positive(out->a))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the Gaussian's a must be a positive number");
     if (!positive(out->b))
-        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the bump's width b must be a positive number");
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                             "the bump's width b must be a positive number");
     if (out->samples == 0)
         out->samples = DEFAULT_SAMPLES;
     if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
@@ -171,7 +172,8 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
         for (int k = 0; k < 3; k++)
             if (!isfinite(v->lo[k]) || !isfinite(v->hi[k]) || !(v->lo[k] < v->hi[k]))
                 return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
-                                     "a smoothing box needs finite corners with lo < hi on every axis");
+                                     "a smoothing box needs finite corners with lo < hi on "
+                                     "every axis");
         break;
     case SDF_VOLUME_MESH:
         if (!v->mesh)
@@ -485,7 +487,8 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     s.sample_bound = malloc(per_block * sizeof(double));
     s.sample_sign = malloc(per_block * sizeof(int8_t));
     point_plan *plan = malloc(block * sizeof *plan);
-    if (!s.sample_p || !s.sample_f || !s.sample_grad || !s.sample_bound || !s.sample_sign || !plan) {
+    if (!s.sample_p || !s.sample_f || !s.sample_grad || !s.sample_bound || !s.sample_sign ||
+        !plan) {
         free(plan);
         sdf__samples_free(&samples);
         free_scratch(&s);

@@ -81,7 +81,8 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t 
 /* The float triangle test below is accurate to about 10 ulps of (d + triangle size): every
  * triangle whose float distance is within TIE_REL * d + TIE_ABS of a lane's best float
  * distance is a candidate, and the candidates get the exact double test. TIE_ABS is a
- * fraction of the mesh's extent (sdf__packet_scene.tie_abs). The margins are ~16x and ~6x
+ * fraction of the mesh's extent (the bounding-box diagonal sdf__closest_packet is given,
+ * which bounds every triangle's size). The margins are ~16x and ~6x
  * the error bound, and cost nothing measurable: near ties are rare except at shared vertices
  * and edges, which the exact test must see anyway. */
 #define TIE_REL 1e-5f
@@ -96,7 +97,8 @@ static inline float max0(float a, float b) { return maxf(maxf(a, b), 0.0f); }
 static inline float clamp01(float t) { return minf(maxf(t, 0.0f), 1.0f); }
 
 /* Squared distance from (x, y, z) to the box [lo, hi]; 0 inside. */
-SDF__HOT_INLINE float box_dist2(const float lo[3], const float hi[3], float x, float y, float z)
+SDF__HOT_INLINE float box_dist2(const float lo[3], const float hi[3], float x, float y,
+                                float z)
 {
     float dx = max0(lo[0] - x, x - hi[0]);
     float dy = max0(lo[1] - y, y - hi[1]);
@@ -113,8 +115,8 @@ _Static_assert(SDF__PACKET % LANE_GROUP == 0 && LANE_GROUP == sizeof(uint64_t),
 
 /* Bit g set: some lane of group g lies within its limit of the box [lo, hi]. The distances
  * of all lanes (padded) come from one straight-line SoA loop the compiler vectorizes. */
-SDF__HOT_INLINE unsigned groups_near_box(const sdf__packet *pk, const float *limit2, const float lo[3],
-                                const float hi[3])
+SDF__HOT_INLINE unsigned groups_near_box(const sdf__packet *pk, const float *limit2,
+                                         const float lo[3], const float hi[3])
 {
     uint8_t near[SDF__PACKET];
     for (int i = 0; i < SDF__PACKET; i++)
@@ -181,7 +183,8 @@ SDF__HOT_INLINE float side_of(const float_triangle *f, int k, float qx, float qy
     return qx * f->m[k][0] + qy * f->m[k][1] + qz * f->m[k][2];
 }
 
-SDF__HOT_INLINE void triangle_lanes(const float_triangle *f, const sdf__packet *pk, int group, float *dist2)
+SDF__HOT_INLINE void triangle_lanes(const float_triangle *f, const sdf__packet *pk, int group,
+                                    float *dist2)
 {
     const float *px = pk->x + group * LANE_GROUP, *py = pk->y + group * LANE_GROUP,
                 *pz = pk->z + group * LANE_GROUP;
@@ -237,9 +240,10 @@ SDF__HOT_INLINE void lane_offer(lane_state *s, float *limit2, float tie_abs, uin
     }
 }
 
-SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *node, const float *positions,
-                       const uint32_t *triangles, const sdf__packet *pk, unsigned groups,
-                       float *limit2, float tie_abs, lane_state *lanes)
+SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *node,
+                                const float *positions, const uint32_t *triangles,
+                                const sdf__packet *pk, unsigned groups, float *limit2,
+                                float tie_abs, lane_state *lanes)
 {
     for (uint32_t k = 0; k < node->count; k++) {
         uint32_t tri = tree->prims[node->first + k];

@@ -133,7 +133,7 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
             for (int i = 0; i < 3; i++) {
                 vertex_sum[3 * tri[k] + i] += f->angle[k] * f->normal[i];
                 if (e != SDF__NO_EDGE)
-                    edge_sum[3 * e + i] += f->normal[i]; /* the weight pi is common to all: dropped */
+                    edge_sum[3 * e + i] += f->normal[i]; /* weight pi, common to all: dropped */
             }
         }
     }

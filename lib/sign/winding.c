@@ -46,7 +46,10 @@ static void corners(const sdf__winding *w, uint32_t tri, double p[3][3])
             p[k][i] = w->positions[3 * w->triangles[3 * (size_t)tri + k] + i];
 }
 
-SDF__HOT_INLINE double length(const double v[3]) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+SDF__HOT_INLINE double length(const double v[3])
+{
+    return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
 
 /* Moments of a leaf, summed directly over its triangles. */
 static void leaf_moments(const sdf__winding *w, const sdf__tree_node *node, moments *mo)
