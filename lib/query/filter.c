@@ -297,6 +297,7 @@ typedef struct scratch {
     float *sample_p, *sample_f, *sample_grad;
     double *sample_bound;            /* |f(p)| + |x - p|: each sample's search starts there */
     int8_t *sample_sign;             /* sign(f(p)) where it is certain, else 0 (displace) */
+    uint8_t *sample_run;             /* 1 at each point's first sample: packets stay within */
     int closed;                      /* the mesh is closed: its sign only flips at the surface */
 } scratch;
 
@@ -304,7 +305,7 @@ static void free_scratch(scratch *s)
 {
     free(s->centre_f), free(s->centre_grad), free(s->volume_f), free(s->volume_grad);
     free(s->sample_p), free(s->sample_f), free(s->sample_grad), free(s->sample_bound);
-    free(s->sample_sign);
+    free(s->sample_sign), free(s->sample_run);
 }
 
 /* What one point's filtered value needs: its kernel size and, with adaptive quality, how
@@ -361,12 +362,14 @@ static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
                 }
     for (size_t j = 0; j < m; j++) {
         const float *p = (const float *)((const char *)points + (first + j) * stride);
-        for (int i = 0; i < STENCIL; i++)
+        for (int i = 0; i < STENCIL; i++) {
             displace(p, offset[i], plan[j].h, s->centre_f[first + j], s, j * STENCIL + (size_t)i);
+            s->sample_run[j * STENCIL + (size_t)i] = i == 0;
+        }
     }
     sdf_query_result res = {.distance = s->sample_f, .gradient = s->sample_grad};
-    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, s->sample_sign, m * STENCIL,
-                               inner, &res);
+    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, s->sample_sign,
+                               s->sample_run, m * STENCIL, inner, &res);
     if (rc)
         return rc;
     double spread = 0.5 * (f->samples - f->min_samples);
@@ -486,9 +489,10 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     s.sample_grad = malloc(3 * per_block * sizeof(float));
     s.sample_bound = malloc(per_block * sizeof(double));
     s.sample_sign = malloc(per_block * sizeof(int8_t));
+    s.sample_run = malloc(per_block * sizeof(uint8_t));
     point_plan *plan = malloc(block * sizeof *plan);
     if (!s.sample_p || !s.sample_f || !s.sample_grad || !s.sample_bound || !s.sample_sign ||
-        !plan) {
+        !s.sample_run || !plan) {
         free(plan);
         sdf__samples_free(&samples);
         free_scratch(&s);
@@ -514,13 +518,16 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
             const float *p = (const float *)((const char *)points + (first + j) * stride);
             plan[j].first = at;
             int used = plan[j].full + (plan[j].frac > 0);
-            for (int i = 0; i < used; i++, at++)
+            for (int i = 0; i < used; i++, at++) {
                 displace(p, samples.offset[i], plan[j].h, s.centre_f[first + j], &s, at);
+                s.sample_run[at] = i == 0;
+            }
         }
         /* Packet sampling (sec. 3): a point's samples are consecutive, so they make coherent
          * packets, each search bounded by |f(p)| + |x - p| (Lipschitz). */
         sdf_query_result res = {.distance = s.sample_f, .gradient = s.sample_grad};
-        rc = sdf__query_seeded(mesh, s.sample_p, s.sample_bound, s.sample_sign, at, &inner, &res);
+        rc = sdf__query_seeded(mesh, s.sample_p, s.sample_bound, s.sample_sign, s.sample_run, at,
+                               &inner, &res);
         if (rc) /* finite points displaced by finite offsets: only memory can fail here */
             break;
         for (size_t j = 0; j < m; j++) {

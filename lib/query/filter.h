@@ -29,10 +29,11 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
 /* Answer `count` packed points in the given order, SDF__PACKET consecutive points to a
  * packet, each search starting from bound[i] (an upper bound of point i's distance; the
  * points of one packet should lie close together). sign_hint (may be NULL) gives signs known
- * in advance (+1, -1; 0 = compute it), which are used instead of the sign method. Otherwise
- * the same answers as sdf_query. Defined in query.c. */
+ * in advance (+1, -1; 0 = compute it), which are used instead of the sign method; run_start
+ * (may be NULL) marks with 1 the first point of each run of nearby points, and no packet
+ * spans two runs. Otherwise the same answers as sdf_query. Defined in query.c. */
 int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
-                      const int8_t *sign_hint, size_t count, const sdf_query_options *opts,
-                      sdf_query_result *out);
+                      const int8_t *sign_hint, const uint8_t *run_start, size_t count,
+                      const sdf_query_options *opts, sdf_query_result *out);
 
 #endif

@@ -58,6 +58,7 @@ typedef struct batch {
     const uint32_t *order; /* packet traversal: visit order */
     const double *bound;   /* sdf__query_seeded: each point's distance bound */
     const int8_t *sign_hint; /* sdf__query_seeded: a sign known in advance (+-1), or 0 */
+    const uint8_t *run_start; /* sdf__query_seeded: 1 where a run of nearby points begins */
 } batch;
 
 static const float *point_at(const batch *b, size_t i)
@@ -81,7 +82,7 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
         return SDF_EINVAL;
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
-    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL, NULL, NULL};
+    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL, NULL, NULL, NULL};
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -265,15 +266,19 @@ static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_opti
     return order;
 }
 
-/* Packets of SDF__PACKET consecutive points, bounded by b->bound (sdf__query_seeded). */
+/* Packets of up to SDF__PACKET consecutive points that never cross the start of a run,
+ * bounded by b->bound (sdf__query_seeded). */
 static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     const batch *b = ctx;
     sdf__packet pk;
     sdf__hit hits[SDF__PACKET];
-    for (size_t k = begin; k < end; k += SDF__PACKET) {
-        pk.n = (int)(end - k < SDF__PACKET ? end - k : SDF__PACKET);
+    for (size_t k = begin; k < end; k += (size_t)pk.n) {
+        pk.n = 1;
+        while (pk.n < SDF__PACKET && k + (size_t)pk.n < end &&
+               !(b->run_start && b->run_start[k + (size_t)pk.n]))
+            pk.n++;
         for (int i = 0; i < pk.n; i++) {
             const float *p = point_at(b, k + (size_t)i);
             pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
@@ -284,8 +289,8 @@ static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
 }
 
 int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
-                      const int8_t *sign_hint, size_t count, const sdf_query_options *opts,
-                      sdf_query_result *out)
+                      const int8_t *sign_hint, const uint8_t *run_start, size_t count,
+                      const sdf_query_options *opts, sdf_query_result *out)
 {
     batch b;
     int rc = check_batch(mesh, points, count, opts, &b, &out->bad_index);
@@ -294,6 +299,7 @@ int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *b
     b.out = out;
     b.bound = bound;
     b.sign_hint = sign_hint;
+    b.run_start = run_start;
     sdf__parallel_for(count, 32 * SDF__PACKET, opts ? opts->threads : 0, seeded_range, &b);
     return 0;
 }

@@ -26,7 +26,7 @@ typedef struct args {
     uint64_t seed;
     sdf_sign_method sign;
     sdf_traversal traversal;
-    int threads, repeat, samples;
+    int threads, repeat, samples, min_samples;
 } args;
 
 static void usage(void)
@@ -34,7 +34,7 @@ static void usage(void)
     fprintf(stderr,
             "usage: sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid] [--n N] [--seed S]\n"
             "                 [--mode distance|signed|gradient|closest|filtered|filtered-gradient]\n"
-            "                 [--samples N (filtered: n, default 64)]\n"
+            "                 [--samples N (filtered: n, default 64)] [--min-samples N (adaptive)]\n"
             "                 [--sign auto|pseudonormal|winding|raycast|none]\n"
             "                 [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]\n");
     exit(2);
@@ -81,6 +81,7 @@ static args parse_args(int argc, char **argv)
         else if (!strcmp(s, "--seed")) a.seed = (uint64_t)parse_long(v, s);
         else if (!strcmp(s, "--mode")) a.mode = v;
         else if (!strcmp(s, "--samples")) a.samples = (int)parse_long(v, s);
+        else if (!strcmp(s, "--min-samples")) a.min_samples = (int)parse_long(v, s);
         else if (!strcmp(s, "--threads")) a.threads = (int)parse_long(v, s);
         else if (!strcmp(s, "--repeat")) a.repeat = (int)parse_long(v, s);
         else if (!strcmp(s, "--out")) a.out = v;
@@ -206,7 +207,7 @@ int main(int argc, char **argv)
            a.points ? a.points : a.workload, a.mode,
            sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads,
            a.traversal == SDF_TRAVERSAL_SINGLE ? "single" : "packets");
-    sdf_filter_options filter = {.samples = a.samples};
+    sdf_filter_options filter = {.samples = a.samples, .min_samples = a.min_samples};
     /* The mode's query: raw, or filtered (sdf_query_filtered, docs/filtered.md). */
 #define RUN(count) (filtered ? sdf_query_filtered(mesh, points, (count), &opts, &filter, &out, &diag) \
                              : sdf_query(mesh, points, (count), &opts, &out))
