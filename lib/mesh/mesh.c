@@ -64,10 +64,6 @@ static int step_orient(sdf_mesh *m)
         extent = fabsf(r->bbox_max[i]) > extent ? fabsf(r->bbox_max[i]) : extent;
     }
     m->surface_epsilon = 4 * FLT_EPSILON * (extent > 0 ? extent : 1);
-    double diag2 = 0;
-    for (int i = 0; i < 3; i++)
-        diag2 += ((double)r->bbox_max[i] - r->bbox_min[i]) * ((double)r->bbox_max[i] - r->bbox_min[i]);
-    m->diagonal = (float)sqrt(diag2);
     return 0;
 }
 

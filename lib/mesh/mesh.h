@@ -22,7 +22,6 @@ struct sdf_mesh {
     size_t edge_count;
     sdf_mesh_report report;
     float surface_epsilon; /* float resolution at the mesh's scale: "on the surface" */
-    float diagonal;        /* of the bounding box: the scale of float errors in the packets */
     struct sdf__bvh *bvh;  /* Embree's scene: closest points and rays */
     sdf__tree tree;        /* our own BVH: packets, winding numbers, self-intersection */
     struct sdf__pseudonormals *normals;

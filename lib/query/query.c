@@ -197,7 +197,8 @@ static void answer_packet(const batch *b, sdf__packet *pk, const uint32_t *order
     const sdf_mesh *m = b->mesh;
     for (int i = pk->n; i < SDF__PACKET; i++) /* pad: the box tests run on whole groups */
         pk->x[i] = pk->x[pk->n - 1], pk->y[i] = pk->y[pk->n - 1], pk->z[i] = pk->z[pk->n - 1];
-    sdf__closest_packet(&m->tree, m->positions, m->triangles, m->diagonal, pk, hits);
+    sdf__closest_packet(&m->tree, m->positions, m->triangles, (float)m->report.diagonal, pk,
+                        hits);
     double winding[SDF__PACKET];
     int all_hinted = b->sign_hint != NULL;
     for (int i = 0; i < pk->n && all_hinted; i++)
