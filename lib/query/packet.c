@@ -138,10 +138,9 @@ typedef struct float_triangle {
     int has_face; /* 0: zero area (float), only its edges count */
 } float_triangle;
 
-SDF__HOT_INLINE void prepare_triangle(const float *positions, const uint32_t *t, float_triangle *f)
+/* Fill the rest of `f` from its corners f->v. */
+SDF__HOT_INLINE void prepare_triangle(float_triangle *f)
 {
-    for (int k = 0; k < 3; k++)
-        memcpy(f->v[k], positions + 3 * (size_t)t[k], 3 * sizeof(float));
     for (int k = 0; k < 3; k++) {
         const float *a = f->v[k], *b = f->v[(k + 1) % 3];
         float len2 = 0;
@@ -248,18 +247,18 @@ SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *nod
     for (uint32_t k = 0; k < node->count; k++) {
         uint32_t tri = tree->prims[node->first + k];
         const uint32_t *t = triangles + 3 * (size_t)tri;
+        float_triangle f; /* corners loaded once: for the box test, then for the lane test */
+        for (int c = 0; c < 3; c++)
+            memcpy(f.v[c], positions + 3 * (size_t)t[c], 3 * sizeof(float));
         float lo[3], hi[3];
         for (int a = 0; a < 3; a++) {
-            float u = positions[3 * (size_t)t[0] + a], v = positions[3 * (size_t)t[1] + a],
-                  w = positions[3 * (size_t)t[2] + a];
-            lo[a] = minf(minf(u, v), w);
-            hi[a] = maxf(maxf(u, v), w);
+            lo[a] = minf(minf(f.v[0][a], f.v[1][a]), f.v[2][a]);
+            hi[a] = maxf(maxf(f.v[0][a], f.v[1][a]), f.v[2][a]);
         }
         unsigned near = groups & groups_near_box(pk, limit2, lo, hi);
         if (!near)
             continue;
-        float_triangle f;
-        prepare_triangle(positions, t, &f);
+        prepare_triangle(&f);
         for (int g = 0; g < LANE_GROUPS; g++) {
             if (!(near >> g & 1))
                 continue;
