@@ -75,8 +75,9 @@ int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, size
         snprintf(msg, cap, "%s", diag.message);
         return rc;
     }
-    /* n samples (sdf.h's default 64), the point itself, and the adaptive stencil's 26. */
-    size_t per_point = (size_t)(f->samples ? f->samples : 64) + 1 + (f->min_samples ? 26 : 0);
+    /* n samples, the point itself, and the adaptive stencil's 26. */
+    size_t per_point = (size_t)(f->samples ? f->samples : SDF_FILTER_DEFAULT_SAMPLES) + 1 +
+                       (f->min_samples ? 26 : 0);
     if (count > max_queries / per_point) {
         snprintf(msg, cap, "%zu points x %zu queries each exceeds the %zu distance queries one "
                  "filtered request may cost; send fewer points or samples", count, per_point,

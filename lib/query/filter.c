@@ -16,7 +16,6 @@
 #include "core/diag.h"
 
 #define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (~37 MB of scratch) */
-#define DEFAULT_SAMPLES 64
 #define DEFAULT_CAP_OF_DIAGONAL 0.02
 #define DEFAULT_MEDIAL 0.2
 
@@ -154,7 +153,7 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                              "the bump's width b must be a positive number");
     if (out->samples == 0)
-        out->samples = DEFAULT_SAMPLES;
+        out->samples = SDF_FILTER_DEFAULT_SAMPLES;
     if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "samples must be 1..%d, not %d",
                              SDF_FILTER_MAX_SAMPLES, out->samples);
@@ -314,6 +313,7 @@ typedef struct point_plan {
     double h, grad_h[3];
     int full;
     double frac, grad_n[3];
+    int used;     /* samples evaluated: full (+1 with a fraction); 0 where h = 0 (g = f) */
     size_t first; /* its first sample in the block's sample arrays */
 } point_plan;
 
@@ -512,13 +512,15 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
             if (rc)
                 break;
         }
-        /* The displaced sample points p - s_i h(p) (eq. 10) of this block, point by point. */
+        /* The displaced sample points p - s_i h(p) (eq. 10) of this block, point by point. A
+         * point with h = 0 (on the surface, or outside a smoothing volume) needs none: there
+         * every sample is p itself and g = f. */
         size_t at = 0;
         for (size_t j = 0; j < m; j++) {
             const float *p = (const float *)((const char *)points + (first + j) * stride);
             plan[j].first = at;
-            int used = plan[j].full + (plan[j].frac > 0);
-            for (int i = 0; i < used; i++, at++) {
+            plan[j].used = plan[j].h == 0 ? 0 : plan[j].full + (plan[j].frac > 0);
+            for (int i = 0; i < plan[j].used; i++, at++) {
                 displace(p, samples.offset[i], plan[j].h, s.centre_f[first + j], &s, at);
                 s.sample_run[at] = i == 0;
             }
@@ -537,8 +539,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
             const float *grad_fp = s.centre_grad + 3 * q;
             double total = pl->full + pl->frac; /* the weights' sum: n, or n_a */
             double value = 0, grad[3] = {0, 0, 0}, along = 0, last = 0;
-            int used = pl->full + (pl->frac > 0);
-            for (int i = 0; i < used; i++) {
+            for (int i = 0; i < pl->used; i++) {
                 size_t k = pl->first + (size_t)i;
                 double v = s.sample_f[k], sgn = 1;
                 if (f.unsigned_integrand) { /* |f| and its gradient sign(f) grad f */

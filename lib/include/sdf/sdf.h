@@ -261,7 +261,8 @@ typedef struct sdf_filter_options {
     double cap;             /* f_c; 0 = 0.02 x the mesh's bounding-box diagonal */
     double a;               /* Gaussian parameter a; 0 = 8 / f_c^2 (sigma = f_c / 4) */
     double b;               /* bump width b; 0 = 8 f_c / 9, the largest eq. (7) allows */
-    int samples;            /* n, 1..SDF_FILTER_MAX_SAMPLES; 0 = 64 (N_max when adaptive) */
+    int samples;            /* n, 1..SDF_FILTER_MAX_SAMPLES; 0 = SDF_FILTER_DEFAULT_SAMPLES
+                               (N_max when adaptive) */
     int min_samples;        /* adaptive quality (sec. 5.2): N_min, 1..samples; 0 = off, every
                                point gets `samples`. Then a 3^3 stencil first detects the
                                medial axis and n_a = N_min + (n_medial + n_distance) / 2 *
@@ -278,6 +279,7 @@ typedef struct sdf_filter_options {
 } sdf_filter_options;
 
 #define SDF_FILTER_MAX_SAMPLES 4096
+#define SDF_FILTER_DEFAULT_SAMPLES 64
 
 /* The filtered field g and its analytic gradient at `count` points (out->distance,
  * out->gradient; the other outputs must be NULL). Parameters left 0 take the defaults above;
