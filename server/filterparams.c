@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,13 +12,21 @@
 
 enum kind { NUMBER, COUNT, FLAG, KERNEL, SEED };
 
+/* Each name, its kind, and where it goes in sdf_filter_options (a double for NUMBER, an int
+ * for COUNT and FLAG, the sdf_kernel for KERNEL, the uint64_t for SEED). */
+#define AT(member) offsetof(sdf_filter_options, member)
 static const struct field {
     const char *name;
     enum kind kind;
+    size_t offset;
 } fields[] = {
-    {"kernel", KERNEL}, {"cap", NUMBER},   {"a", NUMBER},       {"b", NUMBER},
-    {"samples", COUNT}, {"grid", FLAG},    {"unsigned", FLAG},  {"allow_wide_bump", FLAG},
-    {"seed", SEED},     {"min_samples", COUNT}, {"medial", NUMBER},
+    {"kernel", KERNEL, AT(kernel)},      {"cap", NUMBER, AT(cap)},
+    {"a", NUMBER, AT(a)},                {"b", NUMBER, AT(b)},
+    {"samples", COUNT, AT(samples)},     {"min_samples", COUNT, AT(min_samples)},
+    {"medial", NUMBER, AT(medial)},      {"grid", FLAG, AT(grid)},
+    {"unsigned", FLAG, AT(unsigned_integrand)},
+    {"allow_wide_bump", FLAG, AT(allow_wide_bump)},
+    {"seed", SEED, AT(seed)},
 };
 #define FIELDS (sizeof fields / sizeof fields[0])
 
@@ -33,12 +42,13 @@ static int bad(char *err, size_t cap, const char *fmt, const char *name)
 static int store(sdf_filter_options *f, const struct field *fd, double number, const char *text,
                  char *err, size_t cap)
 {
+    char *at = (char *)f + fd->offset;
     switch (fd->kind) {
     case KERNEL:
         if (!strcmp(text, "gaussian"))
-            f->kernel = SDF_KERNEL_GAUSSIAN;
+            *(sdf_kernel *)at = SDF_KERNEL_GAUSSIAN;
         else if (!strcmp(text, "bump"))
-            f->kernel = SDF_KERNEL_BUMP;
+            *(sdf_kernel *)at = SDF_KERNEL_BUMP;
         else
             return bad(err, cap, "filter kernel must be \"gaussian\" or \"bump\", not \"%.40s\"",
                        text);
@@ -46,32 +56,20 @@ static int store(sdf_filter_options *f, const struct field *fd, double number, c
     case NUMBER:
         if (!isfinite(number))
             return bad(err, cap, "filter %s must be a finite number", fd->name);
-        if (!strcmp(fd->name, "cap"))
-            f->cap = number;
-        else if (!strcmp(fd->name, "a"))
-            f->a = number;
-        else if (!strcmp(fd->name, "b"))
-            f->b = number;
-        else
-            f->medial = number;
+        *(double *)at = number;
         return 0;
     case COUNT:
         if (number != floor(number) || number < 1 || number > SDF_FILTER_MAX_SAMPLES)
             return bad(err, cap, "filter %s must be an integer 1..4096", fd->name);
-        *(fd->name[0] == 's' ? &f->samples : &f->min_samples) = (int)number;
+        *(int *)at = (int)number;
         return 0;
     case SEED:
         if (number != floor(number) || number < 0 || number > MAX_SEED)
             return bad(err, cap, "filter seed must be an integer 0..2^53", NULL);
-        f->seed = (uint64_t)number;
+        *(uint64_t *)at = (uint64_t)number;
         return 0;
     case FLAG:
-        if (fd->name[0] == 'g')
-            f->grid = number != 0;
-        else if (fd->name[0] == 'u')
-            f->unsigned_integrand = number != 0;
-        else
-            f->allow_wide_bump = number != 0;
+        *(int *)at = number != 0;
         return 0;
     }
     return SDF_EINVAL;
