@@ -53,7 +53,8 @@ extern "C" {
     X(ELENGTH, -16, 411, "Content-Length required")                                       \
     X(EBUSY, -17, 429, "too many requests")                                               \
     X(EUNAVAILABLE, -18, 503, "service unavailable (loading or shutting down)")           \
-    X(ESYNTAX, -19, 400, "malformed request")
+    X(ESYNTAX, -19, 400, "malformed request")                                             \
+    X(ECANCELED, -20, 409, "canceled")
 
 typedef enum sdf_error {
     SDF_OK = 0,
@@ -290,6 +291,130 @@ typedef struct sdf_filter_options {
 int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                        const sdf_query_options *opts, const sdf_filter_options *filter,
                        sdf_query_result *out, sdf_diag *diag);
+
+/* ---------------------------------------------------------------------------------------
+ * Distance volumes (docs/volumes.md): the signed distance baked on a regular grid of nodes,
+ * either one value per node (zero order) or a first-order Taylor distance field (TDF; Ban &
+ * Valasek, "First Order Signed Distance Fields"): per node the plane a x + b y + c z + d in
+ * the global power basis (eq. 2) fitted to distances on a fine (2H+1)^3 grid around the node
+ * (Algorithm 1). Node (i, j, k) lies at origin + (i sx, j sy, k sz); data is stored x fastest,
+ * then y, then z: node index (k M + j) N + i.
+ * ------------------------------------------------------------------------------------- */
+typedef enum sdf_volume_encoding {
+    SDF_ENCODING_FLOAT32 = 0, /* order 0: 1 float per node; order 1: 4 floats a, b, c, d */
+    SDF_ENCODING_PACKED32,    /* order 1 only: one uint32 per node (sec. 5.3): bits 0-9 and
+                                 10-19 the octahedral normal (a, b, c) as 10-bit snorm, bits
+                                 20-31 the plane's value at the node as 12-bit snorm over
+                                 packed_center +- packed_range; d = value - (a, b, c) . node */
+} sdf_volume_encoding;
+
+/* "float32", "packed32" -> encoding; SDF_EINVAL otherwise. */
+int sdf_encoding_from_name(const char *name, sdf_volume_encoding *out);
+const char *sdf_encoding_name(sdf_volume_encoding encoding);
+
+#define SDF_VOLUME_MAX_DIM 4096            /* nodes along one axis */
+#define SDF_VOLUME_MAX_NODES ((size_t)1 << 30)
+
+typedef struct sdf_volume_info {
+    size_t dims[3];          /* N, M, K: nodes along x, y, z, each 2..SDF_VOLUME_MAX_DIM */
+    double origin[3];        /* position of node (0, 0, 0) */
+    double spacing[3];       /* distance between neighbouring nodes along x, y, z, > 0 */
+    int order;               /* 0 or 1 */
+    sdf_volume_encoding encoding;
+    double packed_center;    /* PACKED32: node values are packed_center + q / 2047 *
+                                packed_range, q the 12-bit snorm; both 0 for FLOAT32 */
+    double packed_range;
+    int fine_half;           /* order 1: H of the (2H+1)^3 fitting grid; 0 for order 0 */
+    double fine_spacing;     /* order 1: the fitting grid's spacing in cells (Delta) */
+    int filtered;            /* 1: baked from the convolution-filtered field */
+} sdf_volume_info;
+
+/* 32-bit words per node (1 for order 0 and for PACKED32, 4 for first-order FLOAT32). */
+int sdf_volume_channels(const sdf_volume_info *info);
+
+typedef struct sdf_volume sdf_volume;
+
+typedef struct sdf_bake_options {
+    double lo[3], hi[3];      /* the corner nodes; all zero = the mesh's box grown by `margin`
+                                 on every side. lo < hi on every axis */
+    double margin;            /* default bounds only: a length; 0 = 5 % of the diagonal */
+    size_t dims[3];           /* nodes per axis; 0 = 64 */
+    int order;                /* 0 (default) or 1 */
+    int fine_half;            /* order 1: H, 1..4; 0 = 1 (a 3^3 fitting grid) */
+    double fine_spacing;      /* order 1: Delta in cells, (0, 0.5]; 0 = 0.1 */
+    sdf_volume_encoding encoding;
+    const sdf_filter_options *filter; /* NULL: the raw signed distance; else the filtered one */
+    sdf_query_options query;  /* sign and threads (point_stride and traversal are ignored) */
+    /* Called from the calling thread after each slab of nodes with the fraction done
+     * (0..1]; a non-zero return cancels the bake (SDF_ECANCELED). May be NULL. */
+    int (*progress)(void *user, double fraction);
+    void *user;
+} sdf_bake_options;
+
+/* Bake a volume of `mesh`. SDF_EINVAL (with a message in *diag) for a bad option,
+ * SDF_ELIMIT for more than SDF_VOLUME_MAX_NODES nodes, SDF_ECANCELED when `progress` asked
+ * to stop, SDF_ENOMEM. The same options give the same floats on any thread count. */
+int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume **out,
+                    sdf_diag *diag);
+
+/* A volume from its description and node data (copied; sdf_volume_channels(info) 32-bit
+ * words per node, float or uint32 by the encoding). Checks the description; non-finite
+ * floats are SDF_ENONFINITE. */
+int sdf_volume_create(const sdf_volume_info *info, const void *data, sdf_volume **out,
+                      sdf_diag *diag);
+
+void sdf_volume_destroy(sdf_volume *volume); /* NULL is a no-op */
+void sdf_volume_get_info(const sdf_volume *volume, sdf_volume_info *out);
+const void *sdf_volume_data(const sdf_volume *volume); /* the node words, see above */
+size_t sdf_volume_data_bytes(const sdf_volume *volume);
+
+typedef enum sdf_volume_filter {
+    SDF_VOLUME_TRILINEAR = 0, /* order 0: trilinear interpolation of the node values; order 1:
+                                 of the 8 nodes' coefficients, the plane then evaluated at
+                                 the point (exact in the power basis, sec. 3) */
+    SDF_VOLUME_NEAREST,       /* the nearest node's value (order 0) or plane at the point */
+} sdf_volume_filter;
+
+/* "trilinear", "nearest" -> filter; SDF_EINVAL otherwise. */
+int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out);
+
+/* The volume's field at `count` points (packed xyz): value[count] and, if not NULL,
+ * gradient[3 count] - the exact gradient of the reconstructed field (zero order nearest:
+ * central differences of the node values around the nearest node). Outside the volume the
+ * node lookup clamps to the boundary (as a GPU sampler's clamp-to-edge): zero order
+ * continues the boundary values, first order extends the boundary planes linearly.
+ * SDF_ENONFINITE (and *bad_index) for a NaN or Inf coordinate, before writing anything.
+ * Thread-safe. */
+int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
+                    sdf_volume_filter filter, float *value, float *gradient, size_t *bad_index);
+
+/* Volume files (docs/volumes.md):
+ *  EXR: OpenEXR, one scanline image N wide and M K high (z-slices stacked), ZIP-compressed
+ *       FLOAT channels "d" (order 0) or "a" "b" "c" "d" (order 1), or one UINT channel
+ *       "packed"; attributes sdf.dims (v3i), sdf.origin, sdf.spacing (v3d), sdf.order (int),
+ *       sdf.encoding (string), sdf.packedCenter, sdf.packedRange (double), sdf.fineHalf (int),
+ *       sdf.fineSpacing (double), sdf.filtered (int).
+ *  NPY: float32 (K, M, N) or (K, M, N, 4); uint32 (K, M, N) for PACKED32.
+ *  RAW: the node words alone, little-endian (sdf_volume_describe_json gives the metadata). */
+typedef enum sdf_volume_file { SDF_VOLUME_EXR = 0, SDF_VOLUME_NPY, SDF_VOLUME_RAW } sdf_volume_file;
+
+/* "exr", "npy", "raw" -> file type; SDF_EINVAL otherwise. */
+int sdf_volume_file_from_name(const char *name, sdf_volume_file *out);
+
+/* Encode the volume as a file in a new malloc'ed buffer (*data, *size; release with free). */
+int sdf_volume_save_memory(const sdf_volume *volume, sdf_volume_file type, void **data,
+                           size_t *size, sdf_diag *diag);
+int sdf_volume_save_file(const sdf_volume *volume, sdf_volume_file type, const char *path,
+                         sdf_diag *diag);
+
+/* Read an EXR volume written by sdf_volume_save_* (`size` bytes; every length and
+ * attribute is checked). */
+int sdf_volume_load_exr_memory(const void *data, size_t size, sdf_volume **out, sdf_diag *diag);
+int sdf_volume_load_exr_file(const char *path, sdf_volume **out, sdf_diag *diag);
+
+/* The volume's description as one JSON object into dst (cap bytes, 1024 always suffice).
+ * Returns its length, or SDF_ELIMIT when it does not fit. */
+long sdf_volume_describe_json(const sdf_volume *volume, char *dst, size_t cap);
 
 /* ---------------------------------------------------------------------------------------
  * NumPy .npy arrays (version 1.0/2.0/3.0 headers; little-endian float32 or float64; C order)

@@ -1,0 +1,400 @@
+/* bake.c - baking distance volumes (sdf_volume_bake in sdf.h; the TDF paper is
+ * ../shared/papers/first-order-sdf-taylor.md).
+ *
+ * Zero order: the signed distance at every node, one batched query per slab of nodes.
+ * First order (Algorithm 1): around every node x_i the distances on a fine (2H+1)^3 grid of
+ * spacing Delta cells, the least-squares plane through them with the pseudo-inverse X_o^+
+ * precomputed once (eq. 3), translated to the global power basis (eq. 2) and normalised.
+ * A node's fine samples lie within a fraction of a cell of it, so they are one coherent run:
+ * the node itself is asked first, then every sample's search starts from the bound
+ * |f(x_i)| + |s - x_i| (packet traversal seeded as in sdf__query_seeded), and on a closed
+ * mesh a sample nearer to x_i than |f(x_i)| takes x_i's sign without a sign query. Slabs
+ * bound the memory and give progress reports and cancellation points. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/diag.h"
+#include "core/parallel.h"
+#include "query/filter.h"
+#include "volume/pack.h"
+#include "volume/volume.h"
+
+#define DEFAULT_DIM 64
+#define DEFAULT_MARGIN_OF_DIAGONAL 0.05
+#define DEFAULT_FINE_SPACING 0.1 /* Delta, in cells: the paper's choice (sec. 5.1) */
+#define MAX_FINE_HALF 4
+#define MAX_FINE ((2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1))
+#define SLAB_SAMPLES ((size_t)1 << 18) /* query points per slab */
+
+typedef struct bake_plan {
+    sdf_volume_info info;
+    const sdf_mesh *mesh;
+    const sdf_filter_options *filter;
+    sdf_query_options query;
+    int closed;                   /* the mesh's sign flips only across its surface */
+    int fine_count;               /* (2H+1)^3; 1 for order 0 */
+    double fine[MAX_FINE][3];     /* s_oj, origin-centred fine grid, in world units */
+    double reach[MAX_FINE];       /* |s_oj| */
+    double pinv[4][MAX_FINE];     /* X_o^+, rows giving a, b, c and the constant */
+} bake_plan;
+
+/* ---- options ----------------------------------------------------------------------------- */
+
+static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *plan,
+                   sdf_diag *diag)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    sdf_volume_info *in = &plan->info;
+    memset(in, 0, sizeof *in);
+    double lo[3], hi[3];
+    int default_box = 1;
+    for (int a = 0; a < 3; a++)
+        default_box = default_box && o->lo[a] == 0 && o->hi[a] == 0;
+    if (default_box) {
+        double margin = o->margin;
+        if (margin == 0)
+            margin = DEFAULT_MARGIN_OF_DIAGONAL * r.diagonal;
+        if (!(isfinite(margin) && margin >= 0))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "margin must be a length >= 0");
+        for (int a = 0; a < 3; a++)
+            lo[a] = r.bbox_min[a] - margin, hi[a] = r.bbox_max[a] + margin;
+    } else {
+        for (int a = 0; a < 3; a++) {
+            lo[a] = o->lo[a], hi[a] = o->hi[a];
+            if (!(isfinite(lo[a]) && isfinite(hi[a]) && lo[a] < hi[a]))
+                return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                     "bounds must be finite with lo < hi on every axis (%c)",
+                                     "xyz"[a]);
+        }
+    }
+    for (int a = 0; a < 3; a++) {
+        in->dims[a] = o->dims[a] ? o->dims[a] : DEFAULT_DIM;
+        if (in->dims[a] < 2 || in->dims[a] > SDF_VOLUME_MAX_DIM)
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "resolution %c is %zu; it must be 2..%d", "xyz"[a],
+                                 in->dims[a], SDF_VOLUME_MAX_DIM);
+        /* lo and hi are the corner nodes themselves. */
+        in->origin[a] = lo[a];
+        in->spacing[a] = (hi[a] - lo[a]) / (double)(in->dims[a] - 1);
+    }
+    in->order = o->order;
+    in->encoding = o->encoding;
+    in->filtered = o->filter != NULL;
+    if (in->order == 1) {
+        in->fine_half = o->fine_half ? o->fine_half : 1;
+        in->fine_spacing = o->fine_spacing != 0 ? o->fine_spacing : DEFAULT_FINE_SPACING;
+        if (in->fine_half < 1 || in->fine_half > MAX_FINE_HALF)
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "H (fine_half) must be 1..%d, not %d",
+                                 MAX_FINE_HALF, in->fine_half);
+        if (!(in->fine_spacing > 0 && in->fine_spacing <= 0.5))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "Delta (fine_spacing) must be in (0, 0.5] cells, not %g",
+                                 in->fine_spacing);
+    }
+    if (in->encoding == SDF_ENCODING_PACKED32)
+        in->packed_range = 1; /* placeholder for the check; set from the data when baked */
+    int rc = sdf__volume_check_info(in, diag);
+    if (rc)
+        return rc;
+    if (o->filter) {
+        sdf_filter_options resolved;
+        if ((rc = sdf__filter_resolve(mesh, o->filter, &resolved, diag)))
+            return rc;
+    }
+    plan->mesh = mesh;
+    plan->filter = o->filter;
+    plan->query = o->query;
+    plan->query.point_stride = 0;
+    plan->closed = r.closed;
+    return 0;
+}
+
+/* ---- the least-squares plane (eq. 3) ------------------------------------------------------ */
+
+/* Invert the 4x4 matrix m by Gauss-Jordan elimination with partial pivoting. */
+static int invert4(double m[4][4], double inv[4][4])
+{
+    for (int i = 0; i < 4; i++)
+        for (int j = 0; j < 4; j++)
+            inv[i][j] = i == j;
+    for (int c = 0; c < 4; c++) {
+        int pivot = c;
+        for (int r = c + 1; r < 4; r++)
+            if (fabs(m[r][c]) > fabs(m[pivot][c]))
+                pivot = r;
+        if (fabs(m[pivot][c]) < 1e-300)
+            return SDF_EINVAL;
+        for (int j = 0; j < 4; j++) {
+            double t = m[c][j]; m[c][j] = m[pivot][j]; m[pivot][j] = t;
+            t = inv[c][j]; inv[c][j] = inv[pivot][j]; inv[pivot][j] = t;
+        }
+        double s = 1 / m[c][c];
+        for (int j = 0; j < 4; j++)
+            m[c][j] *= s, inv[c][j] *= s;
+        for (int r = 0; r < 4; r++)
+            if (r != c) {
+                double f = m[r][c];
+                for (int j = 0; j < 4; j++)
+                    m[r][j] -= f * m[c][j], inv[r][j] -= f * inv[c][j];
+            }
+    }
+    return 0;
+}
+
+/* The origin-centred fine grid s_oj and X_o^+ = (X^T X)^-1 X^T, X's rows (x, y, z, 1). */
+static int plan_fine_grid(bake_plan *plan)
+{
+    const sdf_volume_info *in = &plan->info;
+    int h = in->fine_half, n = 0;
+    for (int k = -h; k <= h; k++)
+        for (int j = -h; j <= h; j++)
+            for (int i = -h; i <= h; i++) {
+                double *s = plan->fine[n];
+                s[0] = i * in->fine_spacing * in->spacing[0];
+                s[1] = j * in->fine_spacing * in->spacing[1];
+                s[2] = k * in->fine_spacing * in->spacing[2];
+                plan->reach[n++] = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+            }
+    plan->fine_count = n;
+    double xtx[4][4] = {{0}}, inv[4][4];
+    for (int s = 0; s < n; s++) {
+        double row[4] = {plan->fine[s][0], plan->fine[s][1], plan->fine[s][2], 1};
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++)
+                xtx[r][c] += row[r] * row[c];
+    }
+    if (invert4(xtx, inv))
+        return SDF_EINVAL;
+    for (int r = 0; r < 4; r++)
+        for (int s = 0; s < n; s++) {
+            double row[4] = {plan->fine[s][0], plan->fine[s][1], plan->fine[s][2], 1};
+            plan->pinv[r][s] = inv[r][0] * row[0] + inv[r][1] * row[1] + inv[r][2] * row[2] +
+                               inv[r][3] * row[3];
+        }
+    return 0;
+}
+
+/* ---- slabs ------------------------------------------------------------------------------- */
+
+typedef struct slab {
+    const bake_plan *plan;
+    size_t first, count;   /* nodes [first, first + count) */
+    float *node_pos;       /* 3 per node */
+    float *node_f;         /* f(x_i) */
+    float *sample_pos;     /* 3 per sample (order 1) */
+    float *sample_f;       /* f at the samples */
+    double *bound;         /* per sample: |f(x_i)| + |s - x_i|, slightly widened */
+    int8_t *hint;          /* per sample: the sign when it is known to be x_i's */
+    uint8_t *run_start;    /* per sample: 1 at a node's first sample */
+    float *plane;          /* out: per node the unit normal and the plane's value at the node */
+} slab;
+
+static void node_index(const sdf_volume_info *in, size_t n, size_t ijk[3])
+{
+    ijk[0] = n % in->dims[0];
+    ijk[1] = n / in->dims[0] % in->dims[1];
+    ijk[2] = n / in->dims[0] / in->dims[1];
+}
+
+/* The field at `count` points: the raw signed distance or the filtered one. */
+static int field(const bake_plan *plan, const float *pos, size_t count, float *f)
+{
+    sdf_query_result out = {.distance = f};
+    if (plan->filter)
+        return sdf_query_filtered(plan->mesh, pos, count, &plan->query, plan->filter, &out, NULL);
+    return sdf_query(plan->mesh, pos, count, &plan->query, &out);
+}
+
+static int slab_nodes(slab *s)
+{
+    const sdf_volume_info *in = &s->plan->info;
+    for (size_t n = 0; n < s->count; n++) {
+        size_t ijk[3];
+        double x[3];
+        node_index(in, s->first + n, ijk);
+        sdf__volume_node(in, ijk[0], ijk[1], ijk[2], x);
+        for (int a = 0; a < 3; a++)
+            s->node_pos[3 * n + a] = (float)x[a];
+    }
+    return field(s->plan, s->node_pos, s->count, s->node_f);
+}
+
+static int slab_samples(slab *s)
+{
+    const bake_plan *plan = s->plan;
+    size_t m = (size_t)plan->fine_count;
+    for (size_t n = 0; n < s->count; n++) {
+        const float *x = s->node_pos + 3 * n;
+        double fx = fabs((double)s->node_f[n]);
+        for (size_t j = 0; j < m; j++) {
+            size_t q = n * m + j;
+            float *p = s->sample_pos + 3 * q;
+            double gap2 = 0;
+            for (int a = 0; a < 3; a++) {
+                p[a] = (float)(x[a] + plan->fine[j][a]);
+                double d = (double)p[a] - x[a];
+                gap2 += d * d;
+            }
+            double gap = sqrt(gap2);
+            /* Triangle inequality, widened past the rounding of the float f(x_i). */
+            s->bound[q] = (fx + gap) * (1 + 1e-6) + 1e-30;
+            s->run_start[q] = j == 0;
+            /* Every sign method flips only across a closed surface, and none lies within
+             * |f(x_i)| of x_i. */
+            s->hint[q] = plan->closed && fx > 0 && gap < fx * (1 - 1e-6)
+                             ? (s->node_f[n] < 0 ? -1 : 1)
+                             : 0;
+        }
+    }
+    size_t samples = s->count * m;
+    if (plan->filter)
+        return field(plan, s->sample_pos, samples, s->sample_f);
+    sdf_query_result out = {.distance = s->sample_f};
+    return sdf__query_seeded(plan->mesh, s->sample_pos, s->bound, s->hint, s->run_start, samples,
+                             &plan->query, &out);
+}
+
+/* Algorithm 1, steps 3-6 for nodes [begin, end) of the slab: a~ = X_o^+ f, normalised by
+ * |(a~, b~, c~)|. The plane is kept local here (unit normal, value at the node); the global
+ * constant d = value - n . x_i (eq. 2) is formed when the volume is written. */
+static void fit_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    slab *s = ctx;
+    const bake_plan *plan = s->plan;
+    size_t m = (size_t)plan->fine_count;
+    for (size_t n = begin; n < end; n++) {
+        const float *f = s->sample_f + n * m;
+        double c[4] = {0, 0, 0, 0};
+        for (int r = 0; r < 4; r++)
+            for (size_t j = 0; j < m; j++)
+                c[r] += plan->pinv[r][j] * f[j];
+        double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        /* A vanishing fitted gradient (a perfectly symmetric spot of the medial axis) has no
+         * direction to normalise to: keep the value with a zero gradient. */
+        double scale = len > 1e-12 ? 1 / len : 1;
+        float *out = s->plane + 4 * n;
+        out[0] = (float)(c[0] * scale), out[1] = (float)(c[1] * scale);
+        out[2] = (float)(c[2] * scale), out[3] = (float)(c[3] * scale);
+    }
+}
+
+/* ---- assembly ---------------------------------------------------------------------------- */
+
+/* Local planes (normal, value at node) -> the volume's encoding. */
+static void store_planes(sdf_volume *v, const float *plane)
+{
+    const sdf_volume_info *in = &v->info;
+    for (size_t n = 0; n < v->nodes; n++) {
+        const float *p = plane + 4 * n;
+        size_t ijk[3];
+        double x[3], normal[3] = {p[0], p[1], p[2]};
+        node_index(in, n, ijk);
+        sdf__volume_node(in, ijk[0], ijk[1], ijk[2], x);
+        if (in->encoding == SDF_ENCODING_FLOAT32) {
+            float *o = v->data.f + 4 * n;
+            o[0] = p[0], o[1] = p[1], o[2] = p[2];
+            o[3] = (float)(p[3] - (normal[0] * x[0] + normal[1] * x[1] + normal[2] * x[2]));
+        } else {
+            if (normal[0] == 0 && normal[1] == 0 && normal[2] == 0)
+                normal[2] = 1; /* any direction: the packing has no zero normal */
+            v->data.u[n] = sdf__pack_plane(normal, p[3] - in->packed_center, in->packed_range);
+        }
+    }
+}
+
+static void free_slab(slab *s)
+{
+    free(s->node_pos), free(s->node_f), free(s->sample_pos), free(s->sample_f);
+    free(s->bound), free(s->hint), free(s->run_start);
+}
+
+int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume **out,
+                    sdf_diag *diag)
+{
+    if (!out)
+        return SDF_EINVAL;
+    *out = NULL;
+    if (!mesh)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "no mesh");
+    sdf_bake_options defaults = {0};
+    if (!opts)
+        opts = &defaults;
+    bake_plan *plan = calloc(1, sizeof *plan);
+    if (!plan)
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory to plan the bake");
+    int rc = resolve(mesh, opts, plan, diag);
+    if (!rc && plan->info.order == 1 && plan_fine_grid(plan))
+        rc = sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the fine grid's normal matrix is singular");
+    sdf_volume *v = NULL;
+    if (!rc && (rc = sdf__volume_alloc(&plan->info, &v)))
+        sdf__diag_set(diag, rc, 0, -1, "no memory for a volume of %zu x %zu x %zu nodes",
+                      plan->info.dims[0], plan->info.dims[1], plan->info.dims[2]);
+    if (rc) {
+        free(plan);
+        return rc;
+    }
+    int first = plan->info.order == 1;
+    size_t m = first ? (size_t)plan->fine_count : 1;
+    size_t per_slab = SLAB_SAMPLES / m;
+    if (per_slab > v->nodes)
+        per_slab = v->nodes;
+    float *planes = first ? malloc(v->nodes * 4 * sizeof(float)) : NULL;
+    slab s = {.plan = plan};
+    double largest_f = -INFINITY, smallest_f = INFINITY;
+    s.node_pos = malloc(per_slab * 3 * sizeof(float));
+    s.node_f = first ? malloc(per_slab * sizeof(float)) : NULL;
+    if (first) {
+        s.sample_pos = malloc(per_slab * m * 3 * sizeof(float));
+        s.sample_f = malloc(per_slab * m * sizeof(float));
+        s.bound = malloc(per_slab * m * sizeof(double));
+        s.hint = malloc(per_slab * m);
+        s.run_start = malloc(per_slab * m);
+    }
+    if (!s.node_pos || (first && (!planes || !s.node_f || !s.sample_pos || !s.sample_f ||
+                                  !s.bound || !s.hint || !s.run_start)))
+        rc = sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory for the bake's scratch");
+    for (size_t done = 0; !rc && done < v->nodes; done += s.count) {
+        s.first = done;
+        s.count = v->nodes - done < per_slab ? v->nodes - done : per_slab;
+        if (!first) {
+            s.node_f = v->data.f + done;
+            rc = slab_nodes(&s);
+            s.node_f = NULL;
+        } else if (!(rc = slab_nodes(&s)) && !(rc = slab_samples(&s))) {
+            for (size_t n = 0; n < s.count; n++) {
+                largest_f = fmax(largest_f, (double)s.node_f[n]);
+                smallest_f = fmin(smallest_f, (double)s.node_f[n]);
+            }
+            s.plane = planes + 4 * done;
+            sdf__parallel_for(s.count, 256, plan->query.threads, fit_range, &s);
+        }
+        if (rc)
+            sdf__diag_set(diag, rc, 0, -1, "distance queries failed: %s", sdf_strerror(rc));
+        else if (opts->progress &&
+                 opts->progress(opts->user, (double)(done + s.count) / (double)v->nodes))
+            rc = sdf__diag_set(diag, SDF_ECANCELED, 0, -1, "the bake was canceled");
+    }
+    if (!rc && first) {
+        /* The packed values span the distances at the nodes, [smallest f, largest f]. A plane
+         * whose fitted gradient is short (near the medial axis) has its value inflated by
+         * step 6's normalisation; spanning those outliers would coarsen every other node, so
+         * they clamp to the span instead. */
+        if (v->info.encoding == SDF_ENCODING_PACKED32) {
+            v->info.packed_center = 0.5 * (largest_f + smallest_f);
+            v->info.packed_range = largest_f > smallest_f ? 0.5 * (largest_f - smallest_f) : 1;
+        }
+        store_planes(v, planes);
+    }
+    free_slab(&s);
+    free(planes);
+    free(plan);
+    if (rc) {
+        sdf_volume_destroy(v);
+        return rc;
+    }
+    *out = v;
+    return 0;
+}

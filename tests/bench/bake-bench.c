@@ -1,0 +1,61 @@
+/* bake-bench - time volume bakes of a mesh: bake-bench MESH DIM [THREADS (0 = all)]
+ * [normalize]. Bakes DIM^3 zero-order, then first-order (float32), over the default bounds
+ * (or [-1, 1]^3 around the mesh normalised to it), and prints seconds, nodes per second and
+ * the first/zero time ratio, one JSON object per line (tests/bench/bake-compare.sh). */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "../common/accuracy.h"
+
+static double now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 3) {
+        fprintf(stderr, "usage: bake-bench MESH DIM [THREADS] [normalize]\n");
+        return 2;
+    }
+    size_t dim = strtoul(argv[2], NULL, 10);
+    int threads = argc > 3 ? atoi(argv[3]) : 0;
+    int normalize = argc > 4 && !strcmp(argv[4], "normalize");
+    sdf_mesh *mesh = NULL;
+    sdf_diag diag;
+    if (sdf_mesh_load_file(argv[1], NULL, &mesh, &diag)) {
+        fprintf(stderr, "%s: %s\n", argv[1], diag.message);
+        return 1;
+    }
+    if (normalize) {
+        sdf_mesh *n = normalized_mesh(mesh);
+        sdf_mesh_release(mesh);
+        mesh = n;
+    }
+    sdf_bake_options o = {.dims = {dim, dim, dim}, .query.threads = threads};
+    if (normalize)
+        for (int a = 0; a < 3; a++)
+            o.lo[a] = -1, o.hi[a] = 1;
+    double seconds[2];
+    for (int order = 0; order < 2; order++) {
+        o.order = order;
+        sdf_volume *v = NULL;
+        double t0 = now();
+        if (sdf_volume_bake(mesh, &o, &v, &diag)) {
+            fprintf(stderr, "bake: %s\n", diag.message);
+            return 1;
+        }
+        seconds[order] = now() - t0;
+        sdf_volume_destroy(v);
+        double nodes = (double)dim * (double)dim * (double)dim;
+        printf("{\"order\": %d, \"dim\": %zu, \"seconds\": %.4f, \"nodes_per_second\": %.0f}\n",
+               order, dim, seconds[order], nodes / seconds[order]);
+    }
+    printf("{\"first_over_zero\": %.2f}\n", seconds[1] / seconds[0]);
+    sdf_mesh_release(mesh);
+    return 0;
+}
