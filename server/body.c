@@ -279,16 +279,19 @@ static int json_object(json *j, sdfd_query_params *params, int *have_points)
             if ((rc = points_array(j)))
                 return rc;
             *have_points = 1;
-        } else if ((n == 4 && !memcmp(key, "mode", 4)) || (n == 4 && !memcmp(key, "sign", 4))) {
+        } else if ((n == 4 && !memcmp(key, "mode", 4)) || (n == 4 && !memcmp(key, "sign", 4)) ||
+                   (n == 13 && !memcmp(key, "interpolation", 13))) {
             ws(j);
             if (j->p >= j->end || *j->p != '"')
-                return fail(j->err, j->err_cap, SDF_EINVAL, "\"%.4s\" must be a string", key);
+                return fail(j->err, j->err_cap, SDF_EINVAL, "\"%.*s\" must be a string", (int)n, key);
             if ((rc = string(j, &s, &sn)))
                 return rc;
             if (key[0] == 'm')
                 params->mode = s, params->mode_len = sn;
-            else
+            else if (key[0] == 's')
                 params->sign = s, params->sign_len = sn;
+            else
+                params->interpolation = s, params->interpolation_len = sn;
         } else if (n == 6 && !memcmp(key, "filter", 6)) { /* kept as text: filterparams.c */
             ws(j);
             const char *start = j->p;

@@ -1,6 +1,6 @@
 /* body.h - query bodies in and out, in the three forms the HTTP API speaks:
  *   application/json          {"points": [[x,y,z],...] | [x,y,z,...], "mode": ..., "sign": ...,
- *                              "filter": {...}}
+ *                              "filter": {...}, "interpolation": ... (volume queries)}
  *   application/octet-stream  little-endian float32 xyz triples (parameters in the URL)
  *   application/x-npy         float32 or float64 (N, 3) (parameters in the URL)
  * Results always start as the wire layout of PROTOCOL.md (W 32-bit words per point, held
@@ -27,8 +27,8 @@ const char *sdfd_form_type(sdfd_form form);
 
 /* What a request asks for. Strings point into the body or the URL; NULL = not given. */
 typedef struct sdfd_query_params {
-    const char *mode, *sign;
-    size_t mode_len, sign_len;
+    const char *mode, *sign, *interpolation; /* interpolation: volume queries */
+    size_t mode_len, sign_len, interpolation_len;
     const char *filter; /* JSON: the text of the "filter" object (filterparams.h) */
     size_t filter_len;
 } sdfd_query_params;

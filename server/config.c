@@ -36,6 +36,11 @@ static const setting settings[] = {
     {"--batch-window-us", "SDFD_BATCH_WINDOW_US", "US", "wait this long to coalesce requests (default 200)", UINT, AT(batch_window_us), 1000000},
     {"--batch-max-points", "SDFD_BATCH_MAX_POINTS", "N", "... or until this many points wait (default 262144)", SIZE, AT(batch_max_points), 1u << 30},
     {"--max-queued-points", "SDFD_MAX_QUEUED_POINTS", "N", "refuse new queries (429) while this many points wait (default 16777216)", SIZE, AT(max_queued_points), 1ull << 34},
+    {"--max-volumes", "SDFD_MAX_VOLUMES", "N", "most baked volumes kept at once (default 64)", SIZE, AT(max_volumes), 1u << 20},
+    {"--max-volume-bytes", "SDFD_MAX_VOLUME_BYTES", "N", "bytes of all baked volumes and bakes in progress (default 4294967296)", SIZE, AT(max_volume_bytes), 1ull << 40},
+    {"--max-bake-queries", "SDFD_MAX_BAKE_QUERIES", "N", "distance queries one bake may cost (default 1073741824)", SIZE, AT(max_bake_queries), 1ull << 40},
+    {"--max-bakes", "SDFD_MAX_BAKES", "N", "bakes running at once; more wait queued (default 1)", UINT, AT(max_bakes), 64},
+    {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1u << 16},
     {"--drain-seconds", "SDFD_DRAIN_SECONDS", "SECONDS", "on SIGTERM, let in-flight requests finish this long (default 30)", UINT, AT(drain_seconds), 3600},
 };
 
@@ -135,6 +140,11 @@ static void defaults(sdfd_config *cfg)
         .batch_max_points = 262144,
         .max_queued_points = 16u << 20,
         .drain_seconds = 30,
+        .max_volumes = 64,
+        .max_volume_bytes = 4ull << 30,
+        .max_bake_queries = 1ull << 30,
+        .max_bakes = 1,
+        .max_jobs = 64,
     };
 }
 
@@ -176,7 +186,8 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
             return -1;
     }
     if (cfg->max_points == 0 || cfg->max_body_bytes == 0 || cfg->max_connections == 0 ||
-        cfg->max_per_ip == 0 || cfg->max_meshes == 0 || cfg->max_queued_points == 0) {
+        cfg->max_per_ip == 0 || cfg->max_meshes == 0 || cfg->max_queued_points == 0 ||
+        cfg->max_volumes == 0 || cfg->max_bakes == 0 || cfg->max_jobs == 0) {
         fprintf(stderr, "sdfd: limits must be at least 1\n");
         return -1;
     }

@@ -32,6 +32,11 @@ typedef struct sdfd_config {
     size_t batch_max_points;      /* ... or until this many points are waiting */
     size_t max_queued_points;     /* more waiting than this: new requests get 429 */
     unsigned drain_seconds;       /* graceful shutdown: how long in-flight work may take */
+    size_t max_volumes;           /* baked volumes kept */
+    size_t max_volume_bytes;      /* their bytes, plus what running bakes will need */
+    size_t max_bake_queries;      /* distance queries one bake may cost */
+    unsigned max_bakes;           /* bakes running at once */
+    size_t max_jobs;              /* bake jobs remembered */
 } sdfd_config;
 
 /* Fill `cfg` from argv and the environment. Returns 0; 1 if --help was printed (exit 0);

@@ -13,6 +13,7 @@
 #include "http.h"
 
 #include <cjson/cJSON.h>
+#include <math.h>
 #include <microhttpd.h>
 #include <pthread.h>
 #include <stdarg.h>
@@ -21,6 +22,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "bakeparams.h"
 #include "body.h"
 #include "filterparams.h"
 #include "log.h"
@@ -31,15 +33,27 @@ struct sdfd_http {
     int listen_fd;
 };
 
-typedef enum work { WORK_NONE, WORK_QUERY, WORK_UPLOAD } work;
+/* Work a request waits for: a batcher job, or a thread of its own running `run` (uploads,
+ * volume queries and file encodings: not geometry for the batcher, but too slow for MHD's
+ * I/O threads). */
+typedef enum work { WORK_NONE, WORK_QUERY, WORK_THREAD } work;
 
-typedef struct request {
+typedef struct request request;
+typedef void (*thread_work)(request *req);
+
+/* A response header beyond the type and count. */
+typedef struct header {
+    const char *name;
+    char value[300];
+} header;
+
+struct request {
     sdfd_http *http;
     struct MHD_Connection *conn;
     const char *method;
     sdfd_route route;
     char route_text[96];
-    char name[SDFD_MAX_NAME + 1]; /* mesh name from the URL */
+    char name[SDFD_MAX_NAME + 1]; /* mesh or volume name, or job id, from the URL */
     double start;
     int answered;                 /* a response is queued */
     int status;
@@ -60,12 +74,37 @@ typedef struct request {
     sdf_mesh *volume; /* a filtered query's smoothing mesh, held until the request ends */
     int upload_rc, replaced;
     sdf_diag diag;
-} request;
+    /* WORK_THREAD: `run` leaves a status (0 or SDF_E*, message in diag) and a body */
+    thread_work run;
+    enum MHD_Result (*respond)(request *req); /* back on the MHD thread: queue the response */
+    sdfd_stored_volume *stored;   /* a volume query's or download's volume */
+    sdf_volume_filter interpolation;
+    sdf_volume_file file_type;
+    char *out_body;
+    size_t out_len;
+};
 
 /* ---- responses --------------------------------------------------------------------------- */
 
-static enum MHD_Result send_buffer(request *req, int status, const char *type, char *body,
-                                   size_t len, const char *count)
+static const char *allowed_methods(sdfd_route route)
+{
+    switch (route) {
+    case SDFD_ROUTE_MESH:
+        return "GET, PUT, DELETE";
+    case SDFD_ROUTE_QUERY:
+    case SDFD_ROUTE_BAKE:
+    case SDFD_ROUTE_VOLUME_QUERY:
+        return "POST";
+    case SDFD_ROUTE_JOB:
+    case SDFD_ROUTE_VOLUME:
+        return "GET, DELETE";
+    default:
+        return "GET, HEAD";
+    }
+}
+
+static enum MHD_Result send_with_headers(request *req, int status, const char *type, char *body,
+                                         size_t len, const header *extra, int n_extra)
 {
     struct MHD_Response *r = MHD_create_response_from_buffer(len, body, MHD_RESPMEM_MUST_FREE);
     if (!r) {
@@ -73,15 +112,12 @@ static enum MHD_Result send_buffer(request *req, int status, const char *type, c
         return MHD_NO;
     }
     MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type);
-    if (count)
-        MHD_add_response_header(r, "X-SDF-Count", count);
+    for (int i = 0; i < n_extra; i++)
+        MHD_add_response_header(r, extra[i].name, extra[i].value);
     if (status == MHD_HTTP_UNAUTHORIZED)
         MHD_add_response_header(r, MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
     if (status == MHD_HTTP_METHOD_NOT_ALLOWED)
-        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW,
-                                req->route == SDFD_ROUTE_MESH     ? "GET, PUT, DELETE"
-                                : req->route == SDFD_ROUTE_QUERY ? "POST"
-                                                                  : "GET");
+        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW, allowed_methods(req->route));
     if (atomic_load(&req->http->srv->draining))
         MHD_add_response_header(r, MHD_HTTP_HEADER_CONNECTION, "close");
     enum MHD_Result ok = MHD_queue_response(req->conn, (unsigned)status, r);
@@ -90,6 +126,15 @@ static enum MHD_Result send_buffer(request *req, int status, const char *type, c
     req->status = status;
     req->bytes_out = len;
     return ok;
+}
+
+static enum MHD_Result send_buffer(request *req, int status, const char *type, char *body,
+                                   size_t len, const char *count)
+{
+    header h = {"X-SDF-Count", ""};
+    if (count)
+        snprintf(h.value, sizeof h.value, "%s", count);
+    return send_with_headers(req, status, type, body, len, &h, count ? 1 : 0);
 }
 
 static enum MHD_Result send_json(request *req, int status, cJSON *json)
@@ -153,7 +198,14 @@ static int parse_route(request *req, const char *url)
 {
     static const struct { const char *path; sdfd_route route; } fixed[] = {
         {"/healthz", SDFD_ROUTE_HEALTH}, {"/readyz", SDFD_ROUTE_READY},
-        {"/metrics", SDFD_ROUTE_METRICS}, {"/v1/meshes", SDFD_ROUTE_MESHES}};
+        {"/metrics", SDFD_ROUTE_METRICS}, {"/v1/meshes", SDFD_ROUTE_MESHES},
+        {"/v1/jobs", SDFD_ROUTE_JOBS}, {"/v1/volumes", SDFD_ROUTE_VOLUMES}};
+    /* collection/{name}[suffix] */
+    static const struct { const char *collection, *suffix; sdfd_route route; } named[] = {
+        {"/v1/meshes/", "", SDFD_ROUTE_MESH}, {"/v1/meshes/", "/query", SDFD_ROUTE_QUERY},
+        {"/v1/meshes/", "/bake", SDFD_ROUTE_BAKE}, {"/v1/jobs/", "", SDFD_ROUTE_JOB},
+        {"/v1/volumes/", "", SDFD_ROUTE_VOLUME}, {"/v1/volumes/", "/data", SDFD_ROUTE_VOLUME_DATA},
+        {"/v1/volumes/", "/query", SDFD_ROUTE_VOLUME_QUERY}};
     for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++) {
         if (!strcmp(url, fixed[i].path)) {
             req->route = fixed[i].route;
@@ -161,41 +213,42 @@ static int parse_route(request *req, const char *url)
             return 0;
         }
     }
-    const char *prefix = "/v1/meshes/";
-    if (strncmp(url, prefix, strlen(prefix)))
-        return -1;
-    const char *name = url + strlen(prefix), *slash = strchr(name, '/');
-    size_t n = slash ? (size_t)(slash - name) : strlen(name);
-    if (slash && strcmp(slash, "/query"))
-        return -1;
-    if (!sdfd_valid_name(name, n))
-        return -2;
-    memcpy(req->name, name, n);
-    req->name[n] = '\0';
-    req->route = slash ? SDFD_ROUTE_QUERY : SDFD_ROUTE_MESH;
-    snprintf(req->route_text, sizeof req->route_text, "%s",
-             slash ? "/v1/meshes/{name}/query" : "/v1/meshes/{name}");
-    return 0;
+    for (size_t i = 0; i < sizeof named / sizeof named[0]; i++) {
+        size_t c = strlen(named[i].collection);
+        if (strncmp(url, named[i].collection, c))
+            continue;
+        const char *name = url + c, *slash = strchr(name, '/');
+        size_t n = slash ? (size_t)(slash - name) : strlen(name);
+        if (strcmp(slash ? slash : "", named[i].suffix))
+            continue;
+        if (!sdfd_valid_name(name, n))
+            return -2;
+        memcpy(req->name, name, n);
+        req->name[n] = '\0';
+        req->route = named[i].route;
+        snprintf(req->route_text, sizeof req->route_text, "%s", sdfd_route_name(req->route));
+        return 0;
+    }
+    return -1;
 }
 
 static int method_allowed(const request *req)
 {
-    const char *m = req->method;
-    switch (req->route) {
-    case SDFD_ROUTE_MESH:
-        return !strcmp(m, "GET") || !strcmp(m, "PUT") || !strcmp(m, "DELETE");
-    case SDFD_ROUTE_QUERY:
-        return !strcmp(m, "POST");
-    default:
-        return !strcmp(m, "GET") || !strcmp(m, "HEAD");
-    }
+    const char *list = allowed_methods(req->route), *m = req->method;
+    size_t n = strlen(m);
+    for (const char *p = strstr(list, m); p; p = strstr(p + 1, m))
+        if ((p == list || p[-1] == ' ') && (p[n] == ',' || p[n] == '\0'))
+            return 1;
+    return 0;
 }
 
 static int authorized(const request *req)
 {
     const sdfd_config *cfg = &req->http->srv->cfg;
     int needs = !strcmp(req->method, "PUT") || !strcmp(req->method, "DELETE") ||
-                (cfg->auth_queries && req->route == SDFD_ROUTE_QUERY);
+                req->route == SDFD_ROUTE_BAKE ||
+                (cfg->auth_queries &&
+                 (req->route == SDFD_ROUTE_QUERY || req->route == SDFD_ROUTE_VOLUME_QUERY));
     if (!cfg->token || !needs)
         return 1;
     const char *h = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
@@ -211,7 +264,7 @@ static enum MHD_Result admit(request *req, const char *url)
     if (route == -1)
         return send_error(req, SDF_ENOTFOUND, "no route %s", url);
     if (route == -2)
-        return send_error(req, SDF_EINVAL, "mesh names are 1-255 characters of A-Z a-z 0-9 . _ - "
+        return send_error(req, SDF_EINVAL, "names are 1-255 characters of A-Z a-z 0-9 . _ - "
                                            "and do not start with '.'");
     if (!method_allowed(req))
         return send_error(req, SDF_EMETHOD, "%s is not allowed on %s", req->method, req->route_text);
@@ -371,9 +424,43 @@ static enum MHD_Result reply_query(request *req)
 
 /* ---- work: uploads ----------------------------------------------------------------------- */
 
-static void *load_upload(void *arg)
+/* ---- work on a thread of its own ---------------------------------------------------------- */
+
+static void *thread_main(void *arg)
 {
     request *req = arg;
+    req->run(req);
+    atomic_store(&req->finished, 1);
+    MHD_resume_connection(req->conn);
+    return NULL;
+}
+
+/* Suspend the connection and run `run` on a new thread; `respond` answers after the resume. */
+static enum MHD_Result start_thread(request *req, thread_work run,
+                                    enum MHD_Result (*respond)(request *req))
+{
+    pthread_t t;
+    pthread_attr_t attr;
+    pthread_attr_init(&attr);
+    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+    req->work = WORK_THREAD;
+    req->run = run;
+    req->respond = respond;
+    MHD_suspend_connection(req->conn);
+    int failed = pthread_create(&t, &attr, thread_main, req);
+    pthread_attr_destroy(&attr);
+    if (failed) {
+        req->work = WORK_NONE;
+        MHD_resume_connection(req->conn);
+        return send_error(req, SDF_EUNAVAILABLE, "cannot start a worker thread");
+    }
+    return MHD_YES;
+}
+
+static enum MHD_Result reply_upload(request *req);
+
+static void load_upload(request *req)
+{
     sdfd_server *srv = req->http->srv;
     sdf_mesh_options opts = {.max_triangles = srv->cfg.max_total_triangles};
     if (req->format[0] && sdf_format_from_name(req->format, &opts.format)) {
@@ -390,9 +477,6 @@ static void *load_upload(void *arg)
             snprintf(req->diag.message, sizeof req->diag.message,
                      "loading it would exceed --max-meshes or --max-triangles");
     }
-    atomic_store(&req->finished, 1);
-    MHD_resume_connection(req->conn);
-    return NULL;
 }
 
 static enum MHD_Result start_upload(request *req)
@@ -401,20 +485,7 @@ static enum MHD_Result start_upload(request *req)
     const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
     if (format)
         snprintf(req->format, sizeof req->format, "%s", format);
-    pthread_t t;
-    pthread_attr_t attr;
-    pthread_attr_init(&attr);
-    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
-    req->work = WORK_UPLOAD;
-    MHD_suspend_connection(req->conn);
-    int failed = pthread_create(&t, &attr, load_upload, req);
-    pthread_attr_destroy(&attr);
-    if (failed) {
-        req->work = WORK_NONE;
-        MHD_resume_connection(req->conn);
-        return send_error(req, SDF_EUNAVAILABLE, "cannot start a loader thread");
-    }
-    return MHD_YES;
+    return start_thread(req, load_upload, reply_upload);
 }
 
 static enum MHD_Result reply_upload(request *req)
@@ -423,6 +494,283 @@ static enum MHD_Result reply_upload(request *req)
         return send_error(req, req->upload_rc, "%s", req->diag.message);
     sdfd_log("info", "mesh_loaded", "%s: %s by upload", req->name, req->replaced ? "replaced" : "added");
     return send_json(req, req->replaced ? 200 : 201, report_json(req->name, req->uploaded));
+}
+
+/* ---- work: bakes, jobs and volumes -------------------------------------------------------- */
+
+static cJSON *job_json(const sdfd_job_status *s)
+{
+    cJSON *o = cJSON_CreateObject();
+    char href[64];
+    snprintf(href, sizeof href, "/v1/jobs/%s", s->id);
+    cJSON_AddStringToObject(o, "id", s->id);
+    cJSON_AddStringToObject(o, "href", href);
+    cJSON_AddStringToObject(o, "state", sdfd_job_state_name(s->state));
+    cJSON_AddNumberToObject(o, "progress", s->progress);
+    cJSON_AddNumberToObject(o, "percent", floor(s->progress * 1000) / 10);
+    cJSON_AddStringToObject(o, "mesh", s->mesh);
+    cJSON_AddStringToObject(o, "volume", s->volume);
+    cJSON_AddNumberToObject(o, "seconds", s->seconds);
+    if (s->state == SDFD_JOB_FAILED) {
+        cJSON *err = cJSON_AddObjectToObject(o, "error");
+        cJSON_AddStringToObject(err, "code", sdf_errname(s->error));
+        cJSON_AddStringToObject(err, "message", s->message);
+    }
+    return o;
+}
+
+/* Check a bake's options against the mesh and the server's limits, as the job would. */
+static int check_bake(request *req, const sdf_mesh *mesh, sdfd_bake_request *bake,
+                      char *err, size_t cap)
+{
+    const sdfd_config *cfg = &req->http->srv->cfg;
+    sdf_bake_options o = bake->options;
+    o.filter = bake->filtered ? &bake->filter : NULL;
+    sdf_volume_info planned;
+    sdf_diag diag = {0};
+    int rc = sdf_volume_plan(mesh, &o, &planned, &diag);
+    if (rc) {
+        snprintf(err, cap, "%s", diag.message);
+        return rc;
+    }
+    size_t nodes = planned.dims[0] * planned.dims[1] * planned.dims[2];
+    size_t side = planned.order ? 2 * (size_t)planned.fine_half + 1 : 1;
+    size_t points = nodes * side * side * side;
+    if (bake->filtered)
+        return sdfd_filter_validate(mesh, &bake->filter, points, cfg->max_bake_queries, err, cap);
+    if (points > cfg->max_bake_queries) {
+        snprintf(err, cap, "the bake costs %zu distance queries, over --max-bake-queries %zu; "
+                 "lower the resolution", points, cfg->max_bake_queries);
+        return SDF_ELIMIT;
+    }
+    return 0;
+}
+
+static enum MHD_Result start_bake(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    sdfd_bake_request bake; /* the body is JSON whatever its Content-Type says (curl -d) */
+    sdfd_bake_names names;
+    char err[512];
+    int rc = sdfd_bake_from_json(req->body, req->len, &bake, &names, err, sizeof err);
+    if (rc)
+        return send_error(req, rc, "%s", err);
+    sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
+    if (!mesh)
+        return send_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+    if (names.smoothing_mesh[0]) {
+        bake.smoothing_mesh = sdfd_registry_get(srv->registry, names.smoothing_mesh,
+                                                strlen(names.smoothing_mesh));
+        if (!bake.smoothing_mesh) {
+            sdf_mesh_release(mesh);
+            return send_error(req, SDF_ENOTFOUND, "no smoothing mesh named '%s'",
+                              names.smoothing_mesh);
+        }
+        bake.filter.smooth.mesh = bake.smoothing_mesh;
+    }
+    if ((rc = check_bake(req, mesh, &bake, err, sizeof err))) {
+        sdf_mesh_release(mesh);
+        sdf_mesh_release(bake.smoothing_mesh);
+        return send_error(req, rc, "%s", err);
+    }
+    const char *volume = names.volume[0] ? names.volume : req->name;
+    char id[24];
+    /* The job takes over both mesh references, also when it fails to start. */
+    rc = sdfd_volumes_bake(srv->volumes, mesh, req->name, volume, &bake, id, err, sizeof err);
+    if (rc)
+        return send_error(req, rc, "%s", err);
+    sdfd_job_status status;
+    sdfd_volumes_job(srv->volumes, id, &status);
+    header location = {MHD_HTTP_HEADER_LOCATION, ""};
+    snprintf(location.value, sizeof location.value, "/v1/jobs/%s", id);
+    cJSON *json = job_json(&status);
+    char *text = cJSON_PrintUnformatted(json);
+    cJSON_Delete(json);
+    return text ? send_with_headers(req, 202, "application/json", text, strlen(text), &location, 1)
+                : MHD_NO;
+}
+
+static enum MHD_Result job_route(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    sdfd_job_status s;
+    int deleting = !strcmp(req->method, "DELETE");
+    int rc = deleting ? sdfd_volumes_cancel(srv->volumes, req->name, &s)
+                      : sdfd_volumes_job(srv->volumes, req->name, &s);
+    if (rc)
+        return send_error(req, rc, "no job '%s'", req->name);
+    cJSON *o = job_json(&s);
+    if (deleting)
+        cJSON_AddBoolToObject(o, "cancel_requested",
+                              s.state == SDFD_JOB_QUEUED || s.state == SDFD_JOB_RUNNING);
+    return send_json(req, 200, o);
+}
+
+static enum MHD_Result list_jobs(request *req)
+{
+    sdfd_job_status *jobs;
+    size_t n = sdfd_volumes_jobs(req->http->srv->volumes, &jobs);
+    cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "jobs");
+    for (size_t i = 0; i < n; i++)
+        cJSON_AddItemToArray(arr, job_json(&jobs[i]));
+    free(jobs);
+    return send_json(req, 200, root);
+}
+
+static cJSON *volume_json(const sdfd_stored_volume *s)
+{
+    char text[1024];
+    cJSON *o = sdf_volume_describe_json(s->volume, text, sizeof text) > 0 ? cJSON_Parse(text) : NULL;
+    if (!o)
+        o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "name", s->name);
+    cJSON_AddStringToObject(o, "mesh", s->mesh);
+    cJSON_AddStringToObject(o, "job", s->job);
+    cJSON_AddNumberToObject(o, "bake_seconds", s->bake_seconds);
+    return o;
+}
+
+static enum MHD_Result list_volumes(request *req)
+{
+    sdfd_stored_volume **list;
+    size_t n = sdfd_volumes_list(req->http->srv->volumes, &list);
+    cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "volumes");
+    for (size_t i = 0; i < n; i++)
+        cJSON_AddItemToArray(arr, volume_json(list[i]));
+    sdfd_volumes_free_list(list, n);
+    return send_json(req, 200, root);
+}
+
+static enum MHD_Result volume_route(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    if (!strcmp(req->method, "DELETE")) {
+        if (sdfd_volumes_remove(srv->volumes, req->name))
+            return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+        sdfd_log("info", "volume_deleted", "%s", req->name);
+        return send_buffer(req, 204, "application/json", NULL, 0, NULL);
+    }
+    sdfd_stored_volume *s = sdfd_volumes_get(srv->volumes, req->name);
+    if (!s)
+        return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    enum MHD_Result r = send_json(req, 200, volume_json(s));
+    sdfd_volume_release(s);
+    return r;
+}
+
+static void encode_volume(request *req)
+{
+    req->upload_rc = sdf_volume_save_memory(req->stored->volume, req->file_type,
+                                            (void **)&req->out_body, &req->out_len, &req->diag);
+}
+
+static enum MHD_Result reply_volume_data(request *req)
+{
+    if (req->upload_rc)
+        return send_error(req, req->upload_rc, "%s", req->diag.message);
+    static const char *const types[] = {"image/x-exr", "application/x-npy",
+                                        "application/octet-stream"};
+    static const char *const extensions[] = {"exr", "npy", "raw"};
+    sdf_volume_info in;
+    sdf_volume_get_info(req->stored->volume, &in);
+    header h[4] = {{"Content-Disposition", ""}, {"X-SDF-Dims", ""}, {"X-SDF-Order", ""},
+                   {"X-SDF-Encoding", ""}};
+    snprintf(h[0].value, sizeof h[0].value, "attachment; filename=\"%s.%s\"", req->name,
+             extensions[req->file_type]);
+    snprintf(h[1].value, sizeof h[1].value, "%zu,%zu,%zu", in.dims[0], in.dims[1], in.dims[2]);
+    snprintf(h[2].value, sizeof h[2].value, "%d", in.order);
+    snprintf(h[3].value, sizeof h[3].value, "%s", sdf_encoding_name(in.encoding));
+    char *body = req->out_body;
+    req->out_body = NULL; /* MHD frees it */
+    return send_with_headers(req, 200, types[req->file_type], body, req->out_len, h, 4);
+}
+
+static enum MHD_Result start_volume_data(request *req)
+{
+    const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
+    if (sdf_volume_file_from_name(format ? format : "exr", &req->file_type))
+        return send_error(req, SDF_EINVAL, "unknown format '%s' (exr, npy, raw)", format);
+    req->stored = sdfd_volumes_get(req->http->srv->volumes, req->name);
+    if (!req->stored)
+        return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    return start_thread(req, encode_volume, reply_volume_data);
+}
+
+static void evaluate_volume(request *req)
+{
+    float *gradient = NULL;
+    uint32_t *w = req->reply.words;
+    size_t n = req->points, bad = 0;
+    float *value = malloc((n ? n : 1) * sizeof *value);
+    if (req->reply.mode == SDF_MODE_GRADIENT)
+        gradient = malloc((n ? 3 * n : 1) * sizeof *gradient);
+    if (!value || (req->reply.mode == SDF_MODE_GRADIENT && !gradient)) {
+        req->upload_rc = SDF_ENOMEM;
+        snprintf(req->diag.message, sizeof req->diag.message, "out of memory for %zu points", n);
+    } else if ((req->upload_rc = sdf_volume_eval(req->stored->volume, req->points_buf, n,
+                                                 req->interpolation, value, gradient, &bad))) {
+        snprintf(req->diag.message, sizeof req->diag.message,
+                 "point %zu has a NaN or infinite coordinate", bad);
+    } else {
+        int words = gradient ? 4 : 1;
+        for (size_t i = 0; i < n; i++) {
+            memcpy(w + (size_t)words * i, value + i, 4);
+            if (gradient)
+                memcpy(w + 4 * i + 1, gradient + 3 * i, 12);
+        }
+    }
+    free(value);
+    free(gradient);
+}
+
+static enum MHD_Result reply_volume_query(request *req)
+{
+    if (req->upload_rc)
+        return send_error(req, req->upload_rc, "%s", req->diag.message);
+    size_t len;
+    char *body = sdfd_reply_render(&req->reply, req->reply_form, &len);
+    if (!body)
+        return send_error(req, SDF_ENOMEM, "out of memory formatting %zu results", req->points);
+    char count[32];
+    snprintf(count, sizeof count, "%zu", req->points);
+    return send_buffer(req, 200, sdfd_form_type(req->reply_form), body, len, count);
+}
+
+static enum MHD_Result start_volume_query(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    const char *type = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                   MHD_HTTP_HEADER_CONTENT_TYPE);
+    int form = sdfd_form_from_type(type);
+    if (form < 0)
+        return send_error(req, SDF_EFORMAT, "Content-Type must be application/json, "
+                                            "application/octet-stream or application/x-npy");
+    sdfd_query_params params = {0};
+    char err[256], mode_buf[32], interp_buf[32];
+    size_t count;
+    int rc = sdfd_parse_points((sdfd_form)form, req->body, req->len, srv->cfg.max_points, &params,
+                               &req->points_buf, &count, &req->points_owned, err, sizeof err);
+    if (rc)
+        return send_error(req, rc, "%s", err);
+    const char *mode = param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
+    const char *interp = param(req, params.interpolation, params.interpolation_len,
+                               "interpolation", interp_buf, sizeof interp_buf);
+    int gradient = 0;
+    if (mode && strcmp(mode, "value") && !(gradient = !strcmp(mode, "gradient")))
+        return send_error(req, SDF_EINVAL, "unknown volume mode '%s' (value, gradient)", mode);
+    req->interpolation = SDF_VOLUME_TRILINEAR;
+    if (interp && sdf_volume_filter_from_name(interp, &req->interpolation))
+        return send_error(req, SDF_EINVAL, "unknown interpolation '%s' (trilinear, nearest)", interp);
+    req->stored = sdfd_volumes_get(srv->volumes, req->name);
+    if (!req->stored)
+        return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    req->points = count;
+    req->reply_form = (sdfd_form)reply_form(req, (sdfd_form)form);
+    if (sdfd_reply_init(&req->reply, req->reply_form,
+                        gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count))
+        return send_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
+    sdfd_metrics_points(srv->metrics, count);
+    return start_thread(req, evaluate_volume, reply_volume_query);
 }
 
 /* ---- the simple routes ------------------------------------------------------------------- */
@@ -494,6 +842,20 @@ static enum MHD_Result dispatch(request *req)
         return mesh_route(req);
     case SDFD_ROUTE_QUERY:
         return start_query(req);
+    case SDFD_ROUTE_BAKE:
+        return start_bake(req);
+    case SDFD_ROUTE_JOBS:
+        return list_jobs(req);
+    case SDFD_ROUTE_JOB:
+        return job_route(req);
+    case SDFD_ROUTE_VOLUMES:
+        return list_volumes(req);
+    case SDFD_ROUTE_VOLUME:
+        return volume_route(req);
+    case SDFD_ROUTE_VOLUME_DATA:
+        return start_volume_data(req);
+    case SDFD_ROUTE_VOLUME_QUERY:
+        return start_volume_query(req);
     default:
         return send_error(req, SDF_ENOTFOUND, "no such route");
     }
@@ -539,7 +901,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
     if (req->work != WORK_NONE) { /* resumed: the work is done */
         if (!atomic_load(&req->finished))
             return MHD_YES;
-        return req->work == WORK_QUERY ? reply_query(req) : reply_upload(req);
+        return req->work == WORK_QUERY ? reply_query(req) : req->respond(req);
     }
     return dispatch(req);
 }
@@ -562,6 +924,8 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
     sdf_mesh_release(req->job.mesh);
     sdf_mesh_release(req->uploaded);
     sdf_mesh_release(req->volume);
+    sdfd_volume_release(req->stored);
+    free(req->out_body);
     if (req->points_owned)
         free(req->points_buf);
     free(req->reply.buffer);

@@ -107,7 +107,9 @@ int main(int argc, char **argv)
 
     srv.registry = sdfd_registry_create(srv.cfg.max_meshes, srv.cfg.max_total_triangles);
     srv.metrics = sdfd_metrics_create();
-    if (!srv.registry || !srv.metrics ||
+    srv.volumes = sdfd_volumes_create(srv.cfg.max_volumes, srv.cfg.max_volume_bytes,
+                                      (int)srv.cfg.max_bakes, srv.cfg.max_jobs, srv.cfg.threads);
+    if (!srv.registry || !srv.metrics || !srv.volumes ||
         sdfd_batcher_create(srv.cfg.threads, srv.cfg.batch_window_us, srv.cfg.batch_max_points,
                             srv.cfg.max_queued_points, srv.metrics, &srv.batcher)) {
         sdfd_log("error", "start", "out of memory");
@@ -121,6 +123,7 @@ int main(int argc, char **argv)
         sdfd_binary_stop(bin);
         sdfd_http_stop(http);
         sdfd_batcher_destroy(srv.batcher);
+        sdfd_volumes_destroy(srv.volumes);
         return 1;
     }
     atomic_store(&srv.ready, 1);
@@ -130,6 +133,7 @@ int main(int argc, char **argv)
     sigwait(&signals, &sig);
     sdfd_log("info", "shutdown", "%s: draining", sig == SIGTERM ? "SIGTERM" : "SIGINT");
     atomic_store(&srv.draining, 1);
+    sdfd_volumes_close(srv.volumes); /* bakes stop at their next slab */
     sdfd_http_quiesce(http);
     sdfd_binary_quiesce(bin);
     drain(&srv);
@@ -138,6 +142,7 @@ int main(int argc, char **argv)
     sdfd_batcher_destroy(srv.batcher);
     sdfd_binary_stop(bin);
     sdfd_http_stop(http);
+    sdfd_volumes_destroy(srv.volumes);
     sdfd_registry_destroy(srv.registry);
     sdfd_metrics_destroy(srv.metrics);
     sdfd_log("info", "stopped", "bye");

@@ -12,7 +12,14 @@ static const int statuses[] = {200, 201, 202, 204, 400, 401, 404, 405, 411, 413,
 #define N_STATUS (sizeof statuses / sizeof statuses[0])
 static const char *const route_names[SDFD_ROUTE_COUNT] = {
     "/healthz", "/readyz", "/metrics", "/v1/meshes", "/v1/meshes/{name}",
-    "/v1/meshes/{name}/query", "bin:query", "bin:other", "other"};
+    "/v1/meshes/{name}/query", "/v1/meshes/{name}/bake", "/v1/jobs", "/v1/jobs/{id}",
+    "/v1/volumes", "/v1/volumes/{name}", "/v1/volumes/{name}/data", "/v1/volumes/{name}/query",
+    "bin:query", "bin:volume_query", "bin:other", "other"};
+
+const char *sdfd_route_name(sdfd_route route)
+{
+    return (unsigned)route < SDFD_ROUTE_COUNT ? route_names[route] : "other";
+}
 
 /* A histogram with fixed upper bounds (+Inf implied). */
 #define MAX_BUCKETS 16

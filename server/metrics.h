@@ -10,9 +10,14 @@ typedef struct sdfd_metrics sdfd_metrics;
 /* Routes the request counter distinguishes. */
 typedef enum sdfd_route {
     SDFD_ROUTE_HEALTH, SDFD_ROUTE_READY, SDFD_ROUTE_METRICS, SDFD_ROUTE_MESHES,
-    SDFD_ROUTE_MESH, SDFD_ROUTE_QUERY, SDFD_ROUTE_BIN_QUERY, SDFD_ROUTE_BIN_OTHER,
-    SDFD_ROUTE_OTHER, SDFD_ROUTE_COUNT
+    SDFD_ROUTE_MESH, SDFD_ROUTE_QUERY, SDFD_ROUTE_BAKE, SDFD_ROUTE_JOBS, SDFD_ROUTE_JOB,
+    SDFD_ROUTE_VOLUMES, SDFD_ROUTE_VOLUME, SDFD_ROUTE_VOLUME_DATA, SDFD_ROUTE_VOLUME_QUERY,
+    SDFD_ROUTE_BIN_QUERY, SDFD_ROUTE_BIN_VOLUME_QUERY, SDFD_ROUTE_BIN_OTHER, SDFD_ROUTE_OTHER,
+    SDFD_ROUTE_COUNT
 } sdfd_route;
+
+/* The route's label in /metrics and the logs, e.g. "/v1/meshes/{name}/query". */
+const char *sdfd_route_name(sdfd_route route);
 
 sdfd_metrics *sdfd_metrics_create(void);
 void sdfd_metrics_destroy(sdfd_metrics *m);

@@ -9,6 +9,7 @@
 #include "config.h"
 #include "metrics.h"
 #include "registry.h"
+#include "volumes.h"
 
 #define SDFD_VERSION "0.1.0"
 
@@ -17,6 +18,7 @@ typedef struct sdfd_server {
     sdfd_registry *registry;
     sdfd_metrics *metrics;
     sdfd_batcher *batcher;
+    sdfd_volumes *volumes;   /* baked volumes and bake jobs */
     atomic_int ready;        /* meshes loaded: /readyz 200 */
     atomic_int draining;     /* SIGTERM seen: /readyz 503, new work refused */
     atomic_long in_flight;   /* requests received and not yet answered (both protocols) */

@@ -13,6 +13,12 @@
     # the convolution-filtered field (docs/filtered.md); filter= takes its parameters
     r = c.query("demo", points, mode="filtered-gradient", filter={"samples": 32, "seed": 1})
 
+    # baked volumes (docs/volumes.md): bake, wait, download, query
+    job = c.bake("demo", volume="knot", resolution=64, order=1)
+    c.wait(job)
+    grid = c.download("knot", format="npy")      # float32 (64, 64, 64, 4)
+    r = c.query_volume("knot", points, interpolation="trilinear", gradient=True)
+
 Results are dicts of numpy arrays: "distance" always (the filtered value g in the filtered
 modes); "gradient" (modes gradient and filtered-gradient); "closest" and "triangle" (mode
 closest). Errors raise SdfError with the HTTP status, the error code (e.g. "ENOTFOUND") and
@@ -23,6 +29,7 @@ import io
 import json
 import socket
 import struct
+import time
 import urllib.parse
 
 import numpy as np
@@ -199,6 +206,90 @@ class Client:
         if a.ndim == 1:
             return {"distance": a}
         return {"distance": a[:, 0].copy(), "gradient": a[:, 1:4].copy()}
+
+    # ---- volumes (docs/volumes.md) ----
+
+    def bake(self, name, volume=None, **params):
+        """Start baking mesh `name` into a volume; returns the job (a dict with "id").
+        params: bounds={"min": [...], "max": [...]}, margin, resolution (n or [n, m, k]),
+        order (0 | 1), H, delta, field ("raw" | "filtered"), filter={...},
+        encoding ("float32" | "packed32"), sign."""
+        body = dict(params)
+        if volume is not None:
+            body["volume"] = volume
+        _, data = self._request("POST", f"/v1/meshes/{name}/bake", json.dumps(body),
+                                {"Content-Type": "application/json"})
+        return json.loads(data)
+
+    def job(self, job_id):
+        return self._json("GET", f"/v1/jobs/{job_id}")
+
+    def jobs(self):
+        return self._json("GET", "/v1/jobs")["jobs"]
+
+    def cancel(self, job_id):
+        return self._json("DELETE", f"/v1/jobs/{job_id}")
+
+    def wait(self, job, timeout=600, poll=0.05):
+        """Poll a job (its id or the dict bake returned) until it ends; returns its final
+        status, or raises SdfError if it failed or was canceled, TimeoutError on timeout."""
+        job_id = job["id"] if isinstance(job, dict) else job
+        deadline = time.monotonic() + timeout
+        while True:
+            s = self.job(job_id)
+            if s["state"] == "done":
+                return s
+            if s["state"] in ("failed", "canceled"):
+                e = s.get("error", {"code": "ECANCELED", "message": "the bake was canceled"})
+                raise SdfError(409 if s["state"] == "canceled" else 500, e["code"], e["message"])
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"job {job_id} still {s['state']} after {timeout} s")
+            time.sleep(poll)
+
+    def volumes(self):
+        return self._json("GET", "/v1/volumes")["volumes"]
+
+    def volume(self, name):
+        return self._json("GET", f"/v1/volumes/{name}")
+
+    def delete_volume(self, name):
+        self._request("DELETE", f"/v1/volumes/{name}")
+
+    def download(self, name, format="npy", path=None):
+        """A volume's file bytes (format "exr", "npy" or "raw"), written to `path` if given;
+        with format "npy" and no path, the numpy array itself."""
+        _, data = self._request("GET", f"/v1/volumes/{name}/data?format={format}")
+        if path is not None:
+            with open(path, "wb") as f:
+                f.write(data)
+            return path
+        return np.load(io.BytesIO(data)) if format == "npy" else data
+
+    def query_volume(self, name, points, interpolation="trilinear", gradient=False, form="npy"):
+        """Evaluate a baked volume at points: {"distance": (N,)} and with gradient=True also
+        {"gradient": (N, 3)}."""
+        p = _points(points)
+        mode = "gradient" if gradient else "value"
+        path = f"/v1/volumes/{name}/query"
+        if form == "json":
+            body = json.dumps({"points": p.tolist(), "mode": mode, "interpolation": interpolation})
+            r = json.loads(self._request("POST", path, body, {"Content-Type": "application/json"})[1])
+            out = {"distance": np.asarray(r["distance"], np.float32)}
+            if gradient:
+                out["gradient"] = np.asarray(r["gradient"], np.float32).reshape(-1, 3)
+            return out
+        path += "?" + urllib.parse.urlencode({"mode": mode, "interpolation": interpolation})
+        if form == "octet":
+            _, data = self._request("POST", path, p.tobytes(),
+                                    {"Content-Type": "application/octet-stream"})
+            words = np.frombuffer(data, np.uint32).reshape(len(p), 4 if gradient else 1)
+            return _split_words(words, "gradient" if gradient else "signed")
+        buf = io.BytesIO()
+        np.save(buf, p)
+        _, data = self._request("POST", path, buf.getvalue(), {"Content-Type": "application/x-npy"})
+        a = np.load(io.BytesIO(data))
+        return {"distance": a} if a.ndim == 1 else {"distance": a[:, 0].copy(),
+                                                    "gradient": a[:, 1:4].copy()}
 
 
 class BinaryClient:

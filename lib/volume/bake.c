@@ -25,7 +25,8 @@
 #define DEFAULT_FINE_SPACING 0.1 /* Delta, in cells: the paper's choice (sec. 5.1) */
 #define MAX_FINE_HALF 4
 #define MAX_FINE ((2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1))
-#define SLAB_SAMPLES ((size_t)1 << 18) /* query points per slab */
+#define SLAB_QUERIES ((size_t)1 << 18) /* distance queries per slab: bounds memory and the
+                                          time between progress reports */
 
 typedef struct bake_plan {
     sdf_volume_info info;
@@ -33,6 +34,7 @@ typedef struct bake_plan {
     const sdf_filter_options *filter;
     sdf_query_options query;
     int closed;                   /* the mesh's sign flips only across its surface */
+    size_t queries_per_point;     /* 1, or what one filtered value costs */
     int fine_count;               /* (2H+1)^3; 1 for order 0 */
     double fine[MAX_FINE][3];     /* s_oj, origin-centred fine grid, in world units */
     double reach[MAX_FINE];       /* |s_oj| */
@@ -98,10 +100,12 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
     int rc = sdf__volume_check_info(in, diag);
     if (rc)
         return rc;
+    plan->queries_per_point = 1;
     if (o->filter) {
         sdf_filter_options resolved;
         if ((rc = sdf__filter_resolve(mesh, o->filter, &resolved, diag)))
             return rc;
+        plan->queries_per_point = (size_t)resolved.samples + 1 + (resolved.min_samples ? 26 : 0);
     }
     plan->mesh = mesh;
     plan->filter = o->filter;
@@ -109,6 +113,24 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
     plan->query.point_stride = 0;
     plan->closed = r.closed;
     return 0;
+}
+
+int sdf_volume_plan(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume_info *planned,
+                    sdf_diag *diag)
+{
+    if (!mesh || !planned)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "no mesh");
+    sdf_bake_options defaults = {0};
+    bake_plan *plan = calloc(1, sizeof *plan);
+    if (!plan)
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory to plan the bake");
+    int rc = resolve(mesh, opts ? opts : &defaults, plan, diag);
+    if (!rc) {
+        *planned = plan->info;
+        planned->packed_range = 0;
+    }
+    free(plan);
+    return rc;
 }
 
 /* ---- the least-squares plane (eq. 3) ------------------------------------------------------ */
@@ -338,7 +360,9 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
     }
     int first = plan->info.order == 1;
     size_t m = first ? (size_t)plan->fine_count : 1;
-    size_t per_slab = SLAB_SAMPLES / m;
+    size_t per_slab = SLAB_QUERIES / (m * plan->queries_per_point);
+    if (per_slab < 1)
+        per_slab = 1;
     if (per_slab > v->nodes)
         per_slab = v->nodes;
     float *planes = first ? malloc(v->nodes * 4 * sizeof(float)) : NULL;

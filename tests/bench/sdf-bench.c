@@ -17,6 +17,7 @@
 #include <time.h>
 
 #include "../common/files.h"
+#include "../common/npyio.h"
 #include "../common/workload.h"
 #include "sdf/sdf.h"
 
@@ -112,59 +113,6 @@ static args parse_args(int argc, char **argv)
     return a;
 }
 
-/* Load an (N, 3) float32/float64 .npy into a new float array. */
-static float *load_points(const char *path, size_t *n)
-{
-    size_t size;
-    unsigned char *data = (unsigned char *)read_whole_file(path, &size);
-    if (!data) {
-        fprintf(stderr, "sdf-bench: cannot read %s: %s\n", path, strerror(errno));
-        exit(1);
-    }
-    sdf_npy_info info;
-    sdf_diag diag;
-    if (sdf_npy_parse(data, size, &info, &diag)) {
-        fprintf(stderr, "sdf-bench: %s: %s\n", path, diag.message);
-        exit(1);
-    }
-    if (info.ndim != 2 || info.shape[1] != 3) {
-        fprintf(stderr, "sdf-bench: %s: expected shape (N, 3)\n", path);
-        exit(1);
-    }
-    *n = info.shape[0];
-    float *p = malloc((3 * *n + 1) * sizeof *p);
-    for (size_t i = 0; i < 3 * *n; i++) {
-        if (info.dtype == SDF_NPY_F32)
-            memcpy(&p[i], data + info.data_offset + 4 * i, 4);
-        else {
-            double d;
-            memcpy(&d, data + info.data_offset + 8 * i, 8);
-            p[i] = (float)d;
-        }
-    }
-    free(data);
-    return p;
-}
-
-static void write_out(const char *path, size_t n, int cols, const float *dist, const float *vec3)
-{
-    FILE *f = fopen(path, "wb");
-    if (!f) {
-        fprintf(stderr, "sdf-bench: cannot write %s: %s\n", path, strerror(errno));
-        exit(1);
-    }
-    char header[128];
-    size_t shape[2] = {n, (size_t)cols};
-    long len = sdf_npy_write_header(header, sizeof header, cols == 1 ? 1 : 2, shape);
-    fwrite(header, 1, (size_t)len, f);
-    for (size_t i = 0; i < n; i++) {
-        fwrite(&dist[i], 4, 1, f);
-        if (cols == 4)
-            fwrite(&vec3[3 * i], 4, 3, f);
-    }
-    fclose(f);
-}
-
 int main(int argc, char **argv)
 {
     args a = parse_args(argc, argv);
@@ -181,7 +129,7 @@ int main(int argc, char **argv)
     size_t n = a.n;
     float *points;
     if (a.points) {
-        points = load_points(a.points, &n);
+        points = npy_load_points("sdf-bench", a.points, &n);
     } else {
         points = malloc((3 * n + 1) * sizeof *points);
         if (sdf_workload(mesh, a.workload, &n, a.seed, points)) {
@@ -225,7 +173,7 @@ int main(int argc, char **argv)
         return 1;
     }
     if (a.out)
-        write_out(a.out, n, gradient || closest ? 4 : 1, dist, vec3);
+        npy_write_results("sdf-bench", a.out, n, gradient || closest ? 4 : 1, dist, vec3);
     printf("seconds: %.4f\n", best);
     printf("throughput: %.4f Mq/s\n", (double)n / best / 1e6);
     free(points);

@@ -357,6 +357,12 @@ typedef struct sdf_bake_options {
 int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume **out,
                     sdf_diag *diag);
 
+/* Check `opts` for `mesh` as sdf_volume_bake would (every message the same) and describe
+ * the volume it would make (packed_range and packed_center are only known after baking),
+ * without baking. */
+int sdf_volume_plan(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume_info *planned,
+                    sdf_diag *diag);
+
 /* A volume from its description and node data (copied; sdf_volume_channels(info) 32-bit
  * words per node, float or uint32 by the encoding). Checks the description; non-finite
  * floats are SDF_ENONFINITE. */

@@ -1,0 +1,434 @@
+/* volumes.c - stored volumes and bake jobs (see volumes.h). One mutex guards both lists; a
+ * condition variable hands the limited bake slots to queued jobs in arrival order. */
+#include "volumes.h"
+
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "batcher.h" /* sdfd_now */
+#include "log.h"
+
+typedef struct job {
+    struct job *next;             /* newest first */
+    sdfd_volumes *owner;
+    sdfd_job_status status;       /* under the owner's lock, but for progress */
+    _Atomic double progress;
+    atomic_int cancel;
+    double started;
+    size_t reserved;              /* bytes promised to this bake */
+    sdf_mesh *mesh;
+    sdfd_bake_request req;
+    pthread_t thread;
+    int finished;                 /* the thread has left the lock for the last time */
+} job;
+
+struct sdfd_volumes {
+    pthread_mutex_t lock;
+    pthread_cond_t slot_free;
+    sdfd_stored_volume **items;   /* sorted by name */
+    size_t count, max_volumes, max_bytes, bytes, reserved;
+    job *jobs;
+    size_t job_count, max_jobs;
+    int running, max_running, threads, closing;
+    unsigned long next_id;
+    unsigned id_prefix;
+};
+
+static const char *const state_names[] = {"queued", "running", "done", "failed", "canceled"};
+
+const char *sdfd_job_state_name(sdfd_job_state s)
+{
+    return (unsigned)s <= SDFD_JOB_CANCELED ? state_names[s] : "unknown";
+}
+
+sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_running,
+                                  size_t max_jobs, int threads)
+{
+    sdfd_volumes *v = calloc(1, sizeof *v);
+    if (!v || !(v->items = calloc(max_volumes ? max_volumes : 1, sizeof *v->items))) {
+        free(v);
+        return NULL;
+    }
+    pthread_mutex_init(&v->lock, NULL);
+    pthread_cond_init(&v->slot_free, NULL);
+    v->max_volumes = max_volumes;
+    v->max_bytes = max_bytes;
+    v->max_running = max_running > 0 ? max_running : 1;
+    v->max_jobs = max_jobs ? max_jobs : 1;
+    v->threads = threads;
+    struct timespec t;
+    clock_gettime(CLOCK_REALTIME, &t);
+    v->id_prefix = (unsigned)(t.tv_sec * 1000003u ^ t.tv_nsec); /* ids differ across restarts */
+    return v;
+}
+
+/* ---- stored volumes ---------------------------------------------------------------------- */
+
+static void retain(sdfd_stored_volume *s) { atomic_fetch_add(&s->refs, 1); }
+
+void sdfd_volume_release(sdfd_stored_volume *s)
+{
+    if (s && atomic_fetch_sub(&s->refs, 1) == 1) {
+        sdf_volume_destroy(s->volume);
+        free(s);
+    }
+}
+
+static long find(const sdfd_volumes *v, const char *name, size_t *insert_at)
+{
+    size_t lo = 0, hi = v->count;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        int c = strcmp(v->items[mid]->name, name);
+        if (!c)
+            return (long)mid;
+        if (c < 0)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    if (insert_at)
+        *insert_at = lo;
+    return -1;
+}
+
+sdfd_stored_volume *sdfd_volumes_get(sdfd_volumes *v, const char *name)
+{
+    pthread_mutex_lock(&v->lock);
+    long i = find(v, name, NULL);
+    sdfd_stored_volume *s = i >= 0 ? v->items[i] : NULL;
+    if (s)
+        retain(s);
+    pthread_mutex_unlock(&v->lock);
+    return s;
+}
+
+/* Under the lock: add or replace; takes over `s`. */
+static int put_locked(sdfd_volumes *v, sdfd_stored_volume *s)
+{
+    size_t at = 0, bytes = sdf_volume_data_bytes(s->volume);
+    long i = find(v, s->name, &at);
+    size_t old = i >= 0 ? sdf_volume_data_bytes(v->items[i]->volume) : 0;
+    if ((i < 0 && v->count >= v->max_volumes) || v->bytes - old + bytes > v->max_bytes) {
+        sdfd_volume_release(s);
+        return SDF_ELIMIT;
+    }
+    v->bytes = v->bytes - old + bytes;
+    if (i >= 0) {
+        sdfd_volume_release(v->items[i]);
+        v->items[i] = s;
+        return 0;
+    }
+    memmove(v->items + at + 1, v->items + at, (v->count - at) * sizeof *v->items);
+    v->items[at] = s;
+    v->count++;
+    return 0;
+}
+
+int sdfd_volumes_remove(sdfd_volumes *v, const char *name)
+{
+    pthread_mutex_lock(&v->lock);
+    long i = find(v, name, NULL);
+    sdfd_stored_volume *s = NULL;
+    if (i >= 0) {
+        s = v->items[i];
+        v->bytes -= sdf_volume_data_bytes(s->volume);
+        memmove(v->items + i, v->items + i + 1, (v->count - (size_t)i - 1) * sizeof *v->items);
+        v->count--;
+    }
+    pthread_mutex_unlock(&v->lock);
+    sdfd_volume_release(s);
+    return s ? 0 : SDF_ENOTFOUND;
+}
+
+size_t sdfd_volumes_list(sdfd_volumes *v, sdfd_stored_volume ***out)
+{
+    pthread_mutex_lock(&v->lock);
+    size_t n = v->count;
+    *out = malloc((n ? n : 1) * sizeof **out);
+    if (!*out)
+        n = 0;
+    for (size_t i = 0; i < n; i++) {
+        (*out)[i] = v->items[i];
+        retain(v->items[i]);
+    }
+    pthread_mutex_unlock(&v->lock);
+    return n;
+}
+
+void sdfd_volumes_free_list(sdfd_stored_volume **list, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        sdfd_volume_release(list[i]);
+    free(list);
+}
+
+size_t sdfd_volumes_count(sdfd_volumes *v)
+{
+    pthread_mutex_lock(&v->lock);
+    size_t n = v->count;
+    pthread_mutex_unlock(&v->lock);
+    return n;
+}
+
+/* ---- jobs -------------------------------------------------------------------------------- */
+
+size_t sdfd_bake_bytes(const sdf_volume_info *planned)
+{
+    size_t nodes = planned->dims[0] * planned->dims[1] * planned->dims[2];
+    size_t words = (size_t)sdf_volume_channels(planned);
+    return nodes * words * 4 + (planned->order == 1 ? nodes * 16 : 0);
+}
+
+static int on_progress(void *user, double fraction)
+{
+    job *j = user;
+    atomic_store(&j->progress, fraction);
+    return atomic_load(&j->cancel);
+}
+
+static void snapshot(job *j, sdfd_job_status *out)
+{
+    *out = j->status;
+    out->progress = atomic_load(&j->progress);
+    if (j->status.state == SDFD_JOB_QUEUED || j->status.state == SDFD_JOB_RUNNING)
+        out->seconds = sdfd_now() - j->started;
+}
+
+static void *run_job(void *arg)
+{
+    job *j = arg;
+    sdfd_volumes *v = j->owner;
+    pthread_mutex_lock(&v->lock);
+    while (v->running >= v->max_running && !atomic_load(&j->cancel))
+        pthread_cond_wait(&v->slot_free, &v->lock);
+    int canceled = atomic_load(&j->cancel);
+    if (!canceled) {
+        v->running++;
+        j->status.state = SDFD_JOB_RUNNING;
+    }
+    pthread_mutex_unlock(&v->lock);
+
+    sdf_volume *volume = NULL;
+    sdf_diag diag = {0};
+    int rc = SDF_ECANCELED;
+    if (!canceled) {
+        sdfd_log("info", "bake_started", "job %s: %s -> %s", j->status.id, j->status.mesh,
+                 j->status.volume);
+        rc = sdf_volume_bake(j->mesh, &j->req.options, &volume, &diag);
+    }
+    sdfd_stored_volume *stored = NULL;
+    if (!rc && !(stored = calloc(1, sizeof *stored))) {
+        sdf_volume_destroy(volume);
+        rc = SDF_ENOMEM;
+        snprintf(diag.message, sizeof diag.message, "no memory to store the volume");
+    }
+    if (stored) {
+        atomic_init(&stored->refs, 1);
+        stored->volume = volume;
+        snprintf(stored->name, sizeof stored->name, "%s", j->status.volume);
+        snprintf(stored->mesh, sizeof stored->mesh, "%s", j->status.mesh);
+        snprintf(stored->job, sizeof stored->job, "%s", j->status.id);
+        stored->bake_seconds = sdfd_now() - j->started;
+    }
+    sdf_mesh_release(j->mesh);
+    sdf_mesh_release(j->req.smoothing_mesh);
+    j->mesh = j->req.smoothing_mesh = NULL;
+
+    pthread_mutex_lock(&v->lock);
+    if (!canceled)
+        v->running--;
+    v->reserved -= j->reserved;
+    j->reserved = 0;
+    if (stored && (rc = put_locked(v, stored)))
+        snprintf(diag.message, sizeof diag.message,
+                 "the baked volume no longer fits --max-volumes / --max-volume-bytes");
+    j->status.state = !rc ? SDFD_JOB_DONE : rc == SDF_ECANCELED ? SDFD_JOB_CANCELED : SDFD_JOB_FAILED;
+    if (j->status.state == SDFD_JOB_FAILED) {
+        j->status.error = rc;
+        snprintf(j->status.message, sizeof j->status.message, "%s",
+                 diag.message[0] ? diag.message : sdf_strerror(rc));
+    }
+    if (!rc)
+        atomic_store(&j->progress, 1.0);
+    j->status.seconds = sdfd_now() - j->started;
+    j->finished = 1;
+    pthread_cond_broadcast(&v->slot_free);
+    pthread_mutex_unlock(&v->lock);
+    sdfd_log("info", "bake_finished", "job %s: %s after %.3f s", j->status.id,
+             sdfd_job_state_name(j->status.state), j->status.seconds);
+    return NULL;
+}
+
+static void free_job(job *j)
+{
+    pthread_join(j->thread, NULL);
+    free(j);
+}
+
+/* Under the lock: unlink the oldest finished job, or return NULL. */
+static job *unlink_oldest_finished(sdfd_volumes *v)
+{
+    job **oldest = NULL;
+    for (job **p = &v->jobs; *p; p = &(*p)->next)
+        if ((*p)->finished)
+            oldest = p;
+    if (!oldest)
+        return NULL;
+    job *j = *oldest;
+    *oldest = j->next;
+    v->job_count--;
+    return j;
+}
+
+int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
+                      const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
+                      size_t err_cap)
+{
+    job *j = calloc(1, sizeof *j), *pruned = NULL;
+    int rc = j ? 0 : SDF_ENOMEM;
+    sdf_bake_options *o = j ? &j->req.options : NULL;
+    sdf_volume_info planned = {0};
+    if (!rc) {
+        j->req = *req;
+        j->mesh = mesh;
+        j->owner = v;
+        o->filter = j->req.filtered ? &j->req.filter : NULL;
+        if (j->req.filtered)
+            j->req.filter.smooth.mesh = j->req.smoothing_mesh;
+        o->progress = on_progress;
+        o->user = j;
+        o->query.threads = v->threads;
+        for (int a = 0; a < 3; a++)
+            planned.dims[a] = o->dims[a] ? o->dims[a] : 64;
+        planned.order = o->order;
+        planned.encoding = o->encoding;
+        snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
+        snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
+    }
+    size_t need = rc ? 0 : sdfd_bake_bytes(&planned);
+    pthread_mutex_lock(&v->lock);
+    if (!rc && v->closing)
+        rc = SDF_EUNAVAILABLE, snprintf(err, err_cap, "the server is shutting down");
+    if (!rc && v->bytes + v->reserved + need > v->max_bytes)
+        rc = SDF_ELIMIT, snprintf(err, err_cap,
+                                  "the bake needs %zu bytes; %zu of --max-volume-bytes %zu are "
+                                  "held or promised", need, v->bytes + v->reserved, v->max_bytes);
+    if (!rc && v->job_count >= v->max_jobs && !(pruned = unlink_oldest_finished(v)))
+        rc = SDF_EBUSY, snprintf(err, err_cap, "%zu bake jobs are unfinished; retry later",
+                                 v->job_count);
+    if (!rc) {
+        snprintf(j->status.id, sizeof j->status.id, "%08x-%lu", v->id_prefix, ++v->next_id);
+        j->status.state = SDFD_JOB_QUEUED;
+        j->started = sdfd_now();
+        j->reserved = need;
+        if (pthread_create(&j->thread, NULL, run_job, j)) {
+            rc = SDF_EUNAVAILABLE, snprintf(err, err_cap, "cannot start a bake thread");
+        } else {
+            v->reserved += need;
+            j->next = v->jobs;
+            v->jobs = j;
+            v->job_count++;
+            memcpy(id, j->status.id, 24);
+        }
+    }
+    pthread_mutex_unlock(&v->lock);
+    if (pruned)
+        free_job(pruned);
+    if (rc) {
+        if (rc == SDF_ENOMEM)
+            snprintf(err, err_cap, "out of memory");
+        sdf_mesh_release(mesh);
+        sdf_mesh_release(req->smoothing_mesh);
+        free(j);
+    }
+    return rc;
+}
+
+static job *find_job(sdfd_volumes *v, const char *id, job ***link)
+{
+    for (job **p = &v->jobs; *p; p = &(*p)->next)
+        if (!strcmp((*p)->status.id, id)) {
+            if (link)
+                *link = p;
+            return *p;
+        }
+    return NULL;
+}
+
+int sdfd_volumes_job(sdfd_volumes *v, const char *id, sdfd_job_status *out)
+{
+    pthread_mutex_lock(&v->lock);
+    job *j = find_job(v, id, NULL);
+    if (j)
+        snapshot(j, out);
+    pthread_mutex_unlock(&v->lock);
+    return j ? 0 : SDF_ENOTFOUND;
+}
+
+int sdfd_volumes_cancel(sdfd_volumes *v, const char *id, sdfd_job_status *out)
+{
+    job **link = NULL, *forgotten = NULL;
+    pthread_mutex_lock(&v->lock);
+    job *j = find_job(v, id, &link);
+    if (j && j->finished) { /* forget it */
+        snapshot(j, out);
+        *link = j->next;
+        v->job_count--;
+        forgotten = j;
+    } else if (j) {
+        atomic_store(&j->cancel, 1);
+        pthread_cond_broadcast(&v->slot_free); /* a queued job notices at once */
+        snapshot(j, out);
+    }
+    pthread_mutex_unlock(&v->lock);
+    if (forgotten)
+        free_job(forgotten);
+    return j ? 0 : SDF_ENOTFOUND;
+}
+
+size_t sdfd_volumes_jobs(sdfd_volumes *v, sdfd_job_status **out)
+{
+    pthread_mutex_lock(&v->lock);
+    size_t n = 0;
+    *out = malloc((v->job_count ? v->job_count : 1) * sizeof **out);
+    for (job *j = v->jobs; *out && j; j = j->next)
+        snapshot(j, &(*out)[n++]);
+    pthread_mutex_unlock(&v->lock);
+    return n;
+}
+
+void sdfd_volumes_close(sdfd_volumes *v)
+{
+    pthread_mutex_lock(&v->lock);
+    v->closing = 1;
+    for (job *j = v->jobs; j; j = j->next)
+        atomic_store(&j->cancel, 1);
+    pthread_cond_broadcast(&v->slot_free);
+    pthread_mutex_unlock(&v->lock);
+}
+
+void sdfd_volumes_destroy(sdfd_volumes *v)
+{
+    if (!v)
+        return;
+    sdfd_volumes_close(v);
+    pthread_mutex_lock(&v->lock);
+    job *jobs = v->jobs;
+    v->jobs = NULL;
+    pthread_mutex_unlock(&v->lock);
+    while (jobs) { /* each stops at its next slab */
+        job *next = jobs->next;
+        free_job(jobs);
+        jobs = next;
+    }
+    for (size_t i = 0; i < v->count; i++)
+        sdfd_volume_release(v->items[i]);
+    pthread_cond_destroy(&v->slot_free);
+    pthread_mutex_destroy(&v->lock);
+    free(v->items);
+    free(v);
+}

@@ -1,0 +1,98 @@
+/* volumes.h - the volumes sdfd has baked, by name, and the bake jobs that make them.
+ *
+ * A stored volume is reference-counted like a mesh: a query or download holding it keeps it
+ * alive through a DELETE or a replacing bake. Limits: number of volumes and their total
+ * bytes (a bake that would not fit is refused before it starts).
+ *
+ * A bake job runs on its own thread; at most `max_running` bake at once (each uses the
+ * configured geometry threads), the rest wait queued. Progress and cancellation go through
+ * sdf_volume_bake's progress callback. Finished jobs stay listed (their state and error)
+ * until `max_jobs` newer ones push the oldest finished out. Volumes and jobs belong to one
+ * replica: behind a load balancer, send a job's status requests to the replica that
+ * answered 202 (or bake on every replica). Thread-safe. */
+#ifndef SDFD_VOLUMES_H
+#define SDFD_VOLUMES_H
+
+#include <stdatomic.h>
+#include <stddef.h>
+
+#include "registry.h" /* SDFD_MAX_NAME */
+#include "sdf/sdf.h"
+
+typedef struct sdfd_volumes sdfd_volumes;
+
+typedef struct sdfd_stored_volume {
+    atomic_int refs;
+    sdf_volume *volume;
+    char name[SDFD_MAX_NAME + 1];
+    char mesh[SDFD_MAX_NAME + 1]; /* the mesh it was baked from */
+    char job[24];                 /* the job that baked it */
+    double bake_seconds;
+} sdfd_stored_volume;
+
+sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_running,
+                                  size_t max_jobs, int threads);
+/* Refuse new bakes and cancel every job (graceful shutdown, step 1); does not wait. */
+void sdfd_volumes_close(sdfd_volumes *v);
+/* Cancel every job, wait for their threads, release every volume. NULL is a no-op. */
+void sdfd_volumes_destroy(sdfd_volumes *v);
+
+/* ---- stored volumes ---- */
+
+/* The volume called `name`, retained (release it), or NULL. */
+sdfd_stored_volume *sdfd_volumes_get(sdfd_volumes *v, const char *name);
+void sdfd_volume_release(sdfd_stored_volume *s); /* NULL is a no-op */
+int sdfd_volumes_remove(sdfd_volumes *v, const char *name); /* 0 or SDF_ENOTFOUND */
+/* Snapshot sorted by name, each retained; release with sdfd_volumes_free_list. */
+size_t sdfd_volumes_list(sdfd_volumes *v, sdfd_stored_volume ***out);
+void sdfd_volumes_free_list(sdfd_stored_volume **list, size_t n);
+size_t sdfd_volumes_count(sdfd_volumes *v);
+
+/* ---- bake jobs ---- */
+
+typedef enum sdfd_job_state {
+    SDFD_JOB_QUEUED, SDFD_JOB_RUNNING, SDFD_JOB_DONE, SDFD_JOB_FAILED, SDFD_JOB_CANCELED
+} sdfd_job_state;
+
+const char *sdfd_job_state_name(sdfd_job_state s); /* "queued", "running", ... */
+
+typedef struct sdfd_job_status {
+    char id[24];
+    sdfd_job_state state;
+    double progress;              /* 0..1 */
+    char mesh[SDFD_MAX_NAME + 1];
+    char volume[SDFD_MAX_NAME + 1];
+    double seconds;               /* queued + running so far, or in all when finished */
+    int error;                    /* FAILED: the SDF_E* code */
+    char message[256];            /* FAILED: why */
+} sdfd_job_status;
+
+/* A bake request: what sdf_volume_bake needs, with the filter (and its smoothing mesh)
+ * owned by the job. */
+typedef struct sdfd_bake_request {
+    sdf_bake_options options;     /* progress, user, filter and query.threads are set here */
+    int filtered;
+    sdf_filter_options filter;
+    sdf_mesh *smoothing_mesh;     /* retained reference handed over, or NULL */
+} sdfd_bake_request;
+
+/* Bytes a bake needs at its peak: the volume plus the first-order planes being fitted. */
+size_t sdfd_bake_bytes(const sdf_volume_info *planned);
+
+/* Start a job baking `mesh` (a retained reference handed over, like req->smoothing_mesh,
+ * released when the job ends) into the volume `volume_name`. Writes the job id into id.
+ * SDF_ELIMIT when the volume would break the byte limit, SDF_EBUSY when max_jobs are still
+ * unfinished, SDF_EUNAVAILABLE when shutting down; on failure the references are released. */
+int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
+                      const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
+                      size_t err_cap);
+
+/* A job's status; SDF_ENOTFOUND for an unknown id. */
+int sdfd_volumes_job(sdfd_volumes *v, const char *id, sdfd_job_status *out);
+/* Cancel a queued or running job (it ends CANCELED at its next progress report), or forget
+ * a finished one; *out is the status after the call. SDF_ENOTFOUND for an unknown id. */
+int sdfd_volumes_cancel(sdfd_volumes *v, const char *id, sdfd_job_status *out);
+/* Every job's status, newest first (malloc'd; free it). */
+size_t sdfd_volumes_jobs(sdfd_volumes *v, sdfd_job_status **out);
+
+#endif

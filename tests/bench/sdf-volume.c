@@ -1,0 +1,127 @@
+/* sdf-volume - bake and evaluate volumes with libsdf directly, for tests that compare the
+ * server's floats with the library's and for scripting:
+ *   sdf-volume bake MESH|demo OUT [--format exr|npy|raw] [--resolution N | N,M,K]
+ *                   [--order 0|1] [--encoding float32|packed32] [--H h] [--delta d]
+ *                   [--lo x,y,z --hi x,y,z] [--margin m] [--threads T]
+ *   sdf-volume eval VOLUME.exr POINTS.npy OUT.npy [--interpolation trilinear|nearest]
+ *                   [--gradient]
+ * eval writes float32 (N,) values, or (N, 4) value and gradient. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/npyio.h"
+#include "sdf/sdf.h"
+
+static void die(const char *what, const char *why)
+{
+    fprintf(stderr, "sdf-volume: %s: %s\n", what, why);
+    exit(1);
+}
+
+static void numbers(const char *s, double *out, int n, const char *flag)
+{
+    for (int i = 0; i < n; i++) {
+        char *end;
+        out[i] = strtod(s, &end);
+        if (end == s || (i + 1 < n && *end != ','))
+            die(flag, "expects comma-separated numbers");
+        s = end + 1;
+    }
+}
+
+static int bake(int argc, char **argv)
+{
+    if (argc < 4)
+        die("bake", "needs MESH and OUT");
+    sdf_mesh *mesh = NULL;
+    sdf_diag diag;
+    if (!strcmp(argv[2], "demo") ? sdf_mesh_create_demo(&mesh)
+                                 : sdf_mesh_load_file(argv[2], NULL, &mesh, &diag))
+        die(argv[2], "cannot load the mesh");
+    sdf_bake_options o = {0};
+    sdf_volume_file type = SDF_VOLUME_EXR;
+    for (int i = 4; i < argc; i++) {
+        const char *f = argv[i], *v = i + 1 < argc ? argv[++i] : NULL;
+        if (!v)
+            die(f, "needs a value");
+        if (!strcmp(f, "--format")) {
+            if (sdf_volume_file_from_name(v, &type))
+                die(f, "exr, npy or raw");
+        } else if (!strcmp(f, "--resolution")) {
+            double d[3];
+            if (strchr(v, ','))
+                numbers(v, d, 3, f);
+            else
+                d[0] = d[1] = d[2] = atof(v);
+            for (int a = 0; a < 3; a++)
+                o.dims[a] = (size_t)d[a];
+        } else if (!strcmp(f, "--order")) {
+            o.order = atoi(v);
+        } else if (!strcmp(f, "--encoding")) {
+            if (sdf_encoding_from_name(v, &o.encoding))
+                die(f, "float32 or packed32");
+        } else if (!strcmp(f, "--H")) {
+            o.fine_half = atoi(v);
+        } else if (!strcmp(f, "--delta")) {
+            o.fine_spacing = atof(v);
+        } else if (!strcmp(f, "--lo")) {
+            numbers(v, o.lo, 3, f);
+        } else if (!strcmp(f, "--hi")) {
+            numbers(v, o.hi, 3, f);
+        } else if (!strcmp(f, "--margin")) {
+            o.margin = atof(v);
+        } else if (!strcmp(f, "--threads")) {
+            o.query.threads = atoi(v);
+        } else {
+            die(f, "unknown option");
+        }
+    }
+    sdf_volume *v = NULL;
+    if (sdf_volume_bake(mesh, &o, &v, &diag) || sdf_volume_save_file(v, type, argv[3], &diag))
+        die(argv[3], diag.message);
+    sdf_volume_destroy(v);
+    sdf_mesh_release(mesh);
+    return 0;
+}
+
+static int eval(int argc, char **argv)
+{
+    if (argc < 5)
+        die("eval", "needs VOLUME.exr, POINTS.npy and OUT.npy");
+    sdf_volume_filter filter = SDF_VOLUME_TRILINEAR;
+    int gradient = 0;
+    for (int i = 5; i < argc; i++) {
+        if (!strcmp(argv[i], "--gradient"))
+            gradient = 1;
+        else if (!strcmp(argv[i], "--interpolation") && i + 1 < argc) {
+            if (sdf_volume_filter_from_name(argv[++i], &filter))
+                die(argv[i], "trilinear or nearest");
+        }
+        else
+            die(argv[i], "unknown option");
+    }
+    sdf_volume *v = NULL;
+    sdf_diag diag;
+    if (sdf_volume_load_exr_file(argv[2], &v, &diag))
+        die(argv[2], diag.message);
+    size_t n;
+    float *p = npy_load_points("sdf-volume", argv[3], &n);
+    float *value = malloc((n + 1) * sizeof *value), *grad = malloc((3 * n + 1) * sizeof *grad);
+    if (sdf_volume_eval(v, p, n, filter, value, gradient ? grad : NULL, NULL))
+        die("eval", "failed");
+    npy_write_results("sdf-volume", argv[4], n, gradient ? 4 : 1, value, grad);
+    free(p), free(value), free(grad);
+    sdf_volume_destroy(v);
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc >= 2 && !strcmp(argv[1], "bake"))
+        return bake(argc, argv);
+    if (argc >= 2 && !strcmp(argv[1], "eval"))
+        return eval(argc, argv);
+    fprintf(stderr, "usage: sdf-volume bake MESH|demo OUT [options] | eval VOLUME.exr POINTS.npy OUT.npy\n");
+    return 2;
+}

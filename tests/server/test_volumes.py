@@ -1,0 +1,221 @@
+"""Baked volumes through sdfd: bake jobs (progress, cancellation, limits, bad parameters),
+downloads in every format against the library's own bake (sdf-volume, which calls
+sdf_volume_bake directly: the same float32 bits), volume queries in every body form against
+the library's evaluation of the downloaded EXR, and the documented error statuses."""
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+import urllib.request
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
+import sdfclient  # noqa: E402
+from harness import DATA, Server  # noqa: E402
+
+SDF_VOLUME = os.environ.get("SDF_VOLUME", "build/tests/bench/sdf-volume")
+
+
+def library_bake(mesh, fmt, *args):
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "v." + fmt)
+        subprocess.run([SDF_VOLUME, "bake", mesh, out, "--format", fmt, *args], check=True)
+        with open(out, "rb") as f:
+            return f.read()
+
+
+def library_eval(exr_bytes, points, interpolation, gradient):
+    with tempfile.TemporaryDirectory() as d:
+        paths = [os.path.join(d, n) for n in ("v.exr", "p.npy", "out.npy")]
+        with open(paths[0], "wb") as f:
+            f.write(exr_bytes)
+        np.save(paths[1], points)
+        subprocess.run([SDF_VOLUME, "eval", *paths, "--interpolation", interpolation]
+                       + (["--gradient"] if gradient else []), check=True)
+        return np.load(paths[2])
+
+
+def same_bits(a, b):
+    a, b = np.ascontiguousarray(a, np.float32), np.ascontiguousarray(b, np.float32)
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+class Volumes(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.mesh = os.path.join(DATA, "fandisk.off")
+        cls.server = Server("--mesh", f"fandisk={cls.mesh}", "--max-bake-queries", "20000000")
+        cls.c = sdfclient.Client(cls.server.url)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.c.close()
+        cls.server.stop()
+
+    def bake(self, **params):
+        job = self.c.bake("fandisk", **params)
+        self.assertEqual(job["state"], "queued")
+        return self.c.wait(job, timeout=120)
+
+    def test_bake_download_and_query_match_the_library(self):
+        cases = [({"resolution": [20, 17, 14]}, ["--resolution", "20,17,14"]),
+                 ({"resolution": 18, "order": 1}, ["--resolution", "18", "--order", "1"]),
+                 ({"resolution": 16, "order": 1, "encoding": "packed32", "H": 2, "delta": 0.2},
+                  ["--resolution", "16", "--order", "1", "--encoding", "packed32", "--H", "2",
+                   "--delta", "0.2"]),
+                 ({"resolution": 12, "bounds": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.2, 0.4]}},
+                  ["--resolution", "12", "--lo", "-0.3,-0.3,-0.3", "--hi", "0.3,0.2,0.4"])]
+        rng = np.random.default_rng(4)
+        points = rng.uniform(-0.6, 0.6, (2000, 3)).astype(np.float32)
+        for i, (params, args) in enumerate(cases):
+            name = f"v{i}"
+            status = self.bake(volume=name, **params)
+            self.assertEqual((status["state"], status["progress"], status["volume"]), ("done", 1, name))
+            meta = self.c.volume(name)
+            dims = params["resolution"] if isinstance(params["resolution"], list) else [params["resolution"]] * 3
+            self.assertEqual((meta["dims"], meta["order"], meta["mesh"]), (dims, params.get("order", 0), "fandisk"))
+            for fmt in ("npy", "raw"):
+                self.assertEqual(self.c.download(name, fmt, path=None) if fmt == "raw" else
+                                 self.c._request("GET", f"/v1/volumes/{name}/data?format=npy")[1],
+                                 library_bake(self.mesh, fmt, *args), f"{name} {fmt} differs")
+            exr = self.c.download(name, "exr")
+            for interpolation in ("trilinear", "nearest"):
+                for gradient in (False, True):
+                    ref = library_eval(exr, points, interpolation, gradient)
+                    for form in ("json", "octet", "npy"):
+                        r = self.c.query_volume(name, points, interpolation, gradient, form)
+                        self.assertTrue(same_bits(r["distance"], ref if ref.ndim == 1 else ref[:, 0]),
+                                        f"{name} {interpolation} {form}: values")
+                        if gradient:
+                            self.assertTrue(same_bits(r["gradient"], ref[:, 1:4]),
+                                            f"{name} {interpolation} {form}: gradient")
+        array = self.c.download("v1", "npy")
+        self.assertEqual((array.dtype, array.shape), (np.float32, (18, 18, 18, 4)))
+        # The nearest node's value at a node, through the query route.
+        meta = self.c.volume("v0")
+        node = np.array([meta["origin"][a] + 3 * meta["spacing"][a] for a in range(3)], np.float32)
+        got = self.c.query_volume("v0", node[None, :], "nearest")["distance"][0]
+        self.assertEqual(got, self.c.download("v0", "npy")[3, 3, 3])
+        names = [v["name"] for v in self.c.volumes()]
+        self.assertEqual([n for n in names if n.startswith("v")], ["v0", "v1", "v2", "v3"])
+
+    def test_filtered_bake(self):
+        raw = self.bake(volume="raw8", resolution=8)
+        filtered = self.bake(volume="filtered8", resolution=8, field="filtered",
+                             filter={"samples": 8, "seed": 3})
+        self.assertEqual((raw["state"], filtered["state"]), ("done", "done"))
+        self.assertTrue(self.c.volume("filtered8")["filtered"])
+        a, b = self.c.download("raw8", "npy"), self.c.download("filtered8", "npy")
+        self.assertFalse(np.array_equal(a, b))
+        self.assertLess(np.abs(a - b).max(), 0.1 * np.abs(a).max())
+
+    def test_cancel_and_forget(self):
+        job = self.c.bake("fandisk", volume="big", resolution=90, order=1)  # ~20 M queries
+        time.sleep(0.3)
+        s = self.c.cancel(job["id"])
+        self.assertTrue(s["cancel_requested"])
+        deadline = time.time() + 30
+        while self.c.job(job["id"])["state"] in ("queued", "running") and time.time() < deadline:
+            time.sleep(0.05)
+        s = self.c.job(job["id"])
+        self.assertEqual(s["state"], "canceled")
+        with self.assertRaises(sdfclient.SdfError) as e:
+            self.c.volume("big")
+        self.assertEqual(e.exception.status, 404)
+        self.assertIn(job["id"], [j["id"] for j in self.c.jobs()])
+        self.assertEqual(self.c.cancel(job["id"])["state"], "canceled")  # forgets it
+        with self.assertRaises(sdfclient.SdfError) as e:
+            self.c.job(job["id"])
+        self.assertEqual(e.exception.status, 404)
+
+    def test_bad_requests(self):
+        bad = [({"resolution": 1}, 422, "resolution x"),
+               ({"resolution": [8, 8]}, 422, "resolution"),
+               ({"resolution": 8.5}, 422, "resolution"),
+               ({"order": 2}, 422, "order"),
+               ({"order": 1, "H": 9}, 422, "H"),
+               ({"order": 1, "delta": 0.7}, 422, "Delta"),
+               ({"encoding": "packed32"}, 422, "first-order"),
+               ({"encoding": "png"}, 422, "encoding"),
+               ({"bounds": {"min": [0, 0, 0], "max": [1, -1, 1]}}, 422, "lo < hi"),
+               ({"bounds": [0, 1]}, 422, "bounds"),
+               ({"resolutoin": 8}, 422, "unknown key 'resolutoin'"),
+               ({"field": "smooth"}, 422, "field"),
+               ({"field": "raw", "filter": {"samples": 8}}, 422, "filter"),
+               ({"filter": {"kernel": "bump", "b": 1}}, 422, "8 f_c / 9"),
+               ({"volume": ".hidden"}, 422, "volume"),
+               ({"resolution": 300}, 413, "--max-bake-queries"),
+               ({"order": 1, "resolution": 100}, 413, "--max-bake-queries")]
+        for body, status, says in bad:
+            with self.assertRaises(sdfclient.SdfError, msg=str(body)) as e:
+                self.c.bake("fandisk", **body)
+            self.assertEqual(e.exception.status, status, body)
+            self.assertIn(says, e.exception.message, body)
+        for method, path, body, status in [
+                ("POST", "/v1/meshes/nope/bake", "{}", 404),
+                ("POST", "/v1/meshes/fandisk/bake", "not json", 400),
+                ("POST", "/v1/meshes/fandisk/bake", "[1]", 422),
+                ("GET", "/v1/meshes/fandisk/bake", None, 405),
+                ("GET", "/v1/jobs/nope", None, 404),
+                ("DELETE", "/v1/jobs/nope", None, 404),
+                ("GET", "/v1/volumes/nope", None, 404),
+                ("DELETE", "/v1/volumes/nope", None, 404),
+                ("GET", "/v1/volumes/nope/data", None, 404),
+                ("POST", "/v1/volumes/nope/query", '{"points": [[0, 0, 0]]}', 404),
+                ("PUT", "/v1/volumes/x", "", 405),
+                ("GET", "/v1/volumes/x/other", None, 404)]:
+            req = urllib.request.Request(self.server.url + path, method=method,
+                                         data=body.encode() if body is not None else None,
+                                         headers={"Content-Type": "application/json"})
+            try:
+                urllib.request.urlopen(req, timeout=30)
+                self.fail(f"{method} {path} succeeded")
+            except urllib.error.HTTPError as e:
+                self.assertEqual(e.code, status, f"{method} {path}")
+                self.assertIn("error", json.loads(e.read()))
+        self.bake(volume="q", resolution=8)
+        for kwargs, says in [({"interpolation": "cubic"}, "interpolation"),
+                             ({"points": [[0, float("nan"), 0]]}, "NaN")]:
+            with self.assertRaises(sdfclient.SdfError) as e:
+                self.c.query_volume("q", kwargs.pop("points", [[0, 0, 0]]), form="octet", **kwargs)
+            self.assertEqual(e.exception.status, 422)
+            self.assertIn(says, e.exception.message)
+        with self.assertRaises(sdfclient.SdfError) as e:
+            self.c.download("q", "png")
+        self.assertEqual(e.exception.status, 422)
+        self.c.delete_volume("q")
+        self.assertNotIn("q", [v["name"] for v in self.c.volumes()])
+
+
+class Limits(unittest.TestCase):
+    def test_memory_limit_token_and_shutdown(self):
+        with Server("--token", "t", "--max-volume-bytes", "100000") as s:
+            anon, admin = sdfclient.Client(s.url), sdfclient.Client(s.url, token="t")
+            self.addCleanup(anon.close)
+            self.addCleanup(admin.close)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                anon.bake("demo", resolution=8)
+            self.assertEqual(e.exception.status, 401)
+            admin.wait(admin.bake("demo", resolution=16))  # 16 KiB
+            with self.assertRaises(sdfclient.SdfError) as e:
+                admin.bake("demo", volume="big", resolution=40)  # 256 KB
+            self.assertEqual(e.exception.status, 413)
+            self.assertIn("--max-volume-bytes", e.exception.message)
+            self.assertEqual(anon.query_volume("demo", [[0, 0, 0]])["distance"].shape, (1,))
+            # SIGTERM during a long bake: it is canceled and the server exits promptly.
+            admin.bake("demo", volume="long", resolution=13, order=1, field="filtered",
+                       filter={"samples": 64})
+            time.sleep(0.3)
+            t0 = time.time()
+            self.assertEqual(s.stop(signal.SIGTERM), 0)
+            self.assertLess(time.time() - t0, 20)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
