@@ -280,6 +280,60 @@ size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const 
     return SDF_PROTO_HEADER_SIZE + payload;
 }
 
+/* ---- VOLUME_QUERY ------------------------------------------------------------------------ */
+
+size_t sdf_proto_volume_query_size(const sdf_proto_volume_query *q)
+{
+    if (q->name_len == 0 || q->name_len > SDF_PROTO_MAX_NAME)
+        return 0;
+    return 8 + pad4(q->name_len) + 12 * (size_t)q->count;
+}
+
+int sdf_proto_decode_volume_query(const void *payload, size_t size, uint32_t max_points,
+                                  sdf_proto_volume_query *q, const char **reason)
+{
+    const unsigned char *p = payload;
+    if (size < 8)
+        return fail(reason, SDF_EPROTO, "VOLUME_QUERY payload is shorter than its 8-byte prefix");
+    if (p[0] > 1)
+        return fail(reason, SDF_EINVAL, "unknown volume mode (0 value, 1 value and gradient)");
+    if (p[1] > 1)
+        return fail(reason, SDF_EINVAL, "unknown interpolation (0 trilinear, 1 nearest)");
+    q->gradient = p[0];
+    q->interpolation = p[1] ? SDF_VOLUME_NEAREST : SDF_VOLUME_TRILINEAR;
+    q->name_len = get16(p + 2);
+    q->count = get32(p + 4);
+    if (q->name_len == 0 || q->name_len > SDF_PROTO_MAX_NAME)
+        return fail(reason, SDF_EPROTO, "volume name length must be 1..255");
+    if (q->count > max_points)
+        return fail(reason, SDF_ELIMIT, "more points than max_points");
+    if (size != sdf_proto_volume_query_size(q))
+        return fail(reason, SDF_EPROTO,
+                    "VOLUME_QUERY payload length is not 8 + pad4(name_length) + 12 * count");
+    q->name = (const char *)p + 8;
+    q->points = p + 8 + pad4(q->name_len);
+    return 0;
+}
+
+size_t sdf_proto_encode_volume_query(void *dst, size_t cap, uint32_t request_id,
+                                     const sdf_proto_volume_query *q)
+{
+    size_t payload = sdf_proto_volume_query_size(q);
+    if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
+        return 0;
+    unsigned char *p = dst;
+    sdf_proto_encode_header(p, SDF_PROTO_VOLUME_QUERY, request_id, (uint32_t)payload);
+    p += SDF_PROTO_HEADER_SIZE;
+    p[0] = q->gradient ? 1 : 0;
+    p[1] = q->interpolation == SDF_VOLUME_NEAREST ? 1 : 0;
+    put16(p + 2, (uint16_t)q->name_len);
+    put32(p + 4, q->count);
+    memset(p + 8, 0, pad4(q->name_len));
+    memcpy(p + 8, q->name, q->name_len);
+    memcpy(p + 8 + pad4(q->name_len), q->points, 12 * (size_t)q->count);
+    return SDF_PROTO_HEADER_SIZE + payload;
+}
+
 /* ---- RESULT ------------------------------------------------------------------------------ */
 
 size_t sdf_proto_encode_result_head(void *dst, uint32_t request_id, sdf_proto_mode mode,

@@ -19,6 +19,7 @@ enum sdf_proto_type {
     SDF_PROTO_HELLO = 0x01,
     SDF_PROTO_LIST_MESHES = 0x02,
     SDF_PROTO_QUERY = 0x03,
+    SDF_PROTO_VOLUME_QUERY = 0x04,
     SDF_PROTO_ERROR = 0x7F,
     SDF_PROTO_HELLO_OK = 0x81,
     SDF_PROTO_MESHES = 0x82,
@@ -83,6 +84,24 @@ int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points
 /* Write a whole QUERY frame (header + payload, points copied from q->points); returns its
  * size, or 0 if it does not fit in `cap` or the name is empty / too long. */
 size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const sdf_proto_query *q);
+
+/* VOLUME_QUERY: evaluate a baked volume (docs/volumes.md). Answered by a RESULT in the
+ * signed layout (W = 1: the value) or, with `gradient`, the gradient layout (W = 4). */
+typedef struct sdf_proto_volume_query {
+    int gradient;                    /* 0: value; 1: value and gradient */
+    sdf_volume_filter interpolation; /* SDF_VOLUME_TRILINEAR (0) or SDF_VOLUME_NEAREST (1) */
+    const char *name;
+    size_t name_len;
+    uint32_t count;
+    const void *points;
+} sdf_proto_volume_query;
+
+/* Payload size of a VOLUME_QUERY (8 + pad4(name_length) + 12 N), or 0 for a bad name. */
+size_t sdf_proto_volume_query_size(const sdf_proto_volume_query *q);
+int sdf_proto_decode_volume_query(const void *payload, size_t size, uint32_t max_points,
+                                  sdf_proto_volume_query *q, const char **reason);
+size_t sdf_proto_encode_volume_query(void *dst, size_t cap, uint32_t request_id,
+                                     const sdf_proto_volume_query *q);
 
 /* RESULT: 12 bytes of header fields then 4 * words * count bytes of data. */
 typedef struct sdf_proto_result {

@@ -117,8 +117,11 @@ static void account(sdfd_binary *b, sdfd_route route, const char *what, int stat
 {
     double seconds = sdfd_now() - start;
     sdfd_metrics_request(b->srv->metrics, route, status, seconds);
-    sdfd_log_request("binary", what, route == SDFD_ROUTE_BIN_QUERY ? "query" : "other", status,
-                     points, seconds * 1e6, bytes_in, bytes_out);
+    sdfd_log_request("binary", what,
+                     route == SDFD_ROUTE_BIN_QUERY          ? "query"
+                     : route == SDFD_ROUTE_BIN_VOLUME_QUERY ? "volume_query"
+                                                            : "other",
+                     status, points, seconds * 1e6, bytes_in, bytes_out);
 }
 
 /* ---- queries ----------------------------------------------------------------------------- */
@@ -260,6 +263,123 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
     sdfd_metrics_points(srv->metrics, q.count);
 }
 
+/* ---- volume queries: evaluated on a thread of their own (not geometry for the batcher, but
+ * too slow for the poll loop), answered like queries ------------------------------------- */
+
+typedef struct volume_job {
+    sdfd_binary *b;
+    connection *conn;
+    uint32_t request_id;
+    sdfd_stored_volume *stored;
+    sdf_volume_filter interpolation;
+    int gradient;
+    uint32_t count;
+    float *points;
+    char *frame;
+    double start;
+    size_t bytes_in;
+} volume_job;
+
+static void *run_volume_query(void *arg)
+{
+    volume_job *vj = arg;
+    connection *c = vj->conn;
+    sdfd_binary *b = vj->b;
+    size_t head = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX, bad = 0;
+    size_t len = head + 4 * (vj->gradient ? 4 : 1) * (size_t)vj->count;
+    int rc = sdfd_volume_eval_words(vj->stored->volume, vj->points, vj->count, vj->interpolation,
+                                    vj->gradient, (uint32_t *)(vj->frame + head), &bad);
+    if (rc) {
+        char message[96];
+        if (rc == SDF_ENONFINITE)
+            snprintf(message, sizeof message, "point %zu has a NaN or infinite coordinate", bad);
+        else
+            snprintf(message, sizeof message, "%s", sdf_strerror(rc));
+        send_error(c, vj->request_id, rc, message);
+        free(vj->frame);
+    } else {
+        enqueue(c, vj->frame, len);
+    }
+    account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", rc ? sdf_http_status(rc) : 200,
+            vj->count, vj->start, vj->bytes_in, rc ? 0 : len);
+    sdfd_volume_release(vj->stored);
+    free(vj->points);
+    free(vj);
+    pthread_mutex_lock(&c->lock);
+    c->in_flight--;
+    pthread_mutex_unlock(&c->lock);
+    atomic_fetch_sub(&b->srv->in_flight, 1);
+    wake(b);
+    return NULL;
+}
+
+static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
+                                const unsigned char *payload, size_t len)
+{
+    sdfd_server *srv = b->srv;
+    double start = sdfd_now();
+    size_t bytes_in = SDF_PROTO_HEADER_SIZE + len;
+    sdf_proto_volume_query q;
+    const char *why;
+    char message[300];
+    int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)srv->cfg.max_points, &q, &why);
+    if (rc || atomic_load(&srv->draining)) {
+        send_error(c, id, rc ? rc : SDF_EUNAVAILABLE, rc ? why : "the server is shutting down");
+        account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY",
+                sdf_http_status(rc ? rc : SDF_EUNAVAILABLE), 0, start, bytes_in, 0);
+        return;
+    }
+    snprintf(message, sizeof message, "%.*s", (int)q.name_len, q.name);
+    volume_job *vj = calloc(1, sizeof *vj);
+    if (vj && !(vj->stored = sdfd_volumes_get(srv->volumes, message))) {
+        free(vj);
+        snprintf(message, sizeof message, "no volume named '%.*s'", (int)q.name_len, q.name);
+        send_error(c, id, SDF_ENOTFOUND, message);
+        account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", 404, 0, start, bytes_in, 0);
+        return;
+    }
+    if (vj) {
+        vj->frame = malloc(SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
+                           4 * (q.gradient ? 4 : 1) * (size_t)q.count);
+        vj->points = malloc(12 * (size_t)q.count + 4);
+    }
+    pthread_t thread;
+    pthread_attr_t attr;
+    pthread_attr_init(&attr);
+    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+    rc = vj && vj->frame && vj->points ? 0 : SDF_ENOMEM;
+    if (!rc) {
+        memcpy(vj->points, q.points, 12 * (size_t)q.count); /* the input buffer moves on */
+        sdf_proto_encode_result_head(vj->frame, id, q.gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED,
+                                     q.count);
+        *vj = (volume_job){b, c, id, vj->stored, q.interpolation, q.gradient, q.count, vj->points,
+                           vj->frame, start, bytes_in};
+        pthread_mutex_lock(&c->lock);
+        c->in_flight++;
+        pthread_mutex_unlock(&c->lock);
+        atomic_fetch_add(&srv->in_flight, 1);
+        if (pthread_create(&thread, &attr, run_volume_query, vj)) {
+            rc = SDF_EUNAVAILABLE;
+            pthread_mutex_lock(&c->lock);
+            c->in_flight--;
+            pthread_mutex_unlock(&c->lock);
+            atomic_fetch_sub(&srv->in_flight, 1);
+        }
+    }
+    pthread_attr_destroy(&attr);
+    if (rc) {
+        if (vj) {
+            sdfd_volume_release(vj->stored);
+            free(vj->frame), free(vj->points), free(vj);
+        }
+        send_error(c, id, rc, rc == SDF_ENOMEM ? "out of memory" : "cannot start a worker thread");
+        account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", sdf_http_status(rc), 0, start,
+                bytes_in, 0);
+        return;
+    }
+    sdfd_metrics_points(srv->metrics, q.count);
+}
+
 static void handle_list(sdfd_binary *b, connection *c, uint32_t id)
 {
     sdfd_entry *list;
@@ -288,6 +408,10 @@ static void handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *
 {
     if (h->type == SDF_PROTO_QUERY) {
         handle_query(b, c, h->request_id, payload, h->length);
+        return;
+    }
+    if (h->type == SDF_PROTO_VOLUME_QUERY) {
+        handle_volume_query(b, c, h->request_id, payload, h->length);
         return;
     }
     double start = sdfd_now();

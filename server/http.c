@@ -698,29 +698,15 @@ static enum MHD_Result start_volume_data(request *req)
 
 static void evaluate_volume(request *req)
 {
-    float *gradient = NULL;
-    uint32_t *w = req->reply.words;
-    size_t n = req->points, bad = 0;
-    float *value = malloc((n ? n : 1) * sizeof *value);
-    if (req->reply.mode == SDF_MODE_GRADIENT)
-        gradient = malloc((n ? 3 * n : 1) * sizeof *gradient);
-    if (!value || (req->reply.mode == SDF_MODE_GRADIENT && !gradient)) {
-        req->upload_rc = SDF_ENOMEM;
-        snprintf(req->diag.message, sizeof req->diag.message, "out of memory for %zu points", n);
-    } else if ((req->upload_rc = sdf_volume_eval(req->stored->volume, req->points_buf, n,
-                                                 req->interpolation, value, gradient, &bad))) {
+    size_t bad = 0;
+    req->upload_rc = sdfd_volume_eval_words(req->stored->volume, req->points_buf, req->points,
+                                            req->interpolation, req->reply.mode == SDF_MODE_GRADIENT,
+                                            req->reply.words, &bad);
+    if (req->upload_rc == SDF_ENONFINITE)
         snprintf(req->diag.message, sizeof req->diag.message,
                  "point %zu has a NaN or infinite coordinate", bad);
-    } else {
-        int words = gradient ? 4 : 1;
-        for (size_t i = 0; i < n; i++) {
-            memcpy(w + (size_t)words * i, value + i, 4);
-            if (gradient)
-                memcpy(w + 4 * i + 1, gradient + 3 * i, 12);
-        }
-    }
-    free(value);
-    free(gradient);
+    else if (req->upload_rc)
+        snprintf(req->diag.message, sizeof req->diag.message, "%s", sdf_strerror(req->upload_rc));
 }
 
 static enum MHD_Result reply_volume_query(request *req)

@@ -174,6 +174,26 @@ size_t sdfd_volumes_count(sdfd_volumes *v)
     return n;
 }
 
+int sdfd_volume_eval_words(const sdf_volume *v, const float *points, size_t count,
+                           sdf_volume_filter interpolation, int gradient, uint32_t *words,
+                           size_t *bad_index)
+{
+    float *value = malloc((count ? count : 1) * sizeof *value);
+    float *grad = gradient ? malloc((count ? 3 * count : 1) * sizeof *grad) : NULL;
+    int rc = !value || (gradient && !grad) ? SDF_ENOMEM : 0;
+    if (!rc)
+        rc = sdf_volume_eval(v, points, count, interpolation, value, grad, bad_index);
+    for (size_t i = 0; !rc && i < count; i++) {
+        uint32_t *w = words + (gradient ? 4 * i : i);
+        memcpy(w, value + i, 4);
+        if (gradient)
+            memcpy(w + 1, grad + 3 * i, 12);
+    }
+    free(value);
+    free(grad);
+    return rc;
+}
+
 /* ---- jobs -------------------------------------------------------------------------------- */
 
 size_t sdfd_bake_bytes(const sdf_volume_info *planned)

@@ -15,6 +15,7 @@
 
 #include <stdatomic.h>
 #include <stddef.h>
+#include <stdint.h>
 
 #include "registry.h" /* SDFD_MAX_NAME */
 #include "sdf/sdf.h"
@@ -47,6 +48,13 @@ int sdfd_volumes_remove(sdfd_volumes *v, const char *name); /* 0 or SDF_ENOTFOUN
 size_t sdfd_volumes_list(sdfd_volumes *v, sdfd_stored_volume ***out);
 void sdfd_volumes_free_list(sdfd_stored_volume **list, size_t n);
 size_t sdfd_volumes_count(sdfd_volumes *v);
+
+/* Evaluate `v` at `count` points into the wire layout (PROTOCOL.md): per point the value, and
+ * with `gradient` its gradient x, y, z (W = 4). 0, SDF_ENONFINITE (*bad_index set) or
+ * SDF_ENOMEM. */
+int sdfd_volume_eval_words(const sdf_volume *v, const float *points, size_t count,
+                           sdf_volume_filter interpolation, int gradient, uint32_t *words,
+                           size_t *bad_index);
 
 /* ---- bake jobs ---- */
 

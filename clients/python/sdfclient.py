@@ -402,6 +402,17 @@ class BinaryClient:
         _, p = self._call(0x03, self._query_payload(name, points, mode, sign, filter))
         return self._result(p, mode)
 
+    def query_volume(self, name, points, interpolation="trilinear", gradient=False):
+        """VOLUME_QUERY: evaluate a baked volume; {"distance"} and with gradient=True
+        {"gradient"} too."""
+        p = _points(points)
+        nb = name.encode()
+        payload = struct.pack("<BBHI", 1 if gradient else 0,
+                              {"trilinear": 0, "nearest": 1}[interpolation], len(nb), len(p)) \
+            + nb + b"\0" * ((-len(nb)) % 4) + p.tobytes()
+        _, r = self._call(0x04, payload)
+        return self._result(r, "gradient" if gradient else "signed")
+
     def query_many(self, requests, mode="signed", sign="auto", window=32, filter=None):
         """Pipeline [(name, points), ...] with up to `window` requests in flight; replies may
         arrive in any order. Returns results (or SdfError objects) in request order."""

@@ -191,11 +191,46 @@ static void test_error_and_hello(void)
           "truncated second entry");
 }
 
+static void test_volume_query(void)
+{
+    float pts[9] = {1, 2, 3, -4, 5.5f, 1e-30f, 0, 0, 7};
+    sdf_proto_volume_query q = {.gradient = 1, .interpolation = SDF_VOLUME_NEAREST, .name = "knot",
+                                .name_len = 4, .count = 3, .points = pts}, back;
+    size_t n = sdf_proto_encode_volume_query(frame, sizeof frame, 9, &q);
+    CHECK(n == 16 + 8 + 4 + 36, "volume query frame size %zu", n);
+    sdf_proto_header h;
+    const char *why;
+    CHECK(sdf_proto_decode_header(frame, n, 1 << 20, &h, &why) == 0 &&
+              h.type == SDF_PROTO_VOLUME_QUERY && h.request_id == 9, "volume query header");
+    CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == 0, "decode: %s", why);
+    CHECK(back.gradient == 1 && back.interpolation == SDF_VOLUME_NEAREST && back.count == 3 &&
+              back.name_len == 4 && !memcmp(back.name, "knot", 4) &&
+              !memcmp(back.points, pts, sizeof pts),
+          "volume query round trip");
+    for (size_t len = 0; len < h.length; len++)
+        CHECK(sdf_proto_decode_volume_query(frame + 16, len, 100, &back, &why) != 0, "prefix %zu", len);
+    CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 2, &back, &why) == SDF_ELIMIT,
+          "max points");
+    frame[16] = 2;
+    CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL, "mode 2");
+    frame[16] = 0;
+    frame[17] = 2;
+    CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL,
+          "interpolation 2");
+    frame[17] = 0;
+    frame[18] = 0;
+    CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == SDF_EPROTO,
+          "empty name");
+    q.name_len = 256;
+    CHECK(sdf_proto_encode_volume_query(frame, sizeof frame, 1, &q) == 0, "name too long");
+}
+
 int main(void)
 {
     test_header();
     test_query();
     test_filtered_query();
+    test_volume_query();
     test_result();
     test_error_and_hello();
     sdf_proto_mode m;

@@ -1,11 +1,13 @@
 """Baked volumes through sdfd: bake jobs (progress, cancellation, limits, bad parameters),
 downloads in every format against the library's own bake (sdf-volume, which calls
 sdf_volume_bake directly: the same float32 bits), volume queries in every body form against
-the library's evaluation of the downloaded EXR, and the documented error statuses."""
+the library's evaluation of the downloaded EXR (and over the binary protocol's VOLUME_QUERY), and
+the documented error statuses."""
 import io
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import tempfile
@@ -52,10 +54,12 @@ class Volumes(unittest.TestCase):
         cls.mesh = os.path.join(DATA, "fandisk.off")
         cls.server = Server("--mesh", f"fandisk={cls.mesh}", "--max-bake-queries", "20000000")
         cls.c = sdfclient.Client(cls.server.url)
+        cls.bin = sdfclient.BinaryClient("127.0.0.1", cls.server.bin_port)
 
     @classmethod
     def tearDownClass(cls):
         cls.c.close()
+        cls.bin.close()
         cls.server.stop()
 
     def bake(self, **params):
@@ -88,8 +92,10 @@ class Volumes(unittest.TestCase):
             for interpolation in ("trilinear", "nearest"):
                 for gradient in (False, True):
                     ref = library_eval(exr, points, interpolation, gradient)
-                    for form in ("json", "octet", "npy"):
-                        r = self.c.query_volume(name, points, interpolation, gradient, form)
+                    answers = {form: self.c.query_volume(name, points, interpolation, gradient, form)
+                               for form in ("json", "octet", "npy")}
+                    answers["binary"] = self.bin.query_volume(name, points, interpolation, gradient)
+                    for form, r in answers.items():
                         self.assertTrue(same_bits(r["distance"], ref if ref.ndim == 1 else ref[:, 0]),
                                         f"{name} {interpolation} {form}: values")
                         if gradient:
@@ -186,6 +192,16 @@ class Volumes(unittest.TestCase):
                 self.c.query_volume("q", kwargs.pop("points", [[0, 0, 0]]), form="octet", **kwargs)
             self.assertEqual(e.exception.status, 422)
             self.assertIn(says, e.exception.message)
+        for call, status in [(lambda: self.bin.query_volume("nope", [[0, 0, 0]]), 404),
+                             (lambda: self.bin.query_volume("q", [[0, float("nan"), 0]]), 422)]:
+            with self.assertRaises(sdfclient.SdfError) as e:
+                call()
+            self.assertEqual(e.exception.status, status)
+        bad_mode = struct.pack("<BBHI", 7, 0, 1, 1) + b"q\0\0\0" + b"\0" * 12
+        with self.assertRaises(sdfclient.SdfError) as e:
+            self.bin._call(0x04, bad_mode)
+        self.assertEqual(e.exception.status, 422)
+        self.assertEqual(self.bin.query_volume("q", [[0, 0, 0]])["distance"].shape, (1,))  # still open
         with self.assertRaises(sdfclient.SdfError) as e:
             self.c.download("q", "png")
         self.assertEqual(e.exception.status, 422)
