@@ -5,7 +5,8 @@
  *                   [--lo x,y,z --hi x,y,z] [--margin m] [--threads T]
  *   sdf-volume eval VOLUME.exr POINTS.npy OUT.npy [--interpolation trilinear|nearest]
  *                   [--gradient]
- * eval writes float32 (N,) values, or (N, 4) value and gradient. */
+ * bake prints the volume's metadata (JSON) on stdout; eval writes float32 (N,) values, or
+ * (N, 4) value and gradient. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -80,6 +81,9 @@ static int bake(int argc, char **argv)
     sdf_volume *v = NULL;
     if (sdf_volume_bake(mesh, &o, &v, &diag) || sdf_volume_save_file(v, type, argv[3], &diag))
         die(argv[3], diag.message);
+    char json[1024];
+    if (sdf_volume_describe_json(v, json, sizeof json) > 0)
+        printf("%s\n", json);
     sdf_volume_destroy(v);
     sdf_mesh_release(mesh);
     return 0;

@@ -27,7 +27,8 @@ SDF_VOLUME = os.environ.get("SDF_VOLUME", "build/tests/bench/sdf-volume")
 def library_bake(mesh, fmt, *args):
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "v." + fmt)
-        subprocess.run([SDF_VOLUME, "bake", mesh, out, "--format", fmt, *args], check=True)
+        subprocess.run([SDF_VOLUME, "bake", mesh, out, "--format", fmt, *args], check=True,
+                       stdout=subprocess.DEVNULL)
         with open(out, "rb") as f:
             return f.read()
 

@@ -1,0 +1,51 @@
+#!/bin/sh
+# Volume bakes beside their peer, in one run (docs/performance.md, "Volumes"):
+#  - sdfd's 128^3 zero-order and first-order bakes (tests/bench/bake-bench, all CPUs), their
+#    time ratio (target: first order <= 4x zero order);
+#  - OpenVDB's createLevelSetFromPolygons (Debian python3-openvdb, tests/bench/vdb_bake.py)
+#    with voxels as large as our largest node spacing and a half width that covers the whole
+#    box (the largest |distance| in it, in voxels, plus one): our nodes per second over its
+#    active voxels per second (target: >= 5x).
+# usage: tests/bench/bake-compare.sh [BUILD_DIR (build)] [DIM (128)] [MESH ...]
+set -eu
+cd "$(dirname "$0")/../.."
+build=${1:-build}
+dim=${2:-128}
+shift 2 2>/dev/null || shift $#
+meshes=${*:-"../shared/meshes/fandisk.off ../shared/meshes/refined_elephant.off"}
+[ -f "$build/build.ninja" ] || meson setup "$build" --buildtype=release >/dev/null
+meson compile -C "$build" >/dev/null
+/usr/bin/python3 -c "import pyopenvdb" 2>/dev/null || {
+    echo "needs Debian's python3-openvdb: apt-get install python3-openvdb" >&2
+    exit 1
+}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+for mesh in $meshes; do
+    name=$(basename "$mesh" .off)
+    "$build/tests/bench/bake-bench" "$mesh" "$dim" > "$tmp/ours.json"
+    "$build/tests/bench/sdf-volume" bake "$mesh" "$tmp/v.npy" --format npy --resolution "$dim" \
+        > "$tmp/meta.json"
+    set -- $(/usr/bin/python3 - "$tmp" <<'PY'
+import json, math, sys
+import numpy as np
+tmp = sys.argv[1]
+meta = json.load(open(tmp + "/meta.json"))
+voxel = max(meta["spacing"])
+half = math.ceil(float(np.abs(np.load(tmp + "/v.npy")).max()) / voxel) + 1
+print(voxel, half)
+PY
+)
+    /usr/bin/python3 tests/bench/vdb_bake.py "$mesh" "$1" "$2" > "$tmp/vdb.json"
+    /usr/bin/python3 - "$tmp" "$name" "$dim" <<'PY'
+import json, sys
+tmp, name, dim = sys.argv[1], sys.argv[2], int(sys.argv[3])
+ours = [json.loads(l) for l in open(tmp + "/ours.json")]
+vdb = json.load(open(tmp + "/vdb.json"))
+zero, first = ours[0], ours[1]
+print(f"{name} {dim}^3: zero order {zero['seconds']:.3f} s ({zero['nodes_per_second']/1e6:.2f} M nodes/s), "
+      f"first order {first['seconds']:.3f} s: first/zero {first['seconds']/zero['seconds']:.2f}x; "
+      f"OpenVDB {vdb['seconds']:.3f} s for {vdb['active_voxels']} active voxels "
+      f"({vdb['voxels_per_second']/1e6:.2f} M/s): ours/OpenVDB {zero['nodes_per_second']/vdb['voxels_per_second']:.2f}x")
+PY
+done
