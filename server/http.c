@@ -819,7 +819,10 @@ static enum MHD_Result dispatch(request *req)
                                         : status_reply(req, 503, "loading");
     case SDFD_ROUTE_METRICS: {
         size_t len;
-        char *text = sdfd_metrics_render(srv->metrics, sdfd_registry_count(srv->registry), &len);
+        sdfd_gauges g = {.meshes_loaded = sdfd_registry_count(srv->registry),
+                         .volumes_loaded = sdfd_volumes_count(srv->volumes)};
+        sdfd_volumes_usage(srv->volumes, &g.volume_bytes, &g.bakes_running, &g.bakes_queued);
+        char *text = sdfd_metrics_render(srv->metrics, &g, &len);
         return text ? send_buffer(req, 200, "text/plain; version=0.0.4", text, len, NULL) : MHD_NO;
     }
     case SDFD_ROUTE_MESHES:

@@ -142,7 +142,7 @@ static void render_histogram(out *o, histogram *h)
          (unsigned long long)atomic_load(&h->count));
 }
 
-char *sdfd_metrics_render(sdfd_metrics *m, size_t meshes_loaded, size_t *len)
+char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len)
 {
     out o = {0};
     emit(&o, "# HELP sdfd_requests_total Requests answered, by route and status.\n"
@@ -161,7 +161,14 @@ char *sdfd_metrics_render(sdfd_metrics *m, size_t meshes_loaded, size_t *len)
     emit(&o, "# HELP sdfd_queue_depth Requests waiting for the batcher.\n"
              "# TYPE sdfd_queue_depth gauge\nsdfd_queue_depth %ld\n", atomic_load(&m->queue_depth));
     emit(&o, "# HELP sdfd_meshes_loaded Meshes being served.\n# TYPE sdfd_meshes_loaded gauge\n"
-             "sdfd_meshes_loaded %zu\n", meshes_loaded);
+             "sdfd_meshes_loaded %zu\n", g->meshes_loaded);
+    emit(&o, "# HELP sdfd_volumes_loaded Baked volumes being served.\n"
+             "# TYPE sdfd_volumes_loaded gauge\nsdfd_volumes_loaded %zu\n", g->volumes_loaded);
+    emit(&o, "# HELP sdfd_volume_bytes Bytes of the baked volumes.\n"
+             "# TYPE sdfd_volume_bytes gauge\nsdfd_volume_bytes %zu\n", g->volume_bytes);
+    emit(&o, "# HELP sdfd_bakes Bake jobs by state.\n# TYPE sdfd_bakes gauge\n"
+             "sdfd_bakes{state=\"running\"} %zu\nsdfd_bakes{state=\"queued\"} %zu\n",
+         g->bakes_running, g->bakes_queued);
     render_histogram(&o, &m->latency);
     render_histogram(&o, &m->batch_requests);
     render_histogram(&o, &m->batch_points);

@@ -27,7 +27,12 @@ void sdfd_metrics_points(sdfd_metrics *m, size_t points);
 void sdfd_metrics_batch(sdfd_metrics *m, size_t requests, size_t points, double seconds);
 void sdfd_metrics_queue_depth(sdfd_metrics *m, long delta);
 
-/* Render everything (plus the given gauge of loaded meshes) into a new string. */
-char *sdfd_metrics_render(sdfd_metrics *m, size_t meshes_loaded, size_t *len);
+/* Gauges owned elsewhere, read when /metrics is rendered. */
+typedef struct sdfd_gauges {
+    size_t meshes_loaded, volumes_loaded, volume_bytes, bakes_running, bakes_queued;
+} sdfd_gauges;
+
+/* Render everything (plus the given gauges) into a new string. */
+char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len);
 
 #endif

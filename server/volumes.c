@@ -194,6 +194,17 @@ int sdfd_volume_eval_words(const sdf_volume *v, const float *points, size_t coun
     return rc;
 }
 
+void sdfd_volumes_usage(sdfd_volumes *v, size_t *bytes, size_t *running, size_t *queued)
+{
+    pthread_mutex_lock(&v->lock);
+    *bytes = v->bytes;
+    *running = (size_t)v->running;
+    *queued = 0;
+    for (const job *j = v->jobs; j; j = j->next)
+        *queued += j->status.state == SDFD_JOB_QUEUED;
+    pthread_mutex_unlock(&v->lock);
+}
+
 /* ---- jobs -------------------------------------------------------------------------------- */
 
 size_t sdfd_bake_bytes(const sdf_volume_info *planned)

@@ -48,6 +48,8 @@ int sdfd_volumes_remove(sdfd_volumes *v, const char *name); /* 0 or SDF_ENOTFOUN
 size_t sdfd_volumes_list(sdfd_volumes *v, sdfd_stored_volume ***out);
 void sdfd_volumes_free_list(sdfd_stored_volume **list, size_t n);
 size_t sdfd_volumes_count(sdfd_volumes *v);
+/* Bytes of the stored volumes, and how many bakes run and wait. */
+void sdfd_volumes_usage(sdfd_volumes *v, size_t *bytes, size_t *running, size_t *queued);
 
 /* Evaluate `v` at `count` points into the wire layout (PROTOCOL.md): per point the value, and
  * with `gradient` its gradient x, y, z (W = 4). 0, SDF_ENONFINITE (*bad_index set) or

@@ -19,6 +19,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
+import harness  # noqa: E402
 from harness import DATA, Server  # noqa: E402
 
 SDF_VOLUME = os.environ.get("SDF_VOLUME", "build/tests/bench/sdf-volume")
@@ -111,6 +112,11 @@ class Volumes(unittest.TestCase):
         self.assertEqual(got, self.c.download("v0", "npy")[3, 3, 3])
         names = [v["name"] for v in self.c.volumes()]
         self.assertEqual([n for n in names if n.startswith("v")], ["v0", "v1", "v2", "v3"])
+        text = self.c.metrics()
+        self.assertGreaterEqual(harness.metric(text, "sdfd_volumes_loaded"), 4)
+        self.assertGreater(harness.metric(text, "sdfd_volume_bytes"), 0)
+        self.assertGreaterEqual(harness.metric(text, "sdfd_requests_total",
+                                               'route="/v1/volumes/{name}/query",status="200"'), 1)
 
     def test_filtered_bake(self):
         raw = self.bake(volume="raw8", resolution=8)
