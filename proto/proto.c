@@ -258,20 +258,32 @@ int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points
     return 0;
 }
 
+/* The header and the 8-byte prefix that QUERY and VOLUME_QUERY share: two code bytes, the
+ * name's length, the point count, then the name padded to 4. Returns the payload start. */
+static unsigned char *put_query_prefix(void *dst, uint8_t type, uint32_t request_id,
+                                       size_t payload, uint8_t code0, uint8_t code1,
+                                       const char *name, size_t name_len, uint32_t count)
+{
+    unsigned char *p = dst;
+    sdf_proto_encode_header(p, type, request_id, (uint32_t)payload);
+    p += SDF_PROTO_HEADER_SIZE;
+    p[0] = code0;
+    p[1] = code1;
+    put16(p + 2, (uint16_t)name_len);
+    put32(p + 4, count);
+    memset(p + 8, 0, pad4(name_len));
+    memcpy(p + 8, name, name_len);
+    return p;
+}
+
 size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const sdf_proto_query *q)
 {
     size_t payload = sdf_proto_query_size(q);
     if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
         return 0;
-    unsigned char *p = dst;
-    sdf_proto_encode_header(p, SDF_PROTO_QUERY, request_id, (uint32_t)payload);
-    p += SDF_PROTO_HEADER_SIZE;
-    p[0] = (unsigned char)q->mode;
-    p[1] = (unsigned char)q->sign;
-    put16(p + 2, (uint16_t)q->name_len);
-    put32(p + 4, q->count);
-    memset(p + 8, 0, pad4(q->name_len));
-    memcpy(p + 8, q->name, q->name_len);
+    unsigned char *p = put_query_prefix(dst, SDF_PROTO_QUERY, request_id, payload,
+                                        (uint8_t)q->mode, (uint8_t)q->sign, q->name, q->name_len,
+                                        q->count);
     size_t at = 8 + pad4(q->name_len);
     if (sdf_proto_mode_filtered(q->mode))
         encode_filter(p + at, q);
@@ -321,15 +333,10 @@ size_t sdf_proto_encode_volume_query(void *dst, size_t cap, uint32_t request_id,
     size_t payload = sdf_proto_volume_query_size(q);
     if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
         return 0;
-    unsigned char *p = dst;
-    sdf_proto_encode_header(p, SDF_PROTO_VOLUME_QUERY, request_id, (uint32_t)payload);
-    p += SDF_PROTO_HEADER_SIZE;
-    p[0] = q->gradient ? 1 : 0;
-    p[1] = q->interpolation == SDF_VOLUME_NEAREST ? 1 : 0;
-    put16(p + 2, (uint16_t)q->name_len);
-    put32(p + 4, q->count);
-    memset(p + 8, 0, pad4(q->name_len));
-    memcpy(p + 8, q->name, q->name_len);
+    unsigned char *p = put_query_prefix(dst, SDF_PROTO_VOLUME_QUERY, request_id, payload,
+                                        q->gradient ? 1 : 0,
+                                        q->interpolation == SDF_VOLUME_NEAREST ? 1 : 0, q->name,
+                                        q->name_len, q->count);
     memcpy(p + 8 + pad4(q->name_len), q->points, 12 * (size_t)q->count);
     return SDF_PROTO_HEADER_SIZE + payload;
 }

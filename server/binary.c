@@ -124,6 +124,15 @@ static void account(sdfd_binary *b, sdfd_route route, const char *what, int stat
                      status, points, seconds * 1e6, bytes_in, bytes_out);
 }
 
+/* A request of connection c has been answered (or refused after it was counted). */
+static void request_finished(sdfd_binary *b, connection *c)
+{
+    pthread_mutex_lock(&c->lock);
+    c->in_flight--;
+    pthread_mutex_unlock(&c->lock);
+    atomic_fetch_sub(&b->srv->in_flight, 1);
+}
+
 /* ---- queries ----------------------------------------------------------------------------- */
 
 static void query_done(sdfd_job *job)
@@ -146,10 +155,7 @@ static void query_done(sdfd_job *job)
     sdf_mesh_release(bj->volume);
     free(bj->points);
     free(bj);
-    pthread_mutex_lock(&c->lock);
-    c->in_flight--;
-    pthread_mutex_unlock(&c->lock);
-    atomic_fetch_sub(&b->srv->in_flight, 1);
+    request_finished(b, c);
     wake(b);
 }
 
@@ -254,10 +260,7 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         sdf_mesh_release(mesh);
         sdf_mesh_release(volume);
         free(bj->frame), free(bj->points), free(bj);
-        pthread_mutex_lock(&c->lock);
-        c->in_flight--;
-        pthread_mutex_unlock(&c->lock);
-        atomic_fetch_sub(&srv->in_flight, 1);
+        request_finished(b, c);
         return;
     }
     sdfd_metrics_points(srv->metrics, q.count);
@@ -305,10 +308,7 @@ static void *run_volume_query(void *arg)
     sdfd_volume_release(vj->stored);
     free(vj->points);
     free(vj);
-    pthread_mutex_lock(&c->lock);
-    c->in_flight--;
-    pthread_mutex_unlock(&c->lock);
-    atomic_fetch_sub(&b->srv->in_flight, 1);
+    request_finished(b, c);
     wake(b);
     return NULL;
 }
@@ -360,10 +360,7 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
         atomic_fetch_add(&srv->in_flight, 1);
         if (pthread_create(&thread, &attr, run_volume_query, vj)) {
             rc = SDF_EUNAVAILABLE;
-            pthread_mutex_lock(&c->lock);
-            c->in_flight--;
-            pthread_mutex_unlock(&c->lock);
-            atomic_fetch_sub(&srv->in_flight, 1);
+            request_finished(b, c);
         }
     }
     pthread_attr_destroy(&attr);

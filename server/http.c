@@ -72,7 +72,7 @@ struct request {
     char format[16];              /* ?format= of an upload, copied on the MHD thread */
     sdf_mesh *uploaded;
     sdf_mesh *volume; /* a filtered query's smoothing mesh, held until the request ends */
-    int upload_rc, replaced;
+    int work_rc, replaced;        /* a thread's result: 0 or SDF_E* (message in diag) */
     sdf_diag diag;
     /* WORK_THREAD: `run` leaves a status (0 or SDF_E*, message in diag) and a body */
     thread_work run;
@@ -328,22 +328,42 @@ static int reply_form(request *req, sdfd_form request_form)
     return f >= 0 ? f : (int)request_form;
 }
 
+/* Parse a query body of any form into req->points_buf. Returns 0, or -1 with the error
+ * queued and its MHD result in *refused. */
+static int read_points(request *req, sdfd_form *form, sdfd_query_params *params, size_t *count,
+                       enum MHD_Result *refused)
+{
+    const char *type = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                   MHD_HTTP_HEADER_CONTENT_TYPE);
+    int f = sdfd_form_from_type(type);
+    if (f < 0) {
+        *refused = send_error(req, SDF_EFORMAT, "Content-Type must be application/json, "
+                                                "application/octet-stream or application/x-npy");
+        return -1;
+    }
+    *form = (sdfd_form)f;
+    *params = (sdfd_query_params){0};
+    char err[256];
+    int rc = sdfd_parse_points(*form, req->body, req->len, req->http->srv->cfg.max_points, params,
+                               &req->points_buf, count, &req->points_owned, err, sizeof err);
+    if (rc) {
+        *refused = send_error(req, rc, "%s", err);
+        return -1;
+    }
+    return 0;
+}
+
 static enum MHD_Result start_query(request *req)
 {
     sdfd_server *srv = req->http->srv;
-    const char *type = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
-                                                   MHD_HTTP_HEADER_CONTENT_TYPE);
-    int form = sdfd_form_from_type(type);
-    if (form < 0)
-        return send_error(req, SDF_EFORMAT, "Content-Type must be application/json, "
-                                            "application/octet-stream or application/x-npy");
-    sdfd_query_params params = {0};
-    char err[256], mode_buf[32], sign_buf[32];
+    sdfd_form form;
+    sdfd_query_params params;
     size_t count;
-    int rc = sdfd_parse_points((sdfd_form)form, req->body, req->len, srv->cfg.max_points, &params,
-                               &req->points_buf, &count, &req->points_owned, err, sizeof err);
-    if (rc)
-        return send_error(req, rc, "%s", err);
+    enum MHD_Result refused;
+    if (read_points(req, &form, &params, &count, &refused))
+        return refused;
+    char err[256], mode_buf[32], sign_buf[32];
+    int rc;
     const char *mode = param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
     const char *sign = param(req, params.sign, params.sign_len, "sign", sign_buf, sizeof sign_buf);
     sdf_proto_mode m = SDF_MODE_SIGNED;
@@ -382,7 +402,7 @@ static enum MHD_Result start_query(request *req)
         return send_error(req, rc, "%s", err);
     }
     req->points = count;
-    req->reply_form = (sdfd_form)reply_form(req, (sdfd_form)form);
+    req->reply_form = (sdfd_form)reply_form(req, form);
     if (sdfd_reply_init(&req->reply, req->reply_form, m, count)) {
         sdf_mesh_release(mesh);
         return send_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
@@ -409,10 +429,9 @@ static enum MHD_Result start_query(request *req)
     return MHD_YES;
 }
 
-static enum MHD_Result reply_query(request *req)
+/* The filled req->reply in the reply form, with the point count in X-SDF-Count. */
+static enum MHD_Result send_results(request *req)
 {
-    if (req->job.status)
-        return send_error(req, req->job.status, "query failed: %s", sdf_strerror(req->job.status));
     size_t len;
     char *body = sdfd_reply_render(&req->reply, req->reply_form, &len);
     if (!body)
@@ -420,6 +439,13 @@ static enum MHD_Result reply_query(request *req)
     char count[32];
     snprintf(count, sizeof count, "%zu", req->points);
     return send_buffer(req, 200, sdfd_form_type(req->reply_form), body, len, count);
+}
+
+static enum MHD_Result reply_query(request *req)
+{
+    if (req->job.status)
+        return send_error(req, req->job.status, "query failed: %s", sdf_strerror(req->job.status));
+    return send_results(req);
 }
 
 /* ---- work: uploads ----------------------------------------------------------------------- */
@@ -464,16 +490,16 @@ static void load_upload(request *req)
     sdfd_server *srv = req->http->srv;
     sdf_mesh_options opts = {.max_triangles = srv->cfg.max_total_triangles};
     if (req->format[0] && sdf_format_from_name(req->format, &opts.format)) {
-        req->upload_rc = SDF_EFORMAT;
+        req->work_rc = SDF_EFORMAT;
         snprintf(req->diag.message, sizeof req->diag.message,
                  "unknown format '%s' (obj, ply, stl, off)", req->format);
     } else {
-        req->upload_rc = sdf_mesh_load_memory(req->body, req->len, &opts, &req->uploaded, &req->diag);
+        req->work_rc = sdf_mesh_load_memory(req->body, req->len, &opts, &req->uploaded, &req->diag);
     }
-    if (!req->upload_rc) {
-        req->upload_rc = sdfd_registry_put(srv->registry, req->name,
+    if (!req->work_rc) {
+        req->work_rc = sdfd_registry_put(srv->registry, req->name,
                                            sdf_mesh_retain(req->uploaded), &req->replaced);
-        if (req->upload_rc == SDF_ELIMIT)
+        if (req->work_rc == SDF_ELIMIT)
             snprintf(req->diag.message, sizeof req->diag.message,
                      "loading it would exceed --max-meshes or --max-triangles");
     }
@@ -490,8 +516,8 @@ static enum MHD_Result start_upload(request *req)
 
 static enum MHD_Result reply_upload(request *req)
 {
-    if (req->upload_rc)
-        return send_error(req, req->upload_rc, "%s", req->diag.message);
+    if (req->work_rc)
+        return send_error(req, req->work_rc, "%s", req->diag.message);
     sdfd_log("info", "mesh_loaded", "%s: %s by upload", req->name, req->replaced ? "replaced" : "added");
     return send_json(req, req->replaced ? 200 : 201, report_json(req->name, req->uploaded));
 }
@@ -660,14 +686,14 @@ static enum MHD_Result volume_route(request *req)
 
 static void encode_volume(request *req)
 {
-    req->upload_rc = sdf_volume_save_memory(req->stored->volume, req->file_type,
+    req->work_rc = sdf_volume_save_memory(req->stored->volume, req->file_type,
                                             (void **)&req->out_body, &req->out_len, &req->diag);
 }
 
 static enum MHD_Result reply_volume_data(request *req)
 {
-    if (req->upload_rc)
-        return send_error(req, req->upload_rc, "%s", req->diag.message);
+    if (req->work_rc)
+        return send_error(req, req->work_rc, "%s", req->diag.message);
     static const char *const types[] = {"image/x-exr", "application/x-npy",
                                         "application/octet-stream"};
     static const char *const extensions[] = {"exr", "npy", "raw"};
@@ -699,45 +725,33 @@ static enum MHD_Result start_volume_data(request *req)
 static void evaluate_volume(request *req)
 {
     size_t bad = 0;
-    req->upload_rc = sdfd_volume_eval_words(req->stored->volume, req->points_buf, req->points,
+    req->work_rc = sdfd_volume_eval_words(req->stored->volume, req->points_buf, req->points,
                                             req->interpolation, req->reply.mode == SDF_MODE_GRADIENT,
                                             req->reply.words, &bad);
-    if (req->upload_rc == SDF_ENONFINITE)
+    if (req->work_rc == SDF_ENONFINITE)
         snprintf(req->diag.message, sizeof req->diag.message,
                  "point %zu has a NaN or infinite coordinate", bad);
-    else if (req->upload_rc)
-        snprintf(req->diag.message, sizeof req->diag.message, "%s", sdf_strerror(req->upload_rc));
+    else if (req->work_rc)
+        snprintf(req->diag.message, sizeof req->diag.message, "%s", sdf_strerror(req->work_rc));
 }
 
 static enum MHD_Result reply_volume_query(request *req)
 {
-    if (req->upload_rc)
-        return send_error(req, req->upload_rc, "%s", req->diag.message);
-    size_t len;
-    char *body = sdfd_reply_render(&req->reply, req->reply_form, &len);
-    if (!body)
-        return send_error(req, SDF_ENOMEM, "out of memory formatting %zu results", req->points);
-    char count[32];
-    snprintf(count, sizeof count, "%zu", req->points);
-    return send_buffer(req, 200, sdfd_form_type(req->reply_form), body, len, count);
+    if (req->work_rc)
+        return send_error(req, req->work_rc, "%s", req->diag.message);
+    return send_results(req);
 }
 
 static enum MHD_Result start_volume_query(request *req)
 {
     sdfd_server *srv = req->http->srv;
-    const char *type = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
-                                                   MHD_HTTP_HEADER_CONTENT_TYPE);
-    int form = sdfd_form_from_type(type);
-    if (form < 0)
-        return send_error(req, SDF_EFORMAT, "Content-Type must be application/json, "
-                                            "application/octet-stream or application/x-npy");
-    sdfd_query_params params = {0};
-    char err[256], mode_buf[32], interp_buf[32];
+    sdfd_form form;
+    sdfd_query_params params;
     size_t count;
-    int rc = sdfd_parse_points((sdfd_form)form, req->body, req->len, srv->cfg.max_points, &params,
-                               &req->points_buf, &count, &req->points_owned, err, sizeof err);
-    if (rc)
-        return send_error(req, rc, "%s", err);
+    enum MHD_Result refused;
+    if (read_points(req, &form, &params, &count, &refused))
+        return refused;
+    char mode_buf[32], interp_buf[32];
     const char *mode = param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
     const char *interp = param(req, params.interpolation, params.interpolation_len,
                                "interpolation", interp_buf, sizeof interp_buf);
@@ -751,7 +765,7 @@ static enum MHD_Result start_volume_query(request *req)
     if (!req->stored)
         return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
     req->points = count;
-    req->reply_form = (sdfd_form)reply_form(req, (sdfd_form)form);
+    req->reply_form = (sdfd_form)reply_form(req, form);
     if (sdfd_reply_init(&req->reply, req->reply_form,
                         gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count))
         return send_error(req, SDF_ENOMEM, "out of memory for %zu results", count);

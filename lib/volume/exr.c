@@ -103,6 +103,26 @@ static int exr_fail(sdf_diag *diag, int code, exr_result_t r, const memory_strea
                          m->error[0] ? m->error : exr_get_default_error_message(r));
 }
 
+/* Point a coding pipeline's channels at their words in the volume's node data for the chunk
+ * starting at row `start_y`: nodes are `words` 32-bit words apart, rows N nodes long. Encode
+ * and decode pointers share one union, so this serves both directions. */
+static void point_channels(exr_coding_channel_info_t *channels, int16_t count, const sdf_volume *v,
+                           int32_t start_y)
+{
+    const char *names[4];
+    int words = channel_names(&v->info, names);
+    size_t pixel = (size_t)words * 4, row = v->info.dims[0] * pixel;
+    for (int c = 0; c < count; c++) {
+        exr_coding_channel_info_t *ch = &channels[c];
+        int w = word_of(ch->channel_name, names, words);
+        ch->decode_to_ptr = (uint8_t *)v->data.p + (size_t)start_y * row + (size_t)(w < 0 ? 0 : w) * 4;
+        ch->user_pixel_stride = (int32_t)pixel;
+        ch->user_line_stride = (int32_t)row;
+        ch->user_bytes_per_element = 4;
+        ch->user_data_type = ch->data_type;
+    }
+}
+
 /* ---- writing ----------------------------------------------------------------------------- */
 
 static exr_result_t write_header(exr_context_t ctxt, const sdf_volume *v, int width, int height)
@@ -135,9 +155,7 @@ static exr_result_t write_header(exr_context_t ctxt, const sdf_volume *v, int wi
 
 static exr_result_t write_pixels(exr_context_t ctxt, const sdf_volume *v, int height)
 {
-    const char *names[4];
-    int words = channel_names(&v->info, names), lines = 1;
-    size_t pixel = (size_t)words * 4, row = v->info.dims[0] * pixel;
+    int lines = 1;
     exr_result_t r = exr_get_scanlines_per_chunk(ctxt, 0, &lines);
     exr_encode_pipeline_t encoder = EXR_ENCODE_PIPELINE_INITIALIZER;
     int started = 0;
@@ -149,16 +167,7 @@ static exr_result_t write_pixels(exr_context_t ctxt, const sdf_volume *v, int he
                         : exr_encoding_initialize(ctxt, 0, &chunk, &encoder);
         if (r)
             break;
-        for (int c = 0; c < encoder.channel_count; c++) {
-            exr_coding_channel_info_t *ch = &encoder.channels[c];
-            int w = word_of(ch->channel_name, names, words);
-            ch->encode_from_ptr = (const uint8_t *)v->data.p + (size_t)chunk.start_y * row +
-                                  (size_t)(w < 0 ? 0 : w) * 4;
-            ch->user_pixel_stride = (int32_t)pixel;
-            ch->user_line_stride = (int32_t)row;
-            ch->user_bytes_per_element = 4;
-            ch->user_data_type = ch->data_type;
-        }
+        point_channels(encoder.channels, encoder.channel_count, v, chunk.start_y);
         if (!started && !(r = exr_encoding_choose_default_routines(ctxt, 0, &encoder)))
             started = 1;
         if (!r)
@@ -260,9 +269,7 @@ static int read_info(exr_context_t ctxt, sdf_volume_info *in, memory_stream *m, 
 
 static int read_pixels(exr_context_t ctxt, sdf_volume *v, memory_stream *m, sdf_diag *diag)
 {
-    const char *names[4];
-    int words = channel_names(&v->info, names), lines = 1;
-    size_t pixel = (size_t)words * 4, row = v->info.dims[0] * pixel;
+    int lines = 1;
     int height = (int)(v->info.dims[1] * v->info.dims[2]);
     exr_result_t r = exr_get_scanlines_per_chunk(ctxt, 0, &lines);
     exr_decode_pipeline_t decoder = EXR_DECODE_PIPELINE_INITIALIZER;
@@ -277,16 +284,7 @@ static int read_pixels(exr_context_t ctxt, sdf_volume *v, memory_stream *m, sdf_
                         : exr_decoding_initialize(ctxt, 0, &chunk, &decoder);
         if (r)
             break;
-        for (int c = 0; c < decoder.channel_count; c++) {
-            exr_coding_channel_info_t *ch = &decoder.channels[c];
-            int w = word_of(ch->channel_name, names, words);
-            ch->decode_to_ptr = (uint8_t *)v->data.p + (size_t)chunk.start_y * row +
-                                (size_t)(w < 0 ? 0 : w) * 4;
-            ch->user_pixel_stride = (int32_t)pixel;
-            ch->user_line_stride = (int32_t)row;
-            ch->user_bytes_per_element = 4;
-            ch->user_data_type = ch->data_type;
-        }
+        point_channels(decoder.channels, decoder.channel_count, v, chunk.start_y);
         if (!started && !(r = exr_decoding_choose_default_routines(ctxt, 0, &decoder)))
             started = 1;
         if (!r)

@@ -11,6 +11,8 @@ import subprocess
 import threading
 import time
 
+import numpy as np
+
 SDFD = os.environ.get("SDFD", "build/server/sdfd")
 SDF_BENCH = os.environ.get("SDF_BENCH", "build/tests/bench/sdf-bench")
 DATA = os.environ.get("SDF_TEST_DATA", "tests/data")
@@ -65,6 +67,12 @@ class Server:
 
     def __exit__(self, *exc):
         self.stop()
+
+
+def same_bits(a, b):
+    """Are a and b the same float32 array, bit for bit?"""
+    a, b = np.ascontiguousarray(a, np.float32), np.ascontiguousarray(b, np.float32)
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
 def wait_until(predicate, timeout=10.0):

@@ -17,7 +17,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
 import harness  # noqa: E402
-from harness import DATA, SDF_BENCH, Server, wait_until  # noqa: E402
+from harness import DATA, SDF_BENCH, Server, same_bits, wait_until  # noqa: E402
 
 
 def library_results(mesh, points, mode, sign="auto", samples=None):
@@ -31,11 +31,6 @@ def library_results(mesh, points, mode, sign="auto", samples=None):
                         "--repeat", "1", "--out", out] + extra, check=True,
                        stdout=subprocess.DEVNULL)
         return np.load(out)
-
-
-def same_bits(a, b):
-    a, b = np.ascontiguousarray(a, np.float32), np.ascontiguousarray(b, np.float32)
-    return a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
 class Exactness(unittest.TestCase):

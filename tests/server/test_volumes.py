@@ -20,7 +20,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
 import harness  # noqa: E402
-from harness import DATA, Server  # noqa: E402
+from harness import DATA, Server, same_bits  # noqa: E402
 
 SDF_VOLUME = os.environ.get("SDF_VOLUME", "build/tests/bench/sdf-volume")
 
@@ -43,11 +43,6 @@ def library_eval(exr_bytes, points, interpolation, gradient):
         subprocess.run([SDF_VOLUME, "eval", *paths, "--interpolation", interpolation]
                        + (["--gradient"] if gradient else []), check=True)
         return np.load(paths[2])
-
-
-def same_bits(a, b):
-    a, b = np.ascontiguousarray(a, np.float32), np.ascontiguousarray(b, np.float32)
-    return a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
 class Volumes(unittest.TestCase):
