@@ -81,6 +81,8 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
         in->origin[a] = lo[a];
         in->spacing[a] = (hi[a] - lo[a]) / (double)(in->dims[a] - 1);
     }
+    if ((unsigned)o->query.sign > SDF_SIGN_NONE || o->query.threads < 0)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown sign method or negative thread count");
     in->order = o->order;
     in->encoding = o->encoding;
     in->filtered = o->filter != NULL;

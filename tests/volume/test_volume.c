@@ -441,6 +441,7 @@ static void test_progress_and_options(const sdf_mesh *mesh)
         {{.lo = {0, 0, 0}, .hi = {1, -1, 1}}, SDF_EINVAL, "lo < hi"},
         {{.lo = {0, 0, 0}, .hi = {1, NAN, 1}}, SDF_EINVAL, "finite"},
         {{.margin = -1}, SDF_EINVAL, "margin"},
+        {{.query.sign = (sdf_sign_method)9}, SDF_EINVAL, "sign"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         sdf_diag diag = {0};
