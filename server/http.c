@@ -90,13 +90,13 @@ static const char *allowed_methods(sdfd_route route)
 {
     switch (route) {
     case SDFD_ROUTE_MESH:
+    case SDFD_ROUTE_VOLUME:
         return "GET, PUT, DELETE";
     case SDFD_ROUTE_QUERY:
     case SDFD_ROUTE_BAKE:
     case SDFD_ROUTE_VOLUME_QUERY:
         return "POST";
     case SDFD_ROUTE_JOB:
-    case SDFD_ROUTE_VOLUME:
         return "GET, DELETE";
     default:
         return "GET, HEAD";
@@ -667,9 +667,39 @@ static enum MHD_Result list_volumes(request *req)
     return send_json(req, 200, root);
 }
 
+/* An uploaded EXR volume (another replica's download, say) becomes a stored volume. */
+static void load_volume(request *req)
+{
+    sdf_volume *volume = NULL;
+    req->work_rc = sdf_volume_load_exr_memory(req->body, req->len, &volume, &req->diag);
+    if (!req->work_rc) {
+        req->work_rc = sdfd_volumes_put(req->http->srv->volumes, req->name, volume, "",
+                                        &req->replaced);
+        if (req->work_rc)
+            snprintf(req->diag.message, sizeof req->diag.message,
+                     "storing it would exceed --max-volumes or --max-volume-bytes");
+    }
+}
+
+static enum MHD_Result reply_volume_upload(request *req)
+{
+    if (req->work_rc)
+        return send_error(req, req->work_rc, "%s", req->diag.message);
+    sdfd_stored_volume *s = sdfd_volumes_get(req->http->srv->volumes, req->name);
+    if (!s) /* deleted in between */
+        return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    sdfd_log("info", "volume_loaded", "%s: %s by upload", req->name,
+             req->replaced ? "replaced" : "added");
+    enum MHD_Result r = send_json(req, req->replaced ? 200 : 201, volume_json(s));
+    sdfd_volume_release(s);
+    return r;
+}
+
 static enum MHD_Result volume_route(request *req)
 {
     sdfd_server *srv = req->http->srv;
+    if (!strcmp(req->method, "PUT"))
+        return start_thread(req, load_volume, reply_volume_upload);
     if (!strcmp(req->method, "DELETE")) {
         if (sdfd_volumes_remove(srv->volumes, req->name))
             return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);

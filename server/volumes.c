@@ -128,6 +128,28 @@ static int put_locked(sdfd_volumes *v, sdfd_stored_volume *s)
     return 0;
 }
 
+int sdfd_volumes_put(sdfd_volumes *v, const char *name, sdf_volume *volume, const char *mesh,
+                     int *replaced)
+{
+    sdfd_stored_volume *s = calloc(1, sizeof *s);
+    if (!s) {
+        sdf_volume_destroy(volume);
+        return SDF_ENOMEM;
+    }
+    atomic_init(&s->refs, 1);
+    s->volume = volume;
+    snprintf(s->name, sizeof s->name, "%s", name);
+    snprintf(s->mesh, sizeof s->mesh, "%s", mesh);
+    pthread_mutex_lock(&v->lock);
+    *replaced = find(v, name, NULL) >= 0;
+    /* Bytes promised to running bakes stay promised. */
+    v->bytes += v->reserved;
+    int rc = put_locked(v, s);
+    v->bytes -= v->reserved;
+    pthread_mutex_unlock(&v->lock);
+    return rc;
+}
+
 int sdfd_volumes_remove(sdfd_volumes *v, const char *name)
 {
     pthread_mutex_lock(&v->lock);

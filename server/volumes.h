@@ -9,7 +9,7 @@
  * sdf_volume_bake's progress callback. Finished jobs stay listed (their state and error)
  * until `max_jobs` newer ones push the oldest finished out. Volumes and jobs belong to one
  * replica: behind a load balancer, send a job's status requests to the replica that
- * answered 202 (or bake on every replica). Thread-safe. */
+ * answered 202, then copy the volume to the others (PUT /v1/volumes/{name}). Thread-safe. */
 #ifndef SDFD_VOLUMES_H
 #define SDFD_VOLUMES_H
 
@@ -44,6 +44,10 @@ void sdfd_volumes_destroy(sdfd_volumes *v);
 sdfd_stored_volume *sdfd_volumes_get(sdfd_volumes *v, const char *name);
 void sdfd_volume_release(sdfd_stored_volume *s); /* NULL is a no-op */
 int sdfd_volumes_remove(sdfd_volumes *v, const char *name); /* 0 or SDF_ENOTFOUND */
+/* Store `volume` (taken over, also on failure) as `name`, replacing any volume of that name;
+ * *replaced says which. SDF_ELIMIT when --max-volumes or --max-volume-bytes would be broken. */
+int sdfd_volumes_put(sdfd_volumes *v, const char *name, sdf_volume *volume, const char *mesh,
+                     int *replaced);
 /* Snapshot sorted by name, each retained; release with sdfd_volumes_free_list. */
 size_t sdfd_volumes_list(sdfd_volumes *v, sdfd_stored_volume ***out);
 void sdfd_volumes_free_list(sdfd_stored_volume **list, size_t n);

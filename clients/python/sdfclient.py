@@ -252,6 +252,15 @@ class Client:
     def volume(self, name):
         return self._json("GET", f"/v1/volumes/{name}")
 
+    def upload_volume(self, name, path_or_bytes):
+        """Store an EXR volume (a download from this or another server) as `name`."""
+        data = path_or_bytes
+        if not isinstance(data, (bytes, bytearray)):
+            with open(path_or_bytes, "rb") as f:
+                data = f.read()
+        return json.loads(self._request("PUT", f"/v1/volumes/{name}", data,
+                                        {"Content-Type": "image/x-exr"})[1])
+
     def delete_volume(self, name):
         self._request("DELETE", f"/v1/volumes/{name}")
 

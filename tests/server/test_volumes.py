@@ -113,6 +113,29 @@ class Volumes(unittest.TestCase):
         self.assertGreaterEqual(harness.metric(text, "sdfd_requests_total",
                                                'route="/v1/volumes/{name}/query",status="200"'), 1)
 
+    def test_copy_to_another_replica(self):
+        self.bake(volume="copied", resolution=[9, 10, 11], order=1, encoding="packed32")
+        exr = self.c.download("copied", "exr")
+        points = np.random.default_rng(8).uniform(-0.5, 0.5, (500, 3)).astype(np.float32)
+        here = self.c.query_volume("copied", points, gradient=True)
+        with Server("--token", "t") as other:
+            admin = sdfclient.Client(other.url, token="t")
+            self.addCleanup(admin.close)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                sdfclient.Client(other.url).upload_volume("copied", exr)
+            self.assertEqual(e.exception.status, 401)
+            meta = admin.upload_volume("copied", exr)
+            self.assertEqual((meta["dims"], meta["encoding"]), ([9, 10, 11], "packed32"))
+            there = admin.query_volume("copied", points, gradient=True)
+            self.assertTrue(same_bits(here["distance"], there["distance"]))
+            self.assertTrue(same_bits(here["gradient"], there["gradient"]))
+            self.assertEqual(admin.download("copied", "exr"), exr)
+            for bad in (exr[:len(exr) // 2], b"not an exr", self.c.download("copied", "npy").tobytes()):
+                with self.assertRaises(sdfclient.SdfError, msg=bad[:10]) as e:
+                    admin.upload_volume("bad", bad)
+                self.assertIn(e.exception.status, (415, 422))  # not EXR / not an sdfd volume
+            self.assertEqual([v["name"] for v in admin.volumes()], ["copied"])
+
     def test_filtered_bake(self):
         raw = self.bake(volume="raw8", resolution=8)
         filtered = self.bake(volume="filtered8", resolution=8, field="filtered",
@@ -176,7 +199,7 @@ class Volumes(unittest.TestCase):
                 ("DELETE", "/v1/volumes/nope", None, 404),
                 ("GET", "/v1/volumes/nope/data", None, 404),
                 ("POST", "/v1/volumes/nope/query", '{"points": [[0, 0, 0]]}', 404),
-                ("PUT", "/v1/volumes/x", "", 405),
+                ("POST", "/v1/volumes/x", "", 405),
                 ("GET", "/v1/volumes/x/other", None, 404)]:
             req = urllib.request.Request(self.server.url + path, method=method,
                                          data=body.encode() if body is not None else None,
