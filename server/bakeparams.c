@@ -130,6 +130,12 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
             return fail(err, cap, "'%s' must be \"float32\" or \"packed32\"", key);
         return 0;
     }
+    if (!strcmp(key, "normalize")) {
+        if (name(item, key, text, sizeof text, err, cap) ||
+            sdf_normalize_from_name(text, &o->normalize))
+            return fail(err, cap, "'%s' must be \"plane\" or \"gradient\"", key);
+        return 0;
+    }
     if (!strcmp(key, "sign")) {
         if (name(item, key, text, sizeof text, err, cap) ||
             sdf_sign_from_name(text, &o->query.sign))
@@ -149,7 +155,7 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
         return rc;
     }
     snprintf(err, cap, "unknown key '%s' (volume, bounds, margin, resolution, order, H, delta, "
-                       "field, filter, encoding, sign)", key);
+                       "normalize, field, filter, encoding, sign)", key);
     return SDF_EINVAL;
 }
 

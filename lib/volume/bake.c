@@ -92,6 +92,10 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
         if (in->fine_half < 1 || in->fine_half > MAX_FINE_HALF)
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "H (fine_half) must be 1..%d, not %d",
                                  MAX_FINE_HALF, in->fine_half);
+        in->normalize = o->normalize;
+        if ((unsigned)in->normalize > SDF_NORMALIZE_GRADIENT)
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown normalisation %d",
+                                 (int)in->normalize);
         if (!(in->fine_spacing > 0 && in->fine_spacing <= 0.5))
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                  "Delta (fine_spacing) must be in (0, 0.5] cells, not %g",
@@ -281,7 +285,7 @@ static int slab_samples(slab *s)
 }
 
 /* Algorithm 1, steps 3-6 for nodes [begin, end) of the slab: a~ = X_o^+ f, normalised by
- * |(a~, b~, c~)|. The plane is kept local here (unit normal, value at the node); the global
+ * |(a~, b~, c~)| (all four coefficients, or with SDF_NORMALIZE_GRADIENT the first three). The plane is kept local here (unit normal, value at the node); the global
  * constant d = value - n . x_i (eq. 2) is formed when the volume is written. */
 static void fit_range(void *ctx, size_t begin, size_t end, int worker)
 {
@@ -301,7 +305,8 @@ static void fit_range(void *ctx, size_t begin, size_t end, int worker)
         double scale = len > 1e-12 ? 1 / len : 1;
         float *out = s->plane + 4 * n;
         out[0] = (float)(c[0] * scale), out[1] = (float)(c[1] * scale);
-        out[2] = (float)(c[2] * scale), out[3] = (float)(c[3] * scale);
+        out[2] = (float)(c[2] * scale);
+        out[3] = (float)(plan->info.normalize == SDF_NORMALIZE_PLANE ? c[3] * scale : c[3]);
     }
 }
 

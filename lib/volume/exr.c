@@ -148,6 +148,7 @@ static exr_result_t write_header(exr_context_t ctxt, const sdf_volume *v, int wi
     if (!r) r = exr_attr_set_double(ctxt, part, "sdf.packedRange", in->packed_range);
     if (!r) r = exr_attr_set_int(ctxt, part, "sdf.fineHalf", in->fine_half);
     if (!r) r = exr_attr_set_double(ctxt, part, "sdf.fineSpacing", in->fine_spacing);
+    if (!r) r = exr_attr_set_string(ctxt, part, "sdf.normalize", sdf_normalize_name(in->normalize));
     if (!r) r = exr_attr_set_int(ctxt, part, "sdf.filtered", in->filtered);
     if (!r) r = exr_write_header(ctxt);
     return r;
@@ -212,8 +213,8 @@ static int read_info(exr_context_t ctxt, sdf_volume_info *in, memory_stream *m, 
 {
     exr_attr_v3i_t dims;
     exr_attr_v3d_t origin, spacing;
-    int32_t order = 0, fine_half = 0, filtered = 0, length = 0;
-    const char *encoding = NULL;
+    int32_t order = 0, fine_half = 0, filtered = 0, length = 0, normalize_length = 0;
+    const char *encoding = NULL, *normalize = NULL;
     exr_result_t r = exr_attr_get_v3i(ctxt, 0, "sdf.dims", &dims);
     if (!r) r = exr_attr_get_v3d(ctxt, 0, "sdf.origin", &origin);
     if (!r) r = exr_attr_get_v3d(ctxt, 0, "sdf.spacing", &spacing);
@@ -223,14 +224,18 @@ static int read_info(exr_context_t ctxt, sdf_volume_info *in, memory_stream *m, 
     if (!r) r = exr_attr_get_double(ctxt, 0, "sdf.packedRange", &in->packed_range);
     if (!r) r = exr_attr_get_int(ctxt, 0, "sdf.fineHalf", &fine_half);
     if (!r) r = exr_attr_get_double(ctxt, 0, "sdf.fineSpacing", &in->fine_spacing);
+    if (!r) r = exr_attr_get_string(ctxt, 0, "sdf.normalize", &normalize_length, &normalize);
     if (!r) r = exr_attr_get_int(ctxt, 0, "sdf.filtered", &filtered);
     if (r)
         return exr_fail(diag, SDF_EFORMAT, r, m, "file is not an sdfd volume (sdf.* attributes)");
-    char name[16] = "";
+    char name[16] = "", how[16] = "";
     if (length > 0 && length < (int32_t)sizeof name)
         memcpy(name, encoding, (size_t)length);
-    if (sdf_encoding_from_name(name, &in->encoding))
-        return sdf__diag_set(diag, SDF_EFORMAT, 0, -1, "unknown volume encoding in the EXR file");
+    if (normalize_length > 0 && normalize_length < (int32_t)sizeof how)
+        memcpy(how, normalize, (size_t)normalize_length);
+    if (sdf_encoding_from_name(name, &in->encoding) || sdf_normalize_from_name(how, &in->normalize))
+        return sdf__diag_set(diag, SDF_EFORMAT, 0, -1,
+                             "unknown volume encoding or normalisation in the EXR file");
     for (int a = 0; a < 3; a++) {
         if (dims.arr[a] < 2 || dims.arr[a] > SDF_VOLUME_MAX_DIM)
             return sdf__diag_set(diag, SDF_EFORMAT, 0, -1, "EXR volume dimension %d out of range",

@@ -128,13 +128,14 @@ long sdf_volume_describe_json(const sdf_volume *volume, char *dst, size_t cap)
                      "{\"dims\": [%zu, %zu, %zu], \"origin\": [%.17g, %.17g, %.17g], "
                      "\"spacing\": [%.17g, %.17g, %.17g], \"order\": %d, \"encoding\": \"%s\", "
                      "\"packed_center\": %.17g, \"packed_range\": %.17g, \"fine_half\": %d, "
-                     "\"fine_spacing\": %.17g, "
+                     "\"fine_spacing\": %.17g, \"normalize\": \"%s\", "
                      "\"filtered\": %s, \"channels\": %d, \"layout\": \"x fastest, then y, "
                      "then z\", \"dtype\": \"%s\", \"bytes\": %zu}",
                      in->dims[0], in->dims[1], in->dims[2], in->origin[0], in->origin[1],
                      in->origin[2], in->spacing[0], in->spacing[1], in->spacing[2], in->order,
                      sdf_encoding_name(in->encoding), in->packed_center, in->packed_range, in->fine_half,
-                     in->fine_spacing, in->filtered ? "true" : "false", volume->channels,
+                     in->fine_spacing, sdf_normalize_name(in->normalize),
+                     in->filtered ? "true" : "false", volume->channels,
                      in->encoding == SDF_ENCODING_PACKED32 ? "<u4" : "<f4",
                      sdf_volume_data_bytes(volume));
     if (n < 0 || (size_t)n >= cap)

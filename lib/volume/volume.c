@@ -28,6 +28,23 @@ const char *sdf_encoding_name(sdf_volume_encoding encoding)
     return (unsigned)encoding < 2 ? encoding_names[encoding] : "unknown";
 }
 
+static const char *const normalize_names[] = {"plane", "gradient"};
+
+int sdf_normalize_from_name(const char *name, sdf_tdf_normalize *out)
+{
+    for (int n = 0; name && n < 2; n++)
+        if (!strcasecmp(name, normalize_names[n])) {
+            *out = (sdf_tdf_normalize)n;
+            return 0;
+        }
+    return SDF_EINVAL;
+}
+
+const char *sdf_normalize_name(sdf_tdf_normalize normalize)
+{
+    return (unsigned)normalize < 2 ? normalize_names[normalize] : "unknown";
+}
+
 int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out)
 {
     if (name && !strcasecmp(name, "trilinear"))
@@ -63,6 +80,8 @@ int sdf__volume_check_info(const sdf_volume_info *info, sdf_diag *diag)
     if (info->order != 0 && info->order != 1)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "volume order must be 0 or 1, not %d",
                              info->order);
+    if ((unsigned)info->normalize > SDF_NORMALIZE_GRADIENT)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown normalisation");
     if ((unsigned)info->encoding > SDF_ENCODING_PACKED32)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown volume encoding");
     if (info->encoding == SDF_ENCODING_PACKED32 && info->order != 1)

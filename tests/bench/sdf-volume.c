@@ -2,6 +2,7 @@
  * server's floats with the library's and for scripting:
  *   sdf-volume bake MESH|demo OUT [--format exr|npy|raw] [--resolution N | N,M,K]
  *                   [--order 0|1] [--encoding float32|packed32] [--H h] [--delta d]
+ *                   [--normalize plane|gradient]
  *                   [--lo x,y,z --hi x,y,z] [--margin m] [--threads T]
  *   sdf-volume eval VOLUME.exr POINTS.npy OUT.npy [--interpolation trilinear|nearest]
  *                   [--gradient]
@@ -64,6 +65,9 @@ static int bake(int argc, char **argv)
                 die(f, "float32 or packed32");
         } else if (!strcmp(f, "--H")) {
             o.fine_half = atoi(v);
+        } else if (!strcmp(f, "--normalize")) {
+            if (sdf_normalize_from_name(v, &o.normalize))
+                die(f, "plane or gradient");
         } else if (!strcmp(f, "--delta")) {
             o.fine_spacing = atof(v);
         } else if (!strcmp(f, "--lo")) {

@@ -45,7 +45,7 @@ static double mean_error(const sdf_volume *v, const float *points, const float *
 }
 
 int accuracy_table(const sdf_mesh *mesh, const size_t *dims, int count, size_t reference,
-                   int threads, accuracy_row *rows)
+                   int threads, int with_gradient, accuracy_row *rows)
 {
     size_t n = reference * reference * reference;
     float *points = malloc(n * 3 * sizeof *points), *exact = malloc(n * sizeof *exact),
@@ -63,7 +63,7 @@ int accuracy_table(const sdf_mesh *mesh, const size_t *dims, int count, size_t r
     for (int r = 0; !rc && r < count; r++) {
         sdf_bake_options o = {.lo = {-1, -1, -1}, .hi = {1, 1, 1},
                               .dims = {dims[r], dims[r], dims[r]}, .query = {.threads = threads}};
-        sdf_volume *zero = NULL, *first = NULL, *packed = NULL;
+        sdf_volume *zero = NULL, *first = NULL, *packed = NULL, *gradient = NULL;
         double t0 = now();
         rc = sdf_volume_bake(mesh, &o, &zero, NULL);
         double t1 = now();
@@ -74,15 +74,22 @@ int accuracy_table(const sdf_mesh *mesh, const size_t *dims, int count, size_t r
         o.encoding = SDF_ENCODING_PACKED32;
         if (!rc)
             rc = sdf_volume_bake(mesh, &o, &packed, NULL);
+        o.encoding = SDF_ENCODING_FLOAT32;
+        o.normalize = SDF_NORMALIZE_GRADIENT;
+        if (!rc && with_gradient)
+            rc = sdf_volume_bake(mesh, &o, &gradient, NULL);
         if (!rc) {
             rows[r].dim = dims[r];
             rows[r].zero = mean_error(zero, points, exact, n, scratch);
             rows[r].first = mean_error(first, points, exact, n, scratch);
             rows[r].packed = mean_error(packed, points, exact, n, scratch);
+            rows[r].first_gradient =
+                gradient ? mean_error(gradient, points, exact, n, scratch) : NAN;
             rows[r].zero_seconds = t1 - t0;
             rows[r].first_seconds = t2 - t1;
         }
         sdf_volume_destroy(zero), sdf_volume_destroy(first), sdf_volume_destroy(packed);
+        sdf_volume_destroy(gradient);
     }
     free(points), free(exact), free(scratch);
     return rc;

@@ -18,12 +18,14 @@ sdf_mesh *normalized_mesh(const sdf_mesh *mesh);
 typedef struct accuracy_row {
     size_t dim;
     double zero, first, packed; /* mean absolute errors */
+    double first_gradient;      /* first order normalised by SDF_NORMALIZE_GRADIENT (if asked) */
     double zero_seconds, first_seconds;
 } accuracy_row;
 
 /* Fill rows[i] for resolutions dims[i] (count rows) against a reference grid of `reference`
- * nodes per axis; `threads` as in sdf_query_options. Returns 0 or an SDF_E* code. */
+ * nodes per axis; `threads` as in sdf_query_options; first_gradient only when
+ * `with_gradient` (NAN otherwise). Returns 0 or an SDF_E* code. */
 int accuracy_table(const sdf_mesh *normalized, const size_t *dims, int count, size_t reference,
-                   int threads, accuracy_row *rows);
+                   int threads, int with_gradient, accuracy_row *rows);
 
 #endif

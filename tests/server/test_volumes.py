@@ -70,6 +70,8 @@ class Volumes(unittest.TestCase):
                  ({"resolution": 16, "order": 1, "encoding": "packed32", "H": 2, "delta": 0.2},
                   ["--resolution", "16", "--order", "1", "--encoding", "packed32", "--H", "2",
                    "--delta", "0.2"]),
+                 ({"resolution": 10, "order": 1, "normalize": "gradient"},
+                  ["--resolution", "10", "--order", "1", "--normalize", "gradient"]),
                  ({"resolution": 12, "bounds": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.2, 0.4]}},
                   ["--resolution", "12", "--lo", "-0.3,-0.3,-0.3", "--hi", "0.3,0.2,0.4"])]
         rng = np.random.default_rng(4)
@@ -106,7 +108,8 @@ class Volumes(unittest.TestCase):
         got = self.c.query_volume("v0", node[None, :], "nearest")["distance"][0]
         self.assertEqual(got, self.c.download("v0", "npy")[3, 3, 3])
         names = [v["name"] for v in self.c.volumes()]
-        self.assertEqual([n for n in names if n.startswith("v")], ["v0", "v1", "v2", "v3"])
+        self.assertEqual([n for n in names if n.startswith("v")], ["v0", "v1", "v2", "v3", "v4"])
+        self.assertEqual(self.c.volume("v3")["normalize"], "gradient")
         text = self.c.metrics()
         self.assertGreaterEqual(harness.metric(text, "sdfd_volumes_loaded"), 4)
         self.assertGreater(harness.metric(text, "sdfd_volume_bytes"), 0)
@@ -174,6 +177,7 @@ class Volumes(unittest.TestCase):
                ({"order": 1, "delta": 0.7}, 422, "Delta"),
                ({"encoding": "packed32"}, 422, "first-order"),
                ({"encoding": "png"}, 422, "encoding"),
+               ({"order": 1, "normalize": "all"}, 422, "normalize"),
                ({"bounds": {"min": [0, 0, 0], "max": [1, -1, 1]}}, 422, "lo < hi"),
                ({"bounds": [0, 1]}, 422, "bounds"),
                ({"resolutoin": 8}, 422, "unknown key 'resolutoin'"),

@@ -315,6 +315,15 @@ const char *sdf_encoding_name(sdf_volume_encoding encoding);
 #define SDF_VOLUME_MAX_DIM 4096            /* nodes along one axis */
 #define SDF_VOLUME_MAX_NODES ((size_t)1 << 30)
 
+/* Step 6 of Algorithm 1 (first order): what the fitted plane is divided by |(a, b, c)| in. */
+typedef enum sdf_tdf_normalize {
+    SDF_NORMALIZE_PLANE = 0, /* all four coefficients, as the paper does: the plane keeps its
+                                zero set, but its value at the node grows where the fitted
+                                gradient is short (near the medial axis) */
+    SDF_NORMALIZE_GRADIENT,  /* (a, b, c) only: the plane keeps the fitted value at its node;
+                                1.4-5x more accurate on our meshes (docs/volumes.md) */
+} sdf_tdf_normalize;
+
 typedef struct sdf_volume_info {
     size_t dims[3];          /* N, M, K: nodes along x, y, z, each 2..SDF_VOLUME_MAX_DIM */
     double origin[3];        /* position of node (0, 0, 0) */
@@ -326,8 +335,13 @@ typedef struct sdf_volume_info {
     double packed_range;
     int fine_half;           /* order 1: H of the (2H+1)^3 fitting grid; 0 for order 0 */
     double fine_spacing;     /* order 1: the fitting grid's spacing in cells (Delta) */
+    sdf_tdf_normalize normalize; /* order 1: step 6 as baked */
     int filtered;            /* 1: baked from the convolution-filtered field */
 } sdf_volume_info;
+
+/* "plane", "gradient" -> normalisation; SDF_EINVAL otherwise. */
+int sdf_normalize_from_name(const char *name, sdf_tdf_normalize *out);
+const char *sdf_normalize_name(sdf_tdf_normalize normalize);
 
 /* 32-bit words per node (1 for order 0 and for PACKED32, 4 for first-order FLOAT32). */
 int sdf_volume_channels(const sdf_volume_info *info);
@@ -342,6 +356,7 @@ typedef struct sdf_bake_options {
     int order;                /* 0 (default) or 1 */
     int fine_half;            /* order 1: H, 1..4; 0 = 1 (a 3^3 fitting grid) */
     double fine_spacing;      /* order 1: Delta in cells, (0, 0.5]; 0 = 0.1 */
+    sdf_tdf_normalize normalize; /* order 1: PLANE (the paper's step 6) by default */
     sdf_volume_encoding encoding;
     const sdf_filter_options *filter; /* NULL: the raw signed distance; else the filtered one */
     sdf_query_options query;  /* sign and threads (point_stride and traversal are ignored) */
@@ -399,7 +414,7 @@ int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
  *       FLOAT channels "d" (order 0) or "a" "b" "c" "d" (order 1), or one UINT channel
  *       "packed"; attributes sdf.dims (v3i), sdf.origin, sdf.spacing (v3d), sdf.order (int),
  *       sdf.encoding (string), sdf.packedCenter, sdf.packedRange (double), sdf.fineHalf (int),
- *       sdf.fineSpacing (double), sdf.filtered (int).
+ *       sdf.fineSpacing (double), sdf.normalize (string), sdf.filtered (int).
  *  NPY: float32 (K, M, N) or (K, M, N, 4); uint32 (K, M, N) for PACKED32.
  *  RAW: the node words alone, little-endian (sdf_volume_describe_json gives the metadata). */
 typedef enum sdf_volume_file { SDF_VOLUME_EXR = 0, SDF_VOLUME_NPY, SDF_VOLUME_RAW } sdf_volume_file;
