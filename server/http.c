@@ -103,14 +103,11 @@ static const char *allowed_methods(sdfd_route route)
     }
 }
 
-static enum MHD_Result send_with_headers(request *req, int status, const char *type, char *body,
-                                         size_t len, const header *extra, int n_extra)
+/* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
+static enum MHD_Result queue_response(request *req, int status, const char *type,
+                                      struct MHD_Response *r, size_t len, const header *extra,
+                                      int n_extra)
 {
-    struct MHD_Response *r = MHD_create_response_from_buffer(len, body, MHD_RESPMEM_MUST_FREE);
-    if (!r) {
-        free(body);
-        return MHD_NO;
-    }
     MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type);
     for (int i = 0; i < n_extra; i++)
         MHD_add_response_header(r, extra[i].name, extra[i].value);
@@ -126,6 +123,17 @@ static enum MHD_Result send_with_headers(request *req, int status, const char *t
     req->status = status;
     req->bytes_out = len;
     return ok;
+}
+
+static enum MHD_Result send_with_headers(request *req, int status, const char *type, char *body,
+                                         size_t len, const header *extra, int n_extra)
+{
+    struct MHD_Response *r = MHD_create_response_from_buffer(len, body, MHD_RESPMEM_MUST_FREE);
+    if (!r) {
+        free(body);
+        return MHD_NO;
+    }
+    return queue_response(req, status, type, r, len, extra, n_extra);
 }
 
 static enum MHD_Result send_buffer(request *req, int status, const char *type, char *body,
@@ -714,6 +722,93 @@ static enum MHD_Result volume_route(request *req)
     return r;
 }
 
+/* npy and raw downloads are the node words as stored (after an npy header): they are sent
+ * straight from the volume, which the response holds a reference to, instead of a copy the
+ * size of the volume. */
+typedef struct volume_stream {
+    sdfd_stored_volume *stored;
+    char header[512];
+    size_t header_len;
+} volume_stream;
+
+static ssize_t read_volume_stream(void *cls, uint64_t pos, char *buf, size_t max)
+{
+    volume_stream *s = cls;
+    size_t total = s->header_len + sdf_volume_data_bytes(s->stored->volume), n = 0;
+    if (pos >= total)
+        return MHD_CONTENT_READER_END_OF_STREAM;
+    while (n < max && pos < total) {
+        size_t at = (size_t)pos, chunk;
+        const char *from;
+        if (at < s->header_len)
+            from = s->header + at, chunk = s->header_len - at;
+        else
+            from = (const char *)sdf_volume_data(s->stored->volume) + (at - s->header_len),
+            chunk = total - at;
+        if (chunk > max - n)
+            chunk = max - n;
+        memcpy(buf + n, from, chunk);
+        n += chunk, pos += chunk;
+    }
+    return (ssize_t)n;
+}
+
+static void free_volume_stream(void *cls)
+{
+    volume_stream *s = cls;
+    sdfd_volume_release(s->stored);
+    free(s);
+}
+
+static void volume_headers(request *req, header h[4])
+{
+    static const char *const extensions[] = {"exr", "npy", "raw"};
+    sdf_volume_info in;
+    sdf_volume_get_info(req->stored->volume, &in);
+    h[0] = (header){"Content-Disposition", ""}, h[1] = (header){"X-SDF-Dims", ""};
+    h[2] = (header){"X-SDF-Order", ""}, h[3] = (header){"X-SDF-Encoding", ""};
+    snprintf(h[0].value, sizeof h[0].value, "attachment; filename=\"%s.%s\"", req->name,
+             extensions[req->file_type]);
+    snprintf(h[1].value, sizeof h[1].value, "%zu,%zu,%zu", in.dims[0], in.dims[1], in.dims[2]);
+    snprintf(h[2].value, sizeof h[2].value, "%d", in.order);
+    snprintf(h[3].value, sizeof h[3].value, "%s", sdf_encoding_name(in.encoding));
+}
+
+static const char *volume_file_type(sdf_volume_file type)
+{
+    return type == SDF_VOLUME_EXR ? "image/x-exr"
+           : type == SDF_VOLUME_NPY ? "application/x-npy"
+                                    : "application/octet-stream";
+}
+
+static enum MHD_Result stream_volume(request *req)
+{
+    volume_stream *s = calloc(1, sizeof *s);
+    if (!s)
+        return send_error(req, SDF_ENOMEM, "out of memory");
+    const sdf_volume *v = req->stored->volume;
+    if (req->file_type == SDF_VOLUME_NPY) {
+        long len = sdf_volume_npy_header(v, s->header, sizeof s->header);
+        if (len < 0) {
+            free(s);
+            return send_error(req, (int)len, "cannot write the npy header");
+        }
+        s->header_len = (size_t)len;
+    }
+    s->stored = req->stored; /* the stream's own reference: it may outlive the request */
+    sdfd_volume_retain(s->stored);
+    size_t total = s->header_len + sdf_volume_data_bytes(v);
+    struct MHD_Response *r = MHD_create_response_from_callback(total, 1 << 16, read_volume_stream,
+                                                               s, free_volume_stream);
+    if (!r) {
+        free_volume_stream(s);
+        return MHD_NO;
+    }
+    header h[4];
+    volume_headers(req, h);
+    return queue_response(req, 200, volume_file_type(req->file_type), r, total, h, 4);
+}
+
 static void encode_volume(request *req)
 {
     req->work_rc = sdf_volume_save_memory(req->stored->volume, req->file_type,
@@ -724,21 +819,11 @@ static enum MHD_Result reply_volume_data(request *req)
 {
     if (req->work_rc)
         return send_error(req, req->work_rc, "%s", req->diag.message);
-    static const char *const types[] = {"image/x-exr", "application/x-npy",
-                                        "application/octet-stream"};
-    static const char *const extensions[] = {"exr", "npy", "raw"};
-    sdf_volume_info in;
-    sdf_volume_get_info(req->stored->volume, &in);
-    header h[4] = {{"Content-Disposition", ""}, {"X-SDF-Dims", ""}, {"X-SDF-Order", ""},
-                   {"X-SDF-Encoding", ""}};
-    snprintf(h[0].value, sizeof h[0].value, "attachment; filename=\"%s.%s\"", req->name,
-             extensions[req->file_type]);
-    snprintf(h[1].value, sizeof h[1].value, "%zu,%zu,%zu", in.dims[0], in.dims[1], in.dims[2]);
-    snprintf(h[2].value, sizeof h[2].value, "%d", in.order);
-    snprintf(h[3].value, sizeof h[3].value, "%s", sdf_encoding_name(in.encoding));
+    header h[4];
+    volume_headers(req, h);
     char *body = req->out_body;
     req->out_body = NULL; /* MHD frees it */
-    return send_with_headers(req, 200, types[req->file_type], body, req->out_len, h, 4);
+    return send_with_headers(req, 200, volume_file_type(req->file_type), body, req->out_len, h, 4);
 }
 
 static enum MHD_Result start_volume_data(request *req)
@@ -749,7 +834,9 @@ static enum MHD_Result start_volume_data(request *req)
     req->stored = sdfd_volumes_get(req->http->srv->volumes, req->name);
     if (!req->stored)
         return send_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
-    return start_thread(req, encode_volume, reply_volume_data);
+    if (req->file_type != SDF_VOLUME_EXR)
+        return stream_volume(req);
+    return start_thread(req, encode_volume, reply_volume_data); /* compression takes a while */
 }
 
 static void evaluate_volume(request *req)

@@ -67,7 +67,7 @@ sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_
 
 /* ---- stored volumes ---------------------------------------------------------------------- */
 
-static void retain(sdfd_stored_volume *s) { atomic_fetch_add(&s->refs, 1); }
+void sdfd_volume_retain(sdfd_stored_volume *s) { atomic_fetch_add(&s->refs, 1); }
 
 void sdfd_volume_release(sdfd_stored_volume *s)
 {
@@ -101,7 +101,7 @@ sdfd_stored_volume *sdfd_volumes_get(sdfd_volumes *v, const char *name)
     long i = find(v, name, NULL);
     sdfd_stored_volume *s = i >= 0 ? v->items[i] : NULL;
     if (s)
-        retain(s);
+        sdfd_volume_retain(s);
     pthread_mutex_unlock(&v->lock);
     return s;
 }
@@ -175,7 +175,7 @@ size_t sdfd_volumes_list(sdfd_volumes *v, sdfd_stored_volume ***out)
         n = 0;
     for (size_t i = 0; i < n; i++) {
         (*out)[i] = v->items[i];
-        retain(v->items[i]);
+        sdfd_volume_retain(v->items[i]);
     }
     pthread_mutex_unlock(&v->lock);
     return n;

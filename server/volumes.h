@@ -42,6 +42,7 @@ void sdfd_volumes_destroy(sdfd_volumes *v);
 
 /* The volume called `name`, retained (release it), or NULL. */
 sdfd_stored_volume *sdfd_volumes_get(sdfd_volumes *v, const char *name);
+void sdfd_volume_retain(sdfd_stored_volume *s);
 void sdfd_volume_release(sdfd_stored_volume *s); /* NULL is a no-op */
 int sdfd_volumes_remove(sdfd_volumes *v, const char *name); /* 0 or SDF_ENOTFOUND */
 /* Store `volume` (taken over, also on failure) as `name`, replacing any volume of that name;

@@ -24,15 +24,19 @@ int sdf_volume_file_from_name(const char *name, sdf_volume_file *out)
 }
 
 /* .npy: (K, M, N) or (K, M, N, 4), float32 - or uint32 for packed nodes. */
-static int save_npy(const sdf_volume *v, void **data, size_t *size, sdf_diag *diag)
+long sdf_volume_npy_header(const sdf_volume *v, char *dst, size_t cap)
 {
     const sdf_volume_info *in = &v->info;
     size_t shape[4] = {in->dims[2], in->dims[1], in->dims[0], 4};
-    int ndim = v->channels == 4 ? 4 : 3;
+    return sdf_npy_write_header_descr(dst, cap,
+                                      in->encoding == SDF_ENCODING_PACKED32 ? "'<u4'" : "'<f4'",
+                                      v->channels == 4 ? 4 : 3, shape);
+}
+
+static int save_npy(const sdf_volume *v, void **data, size_t *size, sdf_diag *diag)
+{
     char header[512];
-    long len = sdf_npy_write_header_descr(header, sizeof header,
-                                          in->encoding == SDF_ENCODING_PACKED32 ? "'<u4'" : "'<f4'",
-                                          ndim, shape);
+    long len = sdf_volume_npy_header(v, header, sizeof header);
     if (len < 0)
         return sdf__diag_set(diag, (int)len, 0, -1, "cannot write the npy header");
     size_t bytes = sdf_volume_data_bytes(v);

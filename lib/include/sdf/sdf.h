@@ -428,6 +428,10 @@ int sdf_volume_save_memory(const sdf_volume *volume, sdf_volume_file type, void 
 int sdf_volume_save_file(const sdf_volume *volume, sdf_volume_file type, const char *path,
                          sdf_diag *diag);
 
+/* The .npy header of the volume (the file is this header, then sdf_volume_data's bytes):
+ * its length, or a negative SDF_E* code (512 bytes of dst always suffice). */
+long sdf_volume_npy_header(const sdf_volume *volume, char *dst, size_t cap);
+
 /* Read an EXR volume written by sdf_volume_save_* (`size` bytes; every length and
  * attribute is checked). */
 int sdf_volume_load_exr_memory(const void *data, size_t size, sdf_volume **out, sdf_diag *diag);
