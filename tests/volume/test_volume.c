@@ -418,6 +418,55 @@ static void test_files(const sdf_volume *v, const char *name)
     CHECK(sdf_volume_describe_json(v, json, 20) == SDF_ELIMIT, "short buffer must be refused");
 }
 
+/* sdf_volume_create: a description and words in, the same out; bad descriptions and
+ * non-finite floats refused. */
+static void test_create(void)
+{
+    float words[2 * 3 * 2 * 4];
+    for (size_t i = 0; i < sizeof words / sizeof words[0]; i++)
+        words[i] = (float)i * 0.25f - 3;
+    sdf_volume_info in = {.dims = {2, 3, 2}, .origin = {1, 2, 3}, .spacing = {0.5, 0.25, 1},
+                          .order = 1, .fine_half = 1, .fine_spacing = 0.1};
+    sdf_volume *v = NULL;
+    sdf_diag diag;
+    CHECK(sdf_volume_create(&in, words, &v, &diag) == 0, "create: %s", diag.message);
+    if (v) {
+        sdf_volume_info back;
+        sdf_volume_get_info(v, &back);
+        CHECK(!memcmp(&back, &in, sizeof in) && sdf_volume_data_bytes(v) == sizeof words &&
+                  !memcmp(sdf_volume_data(v), words, sizeof words),
+              "create keeps the description and the words");
+        /* At node (1, 2, 1) the nearest plane is that node's. */
+        float p[3] = {1.5f, 2.5f, 4}, value;
+        sdf_volume_eval(v, p, 1, SDF_VOLUME_NEAREST, &value, NULL, NULL);
+        const float *c = words + 4 * ((1 * 3 + 2) * 2 + 1);
+        CHECK(fabsf(value - (c[0] * p[0] + c[1] * p[1] + c[2] * p[2] + c[3])) < 1e-5f,
+              "nearest plane at a node");
+        sdf_volume_destroy(v);
+    }
+    struct {
+        sdf_volume_info info;
+        int code;
+    } bad[] = {
+        {{.dims = {1, 3, 2}, .spacing = {1, 1, 1}}, SDF_EINVAL},
+        {{.dims = {2, 3, 2}, .spacing = {1, 0, 1}}, SDF_EINVAL},
+        {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .origin = {NAN, 0, 0}}, SDF_EINVAL},
+        {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .order = 3}, SDF_EINVAL},
+        {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .encoding = SDF_ENCODING_PACKED32}, SDF_EINVAL},
+        {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .order = 1, .encoding = SDF_ENCODING_PACKED32},
+         SDF_EINVAL}, /* no packed range */
+        {{.dims = {4096, 4096, 4096}, .spacing = {1, 1, 1}}, SDF_ELIMIT},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        v = (sdf_volume *)1;
+        CHECK(sdf_volume_create(&bad[i].info, words, &v, NULL) == bad[i].code && v == NULL,
+              "bad description %zu", i);
+    }
+    words[5] = NAN;
+    CHECK(sdf_volume_create(&in, words, &v, &diag) == SDF_ENONFINITE && v == NULL &&
+              strstr(diag.message, "word 5"), "a NaN word: %s", diag.message);
+}
+
 typedef struct progress_log {
     int calls, cancel_at;
     double last;
@@ -526,6 +575,7 @@ int main(void)
             sdf_volume_destroy(v);
         }
     test_progress_and_options(mesh);
+    test_create();
     sdf_mesh_release(mesh);
     return check_finish("volume");
 }
