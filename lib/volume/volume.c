@@ -11,16 +11,26 @@
 #include "core/diag.h"
 #include "volume/pack.h"
 
+/* The index of `name` (case-insensitive) in names[0..count), or -1. */
+static int name_index(const char *name, const char *const *names, int count)
+{
+    for (int i = 0; name && i < count; i++)
+        if (!strcasecmp(name, names[i]))
+            return i;
+    return -1;
+}
+
 static const char *const encoding_names[] = {"float32", "packed32"};
+static const char *const normalize_names[] = {"plane", "gradient"};
+static const char *const filter_names[] = {"trilinear", "nearest"};
 
 int sdf_encoding_from_name(const char *name, sdf_volume_encoding *out)
 {
-    for (int e = 0; name && e < 2; e++)
-        if (!strcasecmp(name, encoding_names[e])) {
-            *out = (sdf_volume_encoding)e;
-            return 0;
-        }
-    return SDF_EINVAL;
+    int i = name_index(name, encoding_names, 2);
+    if (i < 0)
+        return SDF_EINVAL;
+    *out = (sdf_volume_encoding)i;
+    return 0;
 }
 
 const char *sdf_encoding_name(sdf_volume_encoding encoding)
@@ -28,16 +38,13 @@ const char *sdf_encoding_name(sdf_volume_encoding encoding)
     return (unsigned)encoding < 2 ? encoding_names[encoding] : "unknown";
 }
 
-static const char *const normalize_names[] = {"plane", "gradient"};
-
 int sdf_normalize_from_name(const char *name, sdf_tdf_normalize *out)
 {
-    for (int n = 0; name && n < 2; n++)
-        if (!strcasecmp(name, normalize_names[n])) {
-            *out = (sdf_tdf_normalize)n;
-            return 0;
-        }
-    return SDF_EINVAL;
+    int i = name_index(name, normalize_names, 2);
+    if (i < 0)
+        return SDF_EINVAL;
+    *out = (sdf_tdf_normalize)i;
+    return 0;
 }
 
 const char *sdf_normalize_name(sdf_tdf_normalize normalize)
@@ -47,12 +54,10 @@ const char *sdf_normalize_name(sdf_tdf_normalize normalize)
 
 int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out)
 {
-    if (name && !strcasecmp(name, "trilinear"))
-        *out = SDF_VOLUME_TRILINEAR;
-    else if (name && !strcasecmp(name, "nearest"))
-        *out = SDF_VOLUME_NEAREST;
-    else
+    int i = name_index(name, filter_names, 2);
+    if (i < 0)
         return SDF_EINVAL;
+    *out = i ? SDF_VOLUME_NEAREST : SDF_VOLUME_TRILINEAR;
     return 0;
 }
 
