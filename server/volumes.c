@@ -1,5 +1,5 @@
 /* volumes.c - stored volumes and bake jobs (see volumes.h). One mutex guards both lists; a
- * condition variable hands the limited bake slots to queued jobs in arrival order. */
+ * condition variable hands a freed bake slot to one of the queued jobs (in no set order). */
 #include "volumes.h"
 
 #include <pthread.h>
