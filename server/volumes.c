@@ -1,5 +1,5 @@
 /* volumes.c - stored volumes and bake jobs (see volumes.h). One mutex guards both lists; a
- * condition variable hands a freed bake slot to one of the queued jobs (in no set order). */
+ * condition variable hands freed bake slots to the queued jobs in arrival order. */
 #include "volumes.h"
 
 #include <pthread.h>
@@ -251,17 +251,29 @@ static void snapshot(job *j, sdfd_job_status *out)
         out->seconds = sdfd_now() - j->started;
 }
 
+/* Under the lock: is j the oldest job still waiting for a slot (and not canceled)? The list
+ * is newest first, so that is the last such job in it. */
+static int first_in_line(const sdfd_volumes *v, const job *j)
+{
+    const job *oldest = NULL;
+    for (const job *k = v->jobs; k; k = k->next)
+        if (k->status.state == SDFD_JOB_QUEUED && !atomic_load(&k->cancel))
+            oldest = k;
+    return oldest == j;
+}
+
 static void *run_job(void *arg)
 {
     job *j = arg;
     sdfd_volumes *v = j->owner;
     pthread_mutex_lock(&v->lock);
-    while (v->running >= v->max_running && !atomic_load(&j->cancel))
+    while ((v->running >= v->max_running || !first_in_line(v, j)) && !atomic_load(&j->cancel))
         pthread_cond_wait(&v->slot_free, &v->lock);
     int canceled = atomic_load(&j->cancel);
     if (!canceled) {
         v->running++;
         j->status.state = SDFD_JOB_RUNNING;
+        pthread_cond_broadcast(&v->slot_free); /* the next in line may fit too */
     }
     pthread_mutex_unlock(&v->lock);
 

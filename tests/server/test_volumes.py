@@ -239,6 +239,23 @@ class Volumes(unittest.TestCase):
 
 
 class Limits(unittest.TestCase):
+    def test_queued_bakes_run_in_arrival_order(self):
+        with Server("--max-bakes", "1") as s:
+            c = sdfclient.Client(s.url)
+            self.addCleanup(c.close)
+            ids = [c.bake("demo", volume=f"q{i}", resolution=22, order=1)["id"] for i in range(4)]
+            finished, seen_running = [], set()
+            deadline = time.time() + 120
+            while len(finished) < len(ids) and time.time() < deadline:
+                states = {j["id"]: j["state"] for j in c.jobs()}
+                running = [i for i in ids if states[i] == "running"]
+                self.assertLessEqual(len(running), 1, "--max-bakes 1")
+                seen_running.update(running)
+                finished += [i for i in ids if states[i] == "done" and i not in finished]
+                time.sleep(0.005)
+            self.assertEqual(finished, ids)
+
+
     def test_memory_limit_token_and_shutdown(self):
         with Server("--token", "t", "--max-volume-bytes", "100000") as s:
             anon, admin = sdfclient.Client(s.url), sdfclient.Client(s.url, token="t")
