@@ -5,7 +5,7 @@
  * bytes (a bake that would not fit is refused before it starts).
  *
  * A bake job runs on its own thread; at most `max_running` bake at once (each uses the
- * configured geometry threads), the rest wait queued. Progress and cancellation go through
+ * configured geometry threads), the rest wait queued and start in arrival order. Progress and cancellation go through
  * sdf_volume_bake's progress callback. Finished jobs stay listed (their state and error)
  * until `max_jobs` newer ones push the oldest finished out. Volumes and jobs belong to one
  * replica: behind a load balancer, send a job's status requests to the replica that
