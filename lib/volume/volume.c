@@ -9,7 +9,10 @@
 #include <strings.h>
 
 #include "core/diag.h"
+#include "core/parallel.h"
 #include "volume/pack.h"
+
+#define EVAL_CHUNK 16384 /* points per work item: a few milliseconds */
 
 /* The index of `name` (case-insensitive) in names[0..count), or -1. */
 static int name_index(const char *name, const char *const *names, int count)
@@ -294,6 +297,31 @@ static void eval_trilinear(const sdf_volume *v, const double p[3], double *value
     grad[0] = g[0], grad[1] = g[1], grad[2] = g[2];
 }
 
+typedef struct eval_batch {
+    const sdf_volume *volume;
+    const float *points;
+    sdf_volume_filter filter;
+    float *value, *gradient;
+} eval_batch;
+
+static void eval_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const eval_batch *b = ctx;
+    for (size_t i = begin; i < end; i++) {
+        const float *q = b->points + 3 * i;
+        double p[3] = {q[0], q[1], q[2]}, val, g[3];
+        if (b->filter == SDF_VOLUME_NEAREST)
+            eval_nearest(b->volume, p, &val, g);
+        else
+            eval_trilinear(b->volume, p, &val, g);
+        b->value[i] = (float)val;
+        if (b->gradient)
+            for (int a = 0; a < 3; a++)
+                b->gradient[3 * i + a] = (float)g[a];
+    }
+}
+
 int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
                     sdf_volume_filter filter, float *value, float *gradient, size_t *bad_index)
 {
@@ -306,16 +334,8 @@ int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
                 *bad_index = i / 3;
             return SDF_ENONFINITE;
         }
-    for (size_t i = 0; i < count; i++) {
-        double p[3] = {points[3 * i], points[3 * i + 1], points[3 * i + 2]}, val, g[3];
-        if (filter == SDF_VOLUME_NEAREST)
-            eval_nearest(volume, p, &val, g);
-        else
-            eval_trilinear(volume, p, &val, g);
-        value[i] = (float)val;
-        if (gradient)
-            for (int a = 0; a < 3; a++)
-                gradient[3 * i + a] = (float)g[a];
-    }
+    /* Each point on its own: any split over threads gives the same floats. */
+    eval_batch b = {volume, points, filter, value, gradient};
+    sdf__parallel_for(count, EVAL_CHUNK, 0, eval_range, &b);
     return 0;
 }

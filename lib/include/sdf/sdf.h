@@ -405,7 +405,7 @@ int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out);
  * node lookup clamps to the boundary (as a GPU sampler's clamp-to-edge): zero order
  * continues the boundary values, first order extends the boundary planes linearly.
  * SDF_ENONFINITE (and *bad_index) for a NaN or Inf coordinate, before writing anything.
- * Thread-safe. */
+ * Large batches run on all CPUs (the same floats either way). Thread-safe. */
 int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
                     sdf_volume_filter filter, float *value, float *gradient, size_t *bad_index);
 
