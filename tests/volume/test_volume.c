@@ -317,6 +317,18 @@ static void test_evaluation(const sdf_volume *v, const char *name)
         CHECK(fabs(vo - expect) < 1e-4 * (1 + fabs(expect)), "%s: first order outside extends the plane (%g vs %g)",
               name, vo, expect);
     }
+    /* A batch big enough to be split over threads gives the floats of small batches. */
+    size_t many = 100000;
+    float *mp = malloc(many * 12), *mv = malloc(many * 4), *mg = malloc(many * 12),
+          *sv = malloc(many * 4), *sg = malloc(many * 12);
+    for (size_t i = 0; i < 3 * many; i++)
+        mp[i] = p[i % (3 * points)] + (float)(i % 7) * 0.01f;
+    sdf_volume_eval(v, mp, many, SDF_VOLUME_TRILINEAR, mv, mg, NULL);
+    for (size_t i = 0; i < many; i += 1000)
+        sdf_volume_eval(v, mp + 3 * i, 1000, SDF_VOLUME_TRILINEAR, sv + i, sg + 3 * i, NULL);
+    CHECK(!memcmp(mv, sv, many * 4) && !memcmp(mg, sg, many * 12),
+          "%s: a threaded batch differs from small ones", name);
+    free(mp), free(mv), free(mg), free(sv), free(sg);
     float nan_point[6] = {0, 0, 0, 0, NAN, 0};
     size_t bad_index = 99;
     CHECK(sdf_volume_eval(v, nan_point, 2, SDF_VOLUME_TRILINEAR, val, NULL, &bad_index) ==
