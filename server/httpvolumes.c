@@ -1,0 +1,378 @@
+/* httpvolumes.c - the HTTP routes of baked volumes (docs/api.md, "Volumes"): bake jobs
+ * (volumes.h runs them), job status and cancellation, volume metadata, downloads (npy and
+ * raw streamed from the stored volume, EXR compressed on a worker thread), uploads and
+ * queries (evaluated on a worker thread: arithmetic, not the batcher's geometry). */
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bakeparams.h"
+#include "httpreq.h"
+#include "log.h"
+
+typedef sdfd_http_request request;
+
+static cJSON *job_json(const sdfd_job_status *s)
+{
+    cJSON *o = cJSON_CreateObject();
+    char href[64];
+    snprintf(href, sizeof href, "/v1/jobs/%s", s->id);
+    cJSON_AddStringToObject(o, "id", s->id);
+    cJSON_AddStringToObject(o, "href", href);
+    cJSON_AddStringToObject(o, "state", sdfd_job_state_name(s->state));
+    cJSON_AddNumberToObject(o, "progress", s->progress);
+    cJSON_AddNumberToObject(o, "percent", floor(s->progress * 1000) / 10);
+    cJSON_AddStringToObject(o, "mesh", s->mesh);
+    cJSON_AddStringToObject(o, "volume", s->volume);
+    cJSON_AddNumberToObject(o, "seconds", s->seconds);
+    if (s->state == SDFD_JOB_FAILED) {
+        cJSON *err = cJSON_AddObjectToObject(o, "error");
+        cJSON_AddStringToObject(err, "code", sdf_errname(s->error));
+        cJSON_AddStringToObject(err, "message", s->message);
+    }
+    return o;
+}
+
+/* Check a bake's options against the mesh and the server's limits, as the job would. */
+static int check_bake(request *req, const sdf_mesh *mesh, sdfd_bake_request *bake,
+                      char *err, size_t cap)
+{
+    const sdfd_config *cfg = &req->http->srv->cfg;
+    sdf_bake_options o = bake->options;
+    o.filter = bake->filtered ? &bake->filter : NULL;
+    sdf_volume_info planned;
+    sdf_diag diag = {0};
+    int rc = sdf_volume_plan(mesh, &o, &planned, &diag);
+    if (rc) {
+        snprintf(err, cap, "%s", diag.message);
+        return rc;
+    }
+    size_t nodes = planned.dims[0] * planned.dims[1] * planned.dims[2];
+    size_t side = planned.order ? 2 * (size_t)planned.fine_half + 1 : 1;
+    size_t points = nodes * side * side * side;
+    if (bake->filtered)
+        return sdfd_filter_validate(mesh, &bake->filter, points, cfg->max_bake_queries, err, cap);
+    if (points > cfg->max_bake_queries) {
+        snprintf(err, cap, "the bake costs %zu distance queries, over --max-bake-queries %zu; "
+                 "lower the resolution", points, cfg->max_bake_queries);
+        return SDF_ELIMIT;
+    }
+    return 0;
+}
+
+enum MHD_Result sdfd_http_bake(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    sdfd_bake_request bake; /* the body is JSON whatever its Content-Type says (curl -d) */
+    sdfd_bake_names names;
+    char err[512];
+    int rc = sdfd_bake_from_json(req->body, req->len, &bake, &names, err, sizeof err);
+    if (rc)
+        return sdfd_http_error(req, rc, "%s", err);
+    sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
+    if (!mesh)
+        return sdfd_http_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+    if (names.smoothing_mesh[0]) {
+        bake.smoothing_mesh = sdfd_registry_get(srv->registry, names.smoothing_mesh,
+                                                strlen(names.smoothing_mesh));
+        if (!bake.smoothing_mesh) {
+            sdf_mesh_release(mesh);
+            return sdfd_http_error(req, SDF_ENOTFOUND, "no smoothing mesh named '%s'",
+                                   names.smoothing_mesh);
+        }
+        bake.filter.smooth.mesh = bake.smoothing_mesh;
+    }
+    if ((rc = check_bake(req, mesh, &bake, err, sizeof err))) {
+        sdf_mesh_release(mesh);
+        sdf_mesh_release(bake.smoothing_mesh);
+        return sdfd_http_error(req, rc, "%s", err);
+    }
+    const char *volume = names.volume[0] ? names.volume : req->name;
+    char id[24];
+    /* The job takes over both mesh references, also when it fails to start. */
+    rc = sdfd_volumes_bake(srv->volumes, mesh, req->name, volume, &bake, id, err, sizeof err);
+    if (rc)
+        return sdfd_http_error(req, rc, "%s", err);
+    sdfd_job_status status;
+    sdfd_volumes_job(srv->volumes, id, &status);
+    sdfd_http_header location = {MHD_HTTP_HEADER_LOCATION, ""};
+    snprintf(location.value, sizeof location.value, "/v1/jobs/%s", id);
+    cJSON *json = job_json(&status);
+    char *text = cJSON_PrintUnformatted(json);
+    cJSON_Delete(json);
+    return text ? sdfd_http_send(req, 202, "application/json", text, strlen(text), &location, 1)
+                : MHD_NO;
+}
+
+enum MHD_Result sdfd_http_job(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    sdfd_job_status s;
+    int deleting = !strcmp(req->method, "DELETE");
+    int rc = deleting ? sdfd_volumes_cancel(srv->volumes, req->name, &s)
+                      : sdfd_volumes_job(srv->volumes, req->name, &s);
+    if (rc)
+        return sdfd_http_error(req, rc, "no job '%s'", req->name);
+    cJSON *o = job_json(&s);
+    if (deleting)
+        cJSON_AddBoolToObject(o, "cancel_requested",
+                              s.state == SDFD_JOB_QUEUED || s.state == SDFD_JOB_RUNNING);
+    return sdfd_http_json(req, 200, o);
+}
+
+enum MHD_Result sdfd_http_jobs(request *req)
+{
+    sdfd_job_status *jobs;
+    size_t n = sdfd_volumes_jobs(req->http->srv->volumes, &jobs);
+    cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "jobs");
+    for (size_t i = 0; i < n; i++)
+        cJSON_AddItemToArray(arr, job_json(&jobs[i]));
+    free(jobs);
+    return sdfd_http_json(req, 200, root);
+}
+
+static cJSON *volume_json(const sdfd_stored_volume *s)
+{
+    char text[1024];
+    cJSON *o =
+        sdf_volume_describe_json(s->volume, text, sizeof text) > 0 ? cJSON_Parse(text) : NULL;
+    if (!o)
+        o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "name", s->name);
+    cJSON_AddStringToObject(o, "mesh", s->mesh);
+    cJSON_AddStringToObject(o, "job", s->job);
+    cJSON_AddNumberToObject(o, "bake_seconds", s->bake_seconds);
+    return o;
+}
+
+enum MHD_Result sdfd_http_volumes(request *req)
+{
+    sdfd_stored_volume **list;
+    size_t n = sdfd_volumes_list(req->http->srv->volumes, &list);
+    cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "volumes");
+    for (size_t i = 0; i < n; i++)
+        cJSON_AddItemToArray(arr, volume_json(list[i]));
+    sdfd_volumes_free_list(list, n);
+    return sdfd_http_json(req, 200, root);
+}
+
+/* An uploaded EXR volume (another replica's download, say) becomes a stored volume. */
+static void load_volume(request *req)
+{
+    sdf_volume *volume = NULL;
+    req->work_rc = sdf_volume_load_exr_memory(req->body, req->len, &volume, &req->diag);
+    if (!req->work_rc) {
+        req->work_rc = sdfd_volumes_put(req->http->srv->volumes, req->name, volume, "",
+                                        &req->replaced);
+        if (req->work_rc)
+            snprintf(req->diag.message, sizeof req->diag.message,
+                     "storing it would exceed --max-volumes or --max-volume-bytes");
+    }
+}
+
+static enum MHD_Result reply_volume_upload(request *req)
+{
+    if (req->work_rc)
+        return sdfd_http_error(req, req->work_rc, "%s", req->diag.message);
+    sdfd_stored_volume *s = sdfd_volumes_get(req->http->srv->volumes, req->name);
+    if (!s) /* deleted in between */
+        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    sdfd_log("info", "volume_loaded", "%s: %s by upload", req->name,
+             req->replaced ? "replaced" : "added");
+    enum MHD_Result r = sdfd_http_json(req, req->replaced ? 200 : 201, volume_json(s));
+    sdfd_volume_release(s);
+    return r;
+}
+
+enum MHD_Result sdfd_http_volume(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    if (!strcmp(req->method, "PUT"))
+        return sdfd_http_start_thread(req, load_volume, reply_volume_upload);
+    if (!strcmp(req->method, "DELETE")) {
+        if (sdfd_volumes_remove(srv->volumes, req->name))
+            return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+        sdfd_log("info", "volume_deleted", "%s", req->name);
+        return sdfd_http_buffer(req, 204, "application/json", NULL, 0, NULL);
+    }
+    sdfd_stored_volume *s = sdfd_volumes_get(srv->volumes, req->name);
+    if (!s)
+        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    enum MHD_Result r = sdfd_http_json(req, 200, volume_json(s));
+    sdfd_volume_release(s);
+    return r;
+}
+
+/* npy and raw downloads are the node words as stored (after an npy header): they are sent
+ * straight from the volume, which the response holds a reference to, instead of a copy the
+ * size of the volume. */
+typedef struct volume_stream {
+    sdfd_stored_volume *stored;
+    char header[512];
+    size_t header_len;
+} volume_stream;
+
+static ssize_t read_volume_stream(void *cls, uint64_t pos, char *buf, size_t max)
+{
+    volume_stream *s = cls;
+    size_t total = s->header_len + sdf_volume_data_bytes(s->stored->volume), n = 0;
+    if (pos >= total)
+        return MHD_CONTENT_READER_END_OF_STREAM;
+    while (n < max && pos < total) {
+        size_t at = (size_t)pos, chunk;
+        const char *from;
+        if (at < s->header_len)
+            from = s->header + at, chunk = s->header_len - at;
+        else
+            from = (const char *)sdf_volume_data(s->stored->volume) + (at - s->header_len),
+            chunk = total - at;
+        if (chunk > max - n)
+            chunk = max - n;
+        memcpy(buf + n, from, chunk);
+        n += chunk, pos += chunk;
+    }
+    return (ssize_t)n;
+}
+
+static void free_volume_stream(void *cls)
+{
+    volume_stream *s = cls;
+    sdfd_volume_release(s->stored);
+    free(s);
+}
+
+static void volume_headers(request *req, sdfd_http_header h[4])
+{
+    static const char *const extensions[] = {"exr", "npy", "raw"};
+    sdf_volume_info in;
+    sdf_volume_get_info(req->stored->volume, &in);
+    h[0] = (sdfd_http_header){"Content-Disposition", ""},
+    h[1] = (sdfd_http_header){"X-SDF-Dims", ""};
+    h[2] = (sdfd_http_header){"X-SDF-Order", ""}, h[3] = (sdfd_http_header){"X-SDF-Encoding", ""};
+    snprintf(h[0].value, sizeof h[0].value, "attachment; filename=\"%s.%s\"", req->name,
+             extensions[req->file_type]);
+    snprintf(h[1].value, sizeof h[1].value, "%zu,%zu,%zu", in.dims[0], in.dims[1], in.dims[2]);
+    snprintf(h[2].value, sizeof h[2].value, "%d", in.order);
+    snprintf(h[3].value, sizeof h[3].value, "%s", sdf_encoding_name(in.encoding));
+}
+
+static const char *volume_file_type(sdf_volume_file type)
+{
+    return type == SDF_VOLUME_EXR ? "image/x-exr"
+           : type == SDF_VOLUME_NPY ? "application/x-npy"
+                                    : "application/octet-stream";
+}
+
+static enum MHD_Result stream_volume(request *req)
+{
+    volume_stream *s = calloc(1, sizeof *s);
+    if (!s)
+        return sdfd_http_error(req, SDF_ENOMEM, "out of memory");
+    const sdf_volume *v = req->stored->volume;
+    if (req->file_type == SDF_VOLUME_NPY) {
+        long len = sdf_volume_npy_header(v, s->header, sizeof s->header);
+        if (len < 0) {
+            free(s);
+            return sdfd_http_error(req, (int)len, "cannot write the npy header");
+        }
+        s->header_len = (size_t)len;
+    }
+    s->stored = req->stored; /* the stream's own reference: it may outlive the request */
+    sdfd_volume_retain(s->stored);
+    size_t total = s->header_len + sdf_volume_data_bytes(v);
+    struct MHD_Response *r = MHD_create_response_from_callback(total, 1 << 16, read_volume_stream,
+                                                               s, free_volume_stream);
+    if (!r) {
+        free_volume_stream(s);
+        return MHD_NO;
+    }
+    sdfd_http_header h[4];
+    volume_headers(req, h);
+    return sdfd_http_queue(req, 200, volume_file_type(req->file_type), r, total, h, 4);
+}
+
+static void encode_volume(request *req)
+{
+    req->work_rc = sdf_volume_save_memory(req->stored->volume, req->file_type,
+                                            (void **)&req->out_body, &req->out_len, &req->diag);
+}
+
+static enum MHD_Result reply_volume_data(request *req)
+{
+    if (req->work_rc)
+        return sdfd_http_error(req, req->work_rc, "%s", req->diag.message);
+    sdfd_http_header h[4];
+    volume_headers(req, h);
+    char *body = req->out_body;
+    req->out_body = NULL; /* MHD frees it */
+    return sdfd_http_send(req, 200, volume_file_type(req->file_type), body, req->out_len, h, 4);
+}
+
+enum MHD_Result sdfd_http_volume_data(request *req)
+{
+    const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
+    if (sdf_volume_file_from_name(format ? format : "exr", &req->file_type))
+        return sdfd_http_error(req, SDF_EINVAL, "unknown format '%s' (exr, npy, raw)", format);
+    req->stored = sdfd_volumes_get(req->http->srv->volumes, req->name);
+    if (!req->stored)
+        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    if (req->file_type != SDF_VOLUME_EXR)
+        return stream_volume(req);
+    return sdfd_http_start_thread(req, encode_volume,
+                                  reply_volume_data); /* compression takes a while */
+}
+
+static void evaluate_volume(request *req)
+{
+    size_t bad = 0;
+    req->work_rc = sdfd_volume_eval_words(req->stored->volume, req->points_buf, req->points,
+                                          req->interpolation, req->reply.mode == SDF_MODE_GRADIENT,
+                                          req->reply.words, &bad);
+    if (req->work_rc == SDF_ENONFINITE)
+        snprintf(req->diag.message, sizeof req->diag.message,
+                 "point %zu has a NaN or infinite coordinate", bad);
+    else if (req->work_rc)
+        snprintf(req->diag.message, sizeof req->diag.message, "%s", sdf_strerror(req->work_rc));
+}
+
+static enum MHD_Result reply_volume_query(request *req)
+{
+    if (req->work_rc)
+        return sdfd_http_error(req, req->work_rc, "%s", req->diag.message);
+    return sdfd_http_results(req);
+}
+
+enum MHD_Result sdfd_http_volume_query(request *req)
+{
+    sdfd_server *srv = req->http->srv;
+    sdfd_form form;
+    sdfd_query_params params;
+    size_t count;
+    enum MHD_Result refused;
+    if (sdfd_http_read_points(req, &form, &params, &count, &refused))
+        return refused;
+    char mode_buf[32], interp_buf[32];
+    const char *mode =
+        sdfd_http_param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
+    const char *interp = sdfd_http_param(req, params.interpolation, params.interpolation_len,
+                                         "interpolation", interp_buf, sizeof interp_buf);
+    int gradient = 0;
+    if (mode && strcmp(mode, "value") && !(gradient = !strcmp(mode, "gradient")))
+        return sdfd_http_error(req, SDF_EINVAL, "unknown volume mode '%s' (value, gradient)", mode);
+    req->interpolation = SDF_VOLUME_TRILINEAR;
+    if (interp && sdf_volume_filter_from_name(interp, &req->interpolation))
+        return sdfd_http_error(req, SDF_EINVAL, "unknown interpolation '%s' (trilinear, nearest)",
+                               interp);
+    req->stored = sdfd_volumes_get(srv->volumes, req->name);
+    if (!req->stored)
+        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    req->points = count;
+    req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
+    if (sdfd_reply_init(&req->reply, req->reply_form,
+                        gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count))
+        return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
+    sdfd_metrics_points(srv->metrics, count);
+    return sdfd_http_start_thread(req, evaluate_volume, reply_volume_query);
+}
