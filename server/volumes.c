@@ -229,7 +229,8 @@ void sdfd_volumes_usage(sdfd_volumes *v, size_t *bytes, size_t *running, size_t 
 
 /* ---- jobs -------------------------------------------------------------------------------- */
 
-size_t sdfd_bake_bytes(const sdf_volume_info *planned)
+/* Bytes a bake needs at its peak: the volume plus the first-order planes being fitted. */
+static size_t bake_bytes(const sdf_volume_info *planned)
 {
     size_t nodes = planned->dims[0] * planned->dims[1] * planned->dims[2];
     size_t words = (size_t)sdf_volume_channels(planned);
@@ -367,14 +368,14 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         o->progress = on_progress;
         o->user = j;
         o->query.threads = v->threads;
-        for (int a = 0; a < 3; a++)
-            planned.dims[a] = o->dims[a] ? o->dims[a] : 64;
-        planned.order = o->order;
-        planned.encoding = o->encoding;
+        /* The library's own defaults say what the bake will make (the caller checked it). */
+        sdf_diag diag = {0};
+        if ((rc = sdf_volume_plan(mesh, o, &planned, &diag)))
+            snprintf(err, err_cap, "%s", diag.message);
         snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
         snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
     }
-    size_t need = rc ? 0 : sdfd_bake_bytes(&planned);
+    size_t need = rc ? 0 : bake_bytes(&planned);
     pthread_mutex_lock(&v->lock);
     if (!rc && v->closing)
         rc = SDF_EUNAVAILABLE, snprintf(err, err_cap, "the server is shutting down");

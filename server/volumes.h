@@ -91,9 +91,6 @@ typedef struct sdfd_bake_request {
     sdf_mesh *smoothing_mesh;     /* retained reference handed over, or NULL */
 } sdfd_bake_request;
 
-/* Bytes a bake needs at its peak: the volume plus the first-order planes being fitted. */
-size_t sdfd_bake_bytes(const sdf_volume_info *planned);
-
 /* Start a job baking `mesh` (a retained reference handed over, like req->smoothing_mesh,
  * released when the job ends) into the volume `volume_name`. Writes the job id into id.
  * SDF_ELIMIT when the volume would break the byte limit, SDF_EBUSY when max_jobs are still
