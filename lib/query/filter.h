@@ -8,6 +8,7 @@
 #ifndef SDF_QUERY_FILTER_H
 #define SDF_QUERY_FILTER_H
 
+#include "bvh/embree.h" /* sdf__hit */
 #include "sdf/sdf.h"
 
 typedef struct sdf__samples {
@@ -35,5 +36,11 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
 int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
                       const int8_t *sign_hint, const uint8_t *run_start, size_t count,
                       const sdf_query_options *opts, sdf_query_result *out);
+
+/* Answer `count` packed points whose closest points are already known (hits[i]; a hit with
+ * dist2 == INFINITY is searched again): signs and outputs exactly as sdf_query gives them for
+ * the same closest points. Runs on the calling thread. Defined in query.c. */
+int sdf__query_finish(const sdf_mesh *mesh, const float *points, const sdf__hit *hits,
+                      size_t count, const sdf_query_options *opts, sdf_query_result *out);
 
 #endif

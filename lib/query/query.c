@@ -305,6 +305,33 @@ int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *b
     return 0;
 }
 
+int sdf__query_finish(const sdf_mesh *mesh, const float *points, const sdf__hit *hits,
+                      size_t count, const sdf_query_options *opts, sdf_query_result *out)
+{
+    batch b;
+    int rc = check_batch(mesh, points, count, opts, &b, &out->bad_index);
+    if (rc)
+        return rc;
+    b.out = out;
+    sdf__packet pk; /* only its coordinates: a packet's winding numbers come in one traversal */
+    for (size_t first = 0; first < count; first += SDF__PACKET) {
+        pk.n = (int)(count - first < SDF__PACKET ? count - first : SDF__PACKET);
+        for (int i = 0; i < pk.n; i++) {
+            const float *p = point_at(&b, first + (size_t)i);
+            pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
+        }
+        double winding[SDF__PACKET];
+        packet_winding(&b, &pk, winding);
+        for (int i = 0; i < pk.n; i++) {
+            sdf__hit hit = hits[first + (size_t)i];
+            if (!isfinite(hit.dist2))
+                sdf__bvh_closest(mesh->bvh, point_at(&b, first + (size_t)i), &hit);
+            finish(&b, first + (size_t)i, &hit, winding[i]);
+        }
+    }
+    return 0;
+}
+
 int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
               const sdf_query_options *opts, sdf_query_result *out)
 {

@@ -18,6 +18,7 @@
 #include "core/parallel.h"
 #include "query/filter.h"
 #include "volume/pack.h"
+#include "volume/scan.h"
 #include "volume/volume.h"
 
 #define DEFAULT_DIM 64
@@ -340,6 +341,29 @@ static void free_slab(slab *s)
     free(s->bound), free(s->hint), free(s->run_start);
 }
 
+/* Zero order from the raw field by closest-feature scan conversion (volume/scan.h): the same
+ * floats as querying every node, in slabs of whole z-slices. */
+static int scan_bake(const bake_plan *plan, sdf_volume *v, const sdf_bake_options *opts,
+                     sdf_diag *diag)
+{
+    sdf__scan *scan = NULL;
+    const sdf_volume_info *in = &plan->info;
+    int rc = sdf__scan_create(plan->mesh, in, &plan->query, &scan);
+    size_t slice = in->dims[0] * in->dims[1], per_slab = rc ? 1 : sdf__scan_slices_per_call(scan);
+    for (size_t k = 0; !rc && k < in->dims[2]; k += per_slab) {
+        size_t end = k + per_slab < in->dims[2] ? k + per_slab : in->dims[2];
+        rc = sdf__scan_slices(scan, k, end, v->data.f + k * slice);
+        if (!rc && opts->progress && opts->progress(opts->user, (double)end / (double)in->dims[2]))
+            rc = SDF_ECANCELED;
+    }
+    sdf__scan_destroy(scan);
+    if (rc == SDF_ECANCELED)
+        return sdf__diag_set(diag, rc, 0, -1, "the bake was canceled");
+    if (rc)
+        return sdf__diag_set(diag, rc, 0, -1, "no memory for the bake's scratch");
+    return 0;
+}
+
 int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume **out,
                     sdf_diag *diag)
 {
@@ -366,6 +390,16 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
         return rc;
     }
     int first = plan->info.order == 1;
+    if (!first && !plan->filter && sdf__scan_supported(mesh, plan->query.sign)) {
+        rc = scan_bake(plan, v, opts, diag);
+        free(plan);
+        if (rc) {
+            sdf_volume_destroy(v);
+            return rc;
+        }
+        *out = v;
+        return 0;
+    }
     size_t m = first ? (size_t)plan->fine_count : 1;
     size_t per_slab = SLAB_QUERIES / (m * plan->queries_per_point);
     if (per_slab < 1)

@@ -1,0 +1,49 @@
+/* scan.h - exact signed distances at every node of a volume's lattice by closest-feature
+ * scan conversion (after Mauch's CSC), for zero-order bakes of the raw field.
+ *
+ * Querying node after node makes each far node rule out every triangle within its distance
+ * (docs/performance.md): the cost grows with the distance. Turned around, the work is small:
+ * a point's closest surface point lies inside a face, on an edge or at a vertex, and then the
+ * point lies in that feature's Voronoi region - the prism over the face, the wedge beside the
+ * edge between its faces' normal planes, the cone of directions at the vertex that make
+ * obtuse angles with all its edges. Each region is a convex polyhedron; scan-converting all of
+ * them over the lattice hands every node the few features (14 on refined_elephant, 6 on
+ * fandisk) whose region holds it, and the nearest of those is the closest. The regions are
+ * necessary conditions taken with a rounding slack, so a node can only get extra candidates,
+ * never miss its closest feature; the winner's distance is then the exact double test of
+ * query/triangle.c on its triangles, and sign and float output are sdf_query's own
+ * (sdf__query_finish), so a node gets the same float as sdf_query at the same point. A node
+ * whose winner was an extra candidate (its exact distance exceeds the region's estimate) is
+ * asked again through sdf_query's search. */
+#ifndef SDF_VOLUME_SCAN_H
+#define SDF_VOLUME_SCAN_H
+
+#include <stddef.h>
+
+#include "sdf/sdf.h"
+
+typedef struct sdf__scan sdf__scan;
+
+/* Is the scan the faster way to bake this mesh with this sign? Closed meshes (their regions
+ * reach only as far as the box; an open mesh's boundary edges and vertices own half-spaces
+ * beyond its rims) signed by pseudonormals or unsigned: a winding-number or ray sign costs
+ * as much per node either way, and sdf_query's Morton-ordered packets share more of it. */
+int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign);
+
+/* Prepare the scan of `info`'s lattice (dims, origin, spacing): the mesh's adjacency and how
+ * far from the surface any node lies (from a coarse lattice of exact queries). `opts` gives
+ * the sign and threads. Returns 0 or SDF_ENOMEM. */
+int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
+                     const sdf_query_options *opts, sdf__scan **out);
+
+/* How many z-slices one sdf__scan_slices call should take (its scratch is 12 bytes per node
+ * and worker, kept under 64 MiB). */
+size_t sdf__scan_slices_per_call(const sdf__scan *scan);
+
+/* Signed distances of the nodes of slices k0 <= k < k1 into out[(k - k0) * N * M + j * N + i]
+ * (N, M = dims[0], dims[1]). Returns 0 or SDF_ENOMEM. */
+int sdf__scan_slices(sdf__scan *scan, size_t k0, size_t k1, float *out);
+
+void sdf__scan_destroy(sdf__scan *scan);
+
+#endif

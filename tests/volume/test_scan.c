@@ -1,0 +1,180 @@
+/* test_scan.c - zero-order bakes by closest-feature scan conversion (lib/volume/scan.c)
+ * against the slow, obvious computations:
+ *  - every node holds exactly sdf_query's float at the node's position (the search path,
+ *    itself tested against brute force), on closed meshes signed by pseudonormals and
+ *    unsigned, over default, anisotropic, off-centre and far-away boxes;
+ *  - on sampled nodes, |f| equals brute force over every triangle in double precision;
+ *  - nodes lying exactly on faces, edges and corners (a cube on an aligned grid) are 0;
+ *  - 1 and 2 threads give the same bits; the sign methods the scan does not take (winding,
+ *    raycast) and open meshes still bake sdf_query's values. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/check.h"
+#include "../common/reference.h"
+#include "../common/workload.h"
+
+static size_t node_count(const sdf_volume_info *in)
+{
+    return in->dims[0] * in->dims[1] * in->dims[2];
+}
+
+static void node_position(const sdf_volume_info *in, size_t n, float p[3])
+{
+    size_t ijk[3] = {n % in->dims[0], n / in->dims[0] % in->dims[1],
+                     n / in->dims[0] / in->dims[1]};
+    for (int a = 0; a < 3; a++)
+        p[a] = (float)(in->origin[a] + (double)ijk[a] * in->spacing[a]);
+}
+
+/* Bake with `o`, query every node with the same sign and threads, compare bits; brute force
+ * on `samples` nodes. Returns the volume (or NULL). */
+static sdf_volume *bake_and_compare(const char *what, const sdf_mesh *mesh,
+                                    const sdf_bake_options *o, int samples)
+{
+    sdf_volume *v = NULL;
+    sdf_diag diag;
+    CHECK(sdf_volume_bake(mesh, o, &v, &diag) == 0, "%s: bake: %s", what, diag.message);
+    if (!v)
+        return NULL;
+    sdf_volume_info in;
+    sdf_volume_get_info(v, &in);
+    size_t n = node_count(&in);
+    float *p = malloc(n * 3 * sizeof *p), *f = malloc(n * sizeof *f);
+    for (size_t q = 0; q < n; q++)
+        node_position(&in, q, p + 3 * q);
+    sdf_query_options qo = o->query;
+    sdf_query_result res = {.distance = f};
+    CHECK(sdf_query(mesh, p, n, &qo, &res) == 0, "%s: query", what);
+    const float *baked = sdf_volume_data(v);
+    size_t differ = 0, first = n;
+    for (size_t q = 0; q < n; q++)
+        if (memcmp(&baked[q], &f[q], sizeof *f) && differ++ == 0)
+            first = q;
+    CHECK(differ == 0, "%s: %zu of %zu nodes differ from sdf_query (first: node %zu, %.9g vs %.9g)",
+          what, differ, n, first, first < n ? baked[first] : 0.0, first < n ? f[first] : 0.0);
+    /* Brute force: every triangle, double precision. */
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    const float *vert = sdf_mesh_vertices(mesh);
+    const uint32_t *tri = sdf_mesh_triangles(mesh);
+    sdf_rng rng = {11};
+    double worst = 0;
+    for (int k = 0; k < samples; k++) {
+        size_t q = (size_t)(sdf_rng_uniform(&rng) * (double)n) % n;
+        double x[3] = {p[3 * q], p[3 * q + 1], p[3 * q + 2]}, best = INFINITY;
+        for (size_t t = 0; t < r.triangles; t++) {
+            double c[3][3], closest[3];
+            for (int i = 0; i < 3; i++)
+                for (int a = 0; a < 3; a++)
+                    c[i][a] = vert[3 * (size_t)tri[3 * t + i] + a];
+            best = fmin(best, ref_point_triangle(x, c[0], c[1], c[2], closest));
+        }
+        worst = fmax(worst, fabs(fabs((double)baked[q]) - best));
+    }
+    CHECK(worst <= 1e-6 * r.diagonal, "%s: brute force differs by %g (diagonal %g)", what, worst,
+          r.diagonal);
+    free(p), free(f);
+    return v;
+}
+
+static void test_mesh(const char *file, sdf_sign_method sign, size_t dim)
+{
+    sdf_mesh *mesh = load_data_mesh(file);
+    if (!mesh)
+        return;
+    char what[128];
+    sdf_bake_options o = {.dims = {dim, dim, dim}, .query = {.sign = sign, .threads = 2}};
+    snprintf(what, sizeof what, "%s sign %s %zu^3", file, sdf_sign_name(sign), dim);
+    sdf_volume_destroy(bake_and_compare(what, mesh, &o, 300));
+
+    /* Anisotropic and off-centre: a box that cuts through the mesh. */
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    sdf_bake_options cut = o;
+    size_t dims[3] = {dim + 7, dim / 2 + 3, dim / 3 + 2};
+    for (int a = 0; a < 3; a++) {
+        double span = r.bbox_max[a] - r.bbox_min[a];
+        cut.dims[a] = dims[a];
+        cut.lo[a] = r.bbox_min[a] + 0.3 * span;
+        cut.hi[a] = r.bbox_max[a] + (a == 1 ? 0.4 : 0.02) * span;
+    }
+    snprintf(what, sizeof what, "%s sign %s, a cut-through anisotropic box", file,
+             sdf_sign_name(sign));
+    sdf_volume_destroy(bake_and_compare(what, mesh, &cut, 100));
+
+    /* Far away: every node farther than the mesh is wide. */
+    sdf_bake_options far = o;
+    for (int a = 0; a < 3; a++) {
+        far.dims[a] = dim / 2;
+        far.lo[a] = r.bbox_max[a] + 1.5 * r.diagonal * (a + 1);
+        far.hi[a] = far.lo[a] + r.diagonal;
+    }
+    snprintf(what, sizeof what, "%s sign %s, a box far away", file, sdf_sign_name(sign));
+    sdf_volume_destroy(bake_and_compare(what, mesh, &far, 30));
+    sdf_mesh_release(mesh);
+}
+
+/* Nodes on the faces, edges and corners of a cube ([-1, 1]^3 in cube.ply), where the
+ * features' regions meet. */
+static void test_on_surface(void)
+{
+    sdf_mesh *mesh = load_data_mesh("cube.ply");
+    if (!mesh)
+        return;
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    sdf_bake_options o = {.dims = {13, 13, 13}, .query.threads = 2};
+    for (int a = 0; a < 3; a++) { /* spacing a quarter of the half-width: nodes on the faces */
+        double mid = 0.5 * (r.bbox_min[a] + r.bbox_max[a]), half = 0.5 * (r.bbox_max[a] - r.bbox_min[a]);
+        o.lo[a] = mid - 1.5 * half, o.hi[a] = mid + 1.5 * half;
+    }
+    sdf_volume *v = bake_and_compare("cube.ply, nodes on its surface", mesh, &o, 100);
+    if (v) {
+        sdf_volume_info in;
+        sdf_volume_get_info(v, &in);
+        const float *f = sdf_volume_data(v);
+        size_t zeros = 0;
+        for (size_t q = 0; q < node_count(&in); q++)
+            zeros += f[q] == 0;
+        /* A 13^3 grid over 1.5x the cube: its 9^3 nodes from -1 to 1, the 7^3 inner ones off
+         * the surface. */
+        CHECK(zeros == 9 * 9 * 9 - 7 * 7 * 7, "%zu nodes on the cube's surface, expected %d", zeros,
+              9 * 9 * 9 - 7 * 7 * 7);
+        sdf_volume_destroy(v);
+    }
+    sdf_mesh_release(mesh);
+}
+
+static void test_threads(void)
+{
+    sdf_mesh *mesh = load_data_mesh("fandisk.off");
+    if (!mesh)
+        return;
+    sdf_bake_options o = {.dims = {40, 33, 29}, .query.threads = 1};
+    sdf_volume *one = NULL, *two = NULL;
+    sdf_diag diag;
+    CHECK(sdf_volume_bake(mesh, &o, &one, &diag) == 0, "bake: %s", diag.message);
+    o.query.threads = 2;
+    CHECK(sdf_volume_bake(mesh, &o, &two, &diag) == 0, "bake: %s", diag.message);
+    if (one && two)
+        CHECK(!memcmp(sdf_volume_data(one), sdf_volume_data(two), sdf_volume_data_bytes(one)),
+              "1 and 2 threads bake different bits");
+    sdf_volume_destroy(one), sdf_volume_destroy(two);
+    sdf_mesh_release(mesh);
+}
+
+int main(void)
+{
+    test_mesh("fandisk.off", SDF_SIGN_AUTO, 48);
+    test_mesh("fandisk.off", SDF_SIGN_NONE, 32);
+    test_mesh("knot1.off", SDF_SIGN_AUTO, 40);
+    test_mesh("cow.off", SDF_SIGN_NONE, 36);           /* closed, self-intersecting */
+    test_mesh("cow.off", SDF_SIGN_AUTO, 24);           /* winding numbers: the search path */
+    test_mesh("knot1.off", SDF_SIGN_RAYCAST, 20);      /* the search path */
+    test_mesh("mech-holes-shark.off", SDF_SIGN_NONE, 24); /* open: the search path */
+    test_on_surface();
+    test_threads();
+    return check_finish("scan");
+}
