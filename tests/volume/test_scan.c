@@ -127,7 +127,8 @@ static void test_on_surface(void)
     sdf_mesh_get_report(mesh, &r);
     sdf_bake_options o = {.dims = {13, 13, 13}, .query.threads = 2};
     for (int a = 0; a < 3; a++) { /* spacing a quarter of the half-width: nodes on the faces */
-        double mid = 0.5 * (r.bbox_min[a] + r.bbox_max[a]), half = 0.5 * (r.bbox_max[a] - r.bbox_min[a]);
+        double mid = 0.5 * (r.bbox_min[a] + r.bbox_max[a]);
+        double half = 0.5 * (r.bbox_max[a] - r.bbox_min[a]);
         o.lo[a] = mid - 1.5 * half, o.hi[a] = mid + 1.5 * half;
     }
     sdf_volume *v = bake_and_compare("cube.ply, nodes on its surface", mesh, &o, 100);

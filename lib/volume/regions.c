@@ -1,0 +1,539 @@
+/* regions.c - closest-point regions of a closed mesh's features (see regions.h).
+ *
+ * Each region is a necessary condition on a point whose closest surface point lies on the
+ * feature, widened by a rounding slack: a region can only hold too many points, never miss
+ * one. Bounds come from the same geometry: prisms are capped at the reach, a wedge's sector
+ * sits in a triangle or a rectangle, a cone in the pyramid of its generators (the planes'
+ * pairwise intersections that satisfy every plane) or, when wide, in a box. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh/mesh.h"
+#include "query/triangle.h"
+#include "volume/regions.h"
+
+/* Corners 0-2 and 3-5 of a triangular prism are its two ends, i and i + 3 joined. */
+static const uint8_t prism_edges[9][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5},
+                                          {5, 3}, {0, 3}, {1, 4}, {2, 5}};
+
+static double normalize3(double v[3])
+{
+    double len = sqrt(sdf__dot3(v, v));
+    if (len > 0)
+        for (int a = 0; a < 3; a++)
+            v[a] /= len;
+    return len;
+}
+
+static void add_plane(const sdf__features *s, sdf__region *r, const double n[3], double c)
+{
+    if (r->planes == SDF__REGION_PLANES)
+        return; /* fewer planes: a larger region, still holding every node it must */
+    double *p = r->plane[r->planes++];
+    p[0] = n[0], p[1] = n[1], p[2] = n[2], p[3] = c + s->slack;
+}
+
+/* The plane n . (p - at) <= offset. */
+static void add_plane_at(const sdf__features *s, sdf__region *r, const double n[3],
+                         const double at[3], double offset)
+{
+    add_plane(s, r, n, sdf__dot3(n, at) + offset);
+}
+
+static const double *vertex(const sdf__features *s, uint32_t v)
+{
+    return s->pos + 3 * (size_t)v;
+}
+
+/* An upper bound of |f| at q: the nearest coarse node's distance plus the way there (f is
+ * 1-Lipschitz), widened past float rounding. */
+static double upper_bound(const sdf__features *s, const double q[3])
+{
+    size_t at = 0, scale = 1;
+    double gap2 = 0;
+    for (int a = 0; a < 3; a++) {
+        double c = (q[a] - s->bound_coord[a][0]) * s->bound_inv_step[a] + 0.5;
+        size_t last = s->bound_dims[a] - 1, i = c <= 0 ? 0 : c >= (double)last ? last : (size_t)c;
+        double g = q[a] - s->bound_coord[a][i];
+        gap2 += g * g;
+        at += i * scale;
+        scale *= s->bound_dims[a];
+    }
+    return s->bound[at] * (1 + 1e-6) + sqrt(gap2) * (1 + 1e-12) + s->slack;
+}
+
+/* How far along `axis` from `base` a region can hold nodes its feature is closest to, at most
+ * `reach`. The region's points at distance t from the feature lie within offset + spread t
+ * of base + t axis; once the bound says every one of them is nearer the surface than t, the
+ * feature has lost them and every farther point on their rays (a point's closest point is
+ * the closest point of every point between them too, so a feature that loses a point loses
+ * the rest of its ray). */
+static double truncate_reach(const sdf__features *s, const double base[3], const double axis[3],
+                             double offset, double spread, double reach)
+{
+    if (spread >= 0.5 || !s->bound)
+        return reach;
+    for (double t = s->march; t < reach; t += s->march) {
+        double q[3] = {base[0] + t * axis[0], base[1] + t * axis[1], base[2] + t * axis[2]};
+        if (upper_bound(s, q) + offset + spread * t < t)
+            return t;
+    }
+    return reach;
+}
+
+/* Corners at + t m + w q + e d for the given ranges: an oriented box, with its 12 edges. */
+static void box_corners(sdf__region *r, const double at[3], const double m[3], const double t[2],
+                        const double q[3], double w, const double d[3], const double e[2])
+{
+    r->corners = 8;
+    for (int c = 0; c < 8; c++) {
+        double tc = t[c & 1], wc = c & 2 ? w : -w, ec = e[c >> 2];
+        for (int a = 0; a < 3; a++)
+            r->corner[c][a] = at[a] + tc * m[a] + wc * q[a] + ec * d[a];
+    }
+    r->edges = 0;
+    for (int c = 0; c < 8; c++)
+        for (int bit = 1; bit < 8; bit <<= 1)
+            if (!(c & bit)) {
+                r->edge[r->edges][0] = (uint8_t)c;
+                r->edge[r->edges][1] = (uint8_t)(c | bit);
+                r->edges++;
+            }
+}
+
+/* ---- regions ----------------------------------------------------------------------------- */
+
+/* The prism over face t: points whose foot on the face's plane lies inside the face. */
+static int face_region(const sdf__features *s, size_t t, sdf__region *r)
+{
+    const uint32_t *tri = s->triangles + 3 * t;
+    const double *v[3] = {vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2])};
+    double n[3];
+    sdf__triangle_normal(v[0], v[1], v[2], n);
+    if (normalize3(n) == 0)
+        return 0; /* no area: its points are its edges' */
+    r->kind = SDF__REGION_FACE;
+    memcpy(r->origin, v[0], sizeof r->origin);
+    memcpy(r->dir, n, sizeof r->dir);
+    r->planes = 0;
+    for (int q = 0; q < 3; q++) {
+        double e[3], m[3];
+        for (int a = 0; a < 3; a++)
+            e[a] = v[(q + 1) % 3][a] - v[q][a];
+        sdf__cross3(m, e, n); /* outward in the face's plane */
+        if (normalize3(m) > 0)
+            add_plane_at(s, r, m, v[q], 0);
+    }
+    double centre[3], radius = 0, minus_n[3] = {-n[0], -n[1], -n[2]};
+    for (int a = 0; a < 3; a++)
+        centre[a] = (v[0][a] + v[1][a] + v[2][a]) / 3;
+    for (int q = 0; q < 3; q++) {
+        double g[3] = {v[q][0] - centre[0], v[q][1] - centre[1], v[q][2] - centre[2]};
+        radius = sdf__max2(radius, sqrt(sdf__dot3(g, g)));
+    }
+    double front = truncate_reach(s, centre, n, radius, 0, s->reach_front);
+    double back = truncate_reach(s, centre, minus_n, radius, 0, s->reach_back);
+    add_plane_at(s, r, n, v[0], front);
+    add_plane_at(s, r, minus_n, v[0], back);
+    r->corners = 6;
+    for (int q = 0; q < 3; q++)
+        for (int a = 0; a < 3; a++) {
+            r->corner[q][a] = v[q][a] + front * n[a];
+            r->corner[q + 3][a] = v[q][a] - back * n[a];
+        }
+    r->edges = 9;
+    memcpy(r->edge, prism_edges, sizeof prism_edges);
+    return 1;
+}
+
+/* The wedge beside edge e: points whose foot on the edge's line lies on the edge and which
+ * lie on no incident face's side of the edge. Its cross-section, a sector of the reach's
+ * radius, is bounded by a triangle (narrow sectors) or a rectangle. */
+static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
+{
+    const double *a = vertex(s, s->edge_end[2 * e]), *b = vertex(s, s->edge_end[2 * e + 1]);
+    double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double len = normalize3(d);
+    if (len == 0)
+        return 0;
+    r->kind = SDF__REGION_EDGE;
+    memcpy(r->origin, a, sizeof r->origin);
+    memcpy(r->dir, d, sizeof r->dir);
+    r->planes = 0;
+    double minus_d[3] = {-d[0], -d[1], -d[2]};
+    add_plane_at(s, r, minus_d, a, 0);
+    add_plane_at(s, r, d, b, 0);
+    double u[2][3], normals[2][3];
+    int valid = 0;
+    for (uint32_t k = s->edge_first[e]; k < s->edge_first[e + 1]; k++) {
+        const uint32_t *tri = s->triangles + 3 * (size_t)s->edge_tri[k];
+        uint32_t c = tri[0];
+        for (int q = 1; q < 3; q++)
+            if (c == s->edge_end[2 * e] || c == s->edge_end[2 * e + 1])
+                c = tri[q];
+        double w[3], uf[3];
+        for (int x = 0; x < 3; x++)
+            w[x] = vertex(s, c)[x] - a[x];
+        double along = sdf__dot3(w, d);
+        for (int x = 0; x < 3; x++)
+            uf[x] = w[x] - along * d[x];
+        if (normalize3(uf) == 0)
+            continue; /* a zero-area face does not bound the edge's region */
+        add_plane_at(s, r, uf, a, 0);
+        if (valid < 2) {
+            memcpy(u[valid], uf, sizeof uf);
+            const double *v3[3] = {vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2])};
+            sdf__triangle_normal(v3[0], v3[1], v3[2], normals[valid]);
+            normalize3(normals[valid]);
+        }
+        valid++;
+    }
+    /* Cross-section: t in [t0, t1] along m, |w| <= half_width along q = d x m. */
+    double reach = sdf__max2(s->reach_front, s->reach_back), m[3], t[2], half_width;
+    if (valid == 2) { /* a closed mesh's edge has two faces */
+        double sum[3] = {u[0][0] + u[1][0], u[0][1] + u[1][1], u[0][2] + u[1][2]};
+        double spread = sqrt(sdf__dot3(sum, sum)); /* 2 cos(beta / 2), beta between u0 and u1 */
+        if (spread >= 1e-6) {                 /* a sector of angle pi - beta around -sum */
+            for (int x = 0; x < 3; x++)
+                m[x] = -sum[x] / spread;
+            double side = sdf__dot3(m, normals[0]) + sdf__dot3(m, normals[1]);
+            reach = side > 0 ? s->reach_front : s->reach_back;
+            t[0] = 0, t[1] = reach;
+            half_width = reach * sdf__min2(1.0, 0.5 * spread);
+        } else { /* flat: the plane of the normals, both sides */
+            memcpy(m, normals[0], sizeof m);
+            t[0] = -s->reach_back, t[1] = s->reach_front;
+            half_width = reach * spread;
+        }
+    } else { /* a face without area beside it: a cylinder around the edge */
+        double any[3] = {1, 0, 0};
+        if (fabs(d[0]) > 0.9)
+            any[0] = 0, any[1] = 1;
+        sdf__cross3(m, d, any);
+        normalize3(m);
+        t[0] = -reach, t[1] = reach, half_width = reach;
+    }
+    /* Truncated where the bound shows the edge has lost: the sector's points at distance t
+     * lie within len / 2 + 2 sin(gamma / 2) t of mid + t m. */
+    double mid[3] = {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
+    double sin_g = t[1] > 0 ? sdf__min2(1.0, half_width / sdf__max2(t[1], -t[0])) : 1;
+    double spread = sqrt(sdf__max2(0.0, 2 - 2 * sqrt(1 - sin_g * sin_g)));
+    double minus_m[3] = {-m[0], -m[1], -m[2]};
+    if (t[1] > 0)
+        t[1] = truncate_reach(s, mid, m, 0.5 * len, spread, t[1]);
+    if (t[0] < 0)
+        t[0] = -truncate_reach(s, mid, minus_m, 0.5 * len, spread, -t[0]);
+    half_width = sdf__max2(t[1], -t[0]) * sin_g;
+    double q[3], minus_q[3];
+    sdf__cross3(q, d, m);
+    for (int x = 0; x < 3; x++)
+        minus_q[x] = -q[x];
+    add_plane_at(s, r, m, a, t[1]);
+    if (t[0] == 0 && sin_g <= 0.866) {
+        /* A sector of half-angle gamma <= 60 degrees: inside the triangle (0, 0),
+         * (reach, +-reach tan gamma) of the (m, q) plane, its sides the faces' planes. */
+        double spread_w = t[1] * sin_g / sqrt(1 - sin_g * sin_g);
+        r->corners = 6;
+        for (int end = 0; end < 2; end++)
+            for (int x = 0; x < 3; x++) {
+                double at = a[x] + (end ? len : 0) * d[x];
+                r->corner[3 * end][x] = at;
+                r->corner[3 * end + 1][x] = at + t[1] * m[x] - spread_w * q[x];
+                r->corner[3 * end + 2][x] = at + t[1] * m[x] + spread_w * q[x];
+            }
+        r->edges = 9;
+        memcpy(r->edge, prism_edges, sizeof prism_edges);
+        return 1;
+    }
+    add_plane_at(s, r, minus_m, a, -t[0]);
+    add_plane_at(s, r, q, a, half_width);
+    add_plane_at(s, r, minus_q, a, half_width);
+    double ends[2] = {0, len};
+    box_corners(r, a, m, t, q, half_width, d, ends);
+    return 1;
+}
+
+/* A vertex whose edges all lie in one plane and surround it (flat CAD surfaces): its cone is
+ * the plane's normal line. A point at lateral offset b from the line has b . e_j >=
+ * |b| cos(gap / 2) for some edge (gap: the widest angle between neighbouring edges), so the
+ * slack-widened planes hold only points within (slack + reach tilt) / cos(gap / 2) of it:
+ * a thin box, truncated on both sides. 0 if the vertex is not such a line. */
+static int flat_vertex(const sdf__features *s, const double p[3], const double (*e)[3], int n,
+                       const double (*gen)[3], int g, double reach, sdf__region *r)
+{
+    int line = -1;
+    for (int h = 1; h < g && line < 0; h++)
+        for (int k = 0; k < h && line < 0; k++)
+            if (sdf__dot3(gen[h], gen[k]) < -1 + 1e-9)
+                line = h;
+    if (line < 0 || n < 3)
+        return 0;
+    const double *l = gen[line];
+    double b1[3], b2[3], any[3] = {1, 0, 0}, angle[SDF__REGION_PLANES], tilt = 0;
+    if (fabs(l[0]) > 0.9)
+        any[0] = 0, any[1] = 1;
+    sdf__cross3(b1, l, any);
+    normalize3(b1);
+    sdf__cross3(b2, l, b1);
+    for (int j = 0; j < n; j++) {
+        tilt = sdf__max2(tilt, fabs(sdf__dot3(e[j], l)));
+        angle[j] = atan2(sdf__dot3(e[j], b2), sdf__dot3(e[j], b1));
+    }
+    for (int j = 1; j < n; j++) /* insertion sort */
+        for (int k = j; k > 0 && angle[k - 1] > angle[k]; k--) {
+            double t = angle[k];
+            angle[k] = angle[k - 1], angle[k - 1] = t;
+        }
+    double gap = angle[0] + 2 * M_PI - angle[n - 1];
+    for (int j = 1; j < n; j++)
+        gap = sdf__max2(gap, angle[j] - angle[j - 1]);
+    if (gap > M_PI - 0.01)
+        return 0;
+    double width = 2 * (s->slack + reach * tilt) / cos(0.5 * gap) + s->row_pad;
+    double minus_l[3] = {-l[0], -l[1], -l[2]};
+    double span[2] = {-truncate_reach(s, p, minus_l, width, 0, reach),
+                      truncate_reach(s, p, l, width, 0, reach)};
+    double ends[2] = {-width, width};
+    box_corners(r, p, l, span, b1, width, b2, ends);
+    return 1;
+}
+
+/* The cone at vertex v: directions x with x . (w - v) <= 0 for every neighbour w. Its
+ * generators are the planes' pairwise intersections that satisfy every plane; the region is
+ * the pyramid they span, capped at the reach along its axis. */
+static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
+{
+    const double *p = vertex(s, (uint32_t)v);
+    uint32_t first = s->vert_first[v], count = s->vert_first[v + 1] - first;
+    if (count == 0)
+        return 0;
+    r->kind = SDF__REGION_VERTEX;
+    memcpy(r->origin, p, sizeof r->origin);
+    r->planes = 0;
+    double e[SDF__REGION_PLANES][3];
+    int n = 0;
+    for (uint32_t k = 0; k < count && n < SDF__REGION_PLANES - 2; k++) {
+        const double *w = vertex(s, s->vert_nbr[first + k]);
+        double dir[3] = {w[0] - p[0], w[1] - p[1], w[2] - p[2]};
+        if (normalize3(dir) == 0)
+            continue;
+        memcpy(e[n], dir, sizeof dir);
+        add_plane_at(s, r, dir, p, 0);
+        n++;
+    }
+    double gen[SDF__REGION_CORNERS - 1][3], axis[3] = {0, 0, 0};
+    int g = 0, pointed = 1;
+    for (int i = 0; i < n && pointed; i++)
+        for (int j = i + 1; j < n && pointed; j++) {
+            double ray[3];
+            sdf__cross3(ray, e[i], e[j]);
+            if (normalize3(ray) < 1e-9)
+                continue;
+            for (int sign = -1; sign <= 1; sign += 2) {
+                double cand[3] = {sign * ray[0], sign * ray[1], sign * ray[2]};
+                int ok = 1;
+                for (int l = 0; l < n && ok; l++)
+                    ok = sdf__dot3(cand, e[l]) <= 1e-9;
+                for (int h = 0; h < g && ok; h++)
+                    ok = sdf__dot3(cand, gen[h]) < 1 - 1e-12; /* a repeat */
+                if (!ok)
+                    continue;
+                if (g == SDF__REGION_CORNERS - 1) {
+                    pointed = 0;
+                    break;
+                }
+                memcpy(gen[g++], cand, sizeof cand);
+            }
+        }
+    if (g == 0 && pointed)
+        return 0; /* the cone is the vertex itself (or a line its faces' regions border) */
+    for (int h = 0; h < g; h++)
+        for (int a = 0; a < 3; a++)
+            axis[a] += gen[h][a];
+    pointed = pointed && normalize3(axis) > 1e-9;
+    for (int h = 0; h < g && pointed; h++)
+        pointed = sdf__dot3(gen[h], axis) >= 0.05;
+    double reach = sdf__max2(s->reach_front, s->reach_back);
+    if (!pointed) { /* a line (a flat vertex), or a cone too wide: a cube of the reach */
+        if (flat_vertex(s, p, e, n, gen, g, reach, r))
+            return 1;
+        double x[3] = {1, 0, 0}, y[3] = {0, 1, 0}, z[3] = {0, 0, 1}, span[2] = {-reach, reach};
+        box_corners(r, p, x, span, y, reach, z, span);
+        return 1;
+    }
+    /* The side the cone opens to: the mean of its faces' normals. */
+    double side = 0;
+    for (uint32_t k = s->vtri_first[v]; k < s->vtri_first[v + 1]; k++) {
+        const uint32_t *tri = s->triangles + 3 * (size_t)s->vtri[k];
+        double nf[3];
+        sdf__triangle_normal(vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2]), nf);
+        normalize3(nf);
+        side += sdf__dot3(nf, axis);
+    }
+    double widest = 1; /* cos of the largest angle between a generator and the axis */
+    for (int h = 0; h < g; h++)
+        widest = sdf__min2(widest, sdf__dot3(gen[h], axis));
+    reach = truncate_reach(s, p, axis, 0, sqrt(sdf__max2(0.0, 2 - 2 * widest)),
+                           side > 0 ? s->reach_front : s->reach_back);
+    add_plane_at(s, r, axis, p, reach);
+    /* Order the generators around the axis, so the base polygon's edges are neighbours. */
+    double b1[3], b2[3], any[3] = {1, 0, 0}, angle[SDF__REGION_CORNERS - 1];
+    if (fabs(axis[0]) > 0.9)
+        any[0] = 0, any[1] = 1;
+    sdf__cross3(b1, axis, any);
+    normalize3(b1);
+    sdf__cross3(b2, axis, b1);
+    for (int h = 0; h < g; h++)
+        angle[h] = atan2(sdf__dot3(gen[h], b2), sdf__dot3(gen[h], b1));
+    for (int h = 1; h < g; h++) /* insertion sort: a handful of generators */
+        for (int k = h; k > 0 && angle[k - 1] > angle[k]; k--) {
+            double ta = angle[k], tg[3];
+            angle[k] = angle[k - 1], angle[k - 1] = ta;
+            memcpy(tg, gen[k], sizeof tg);
+            memcpy(gen[k], gen[k - 1], sizeof tg);
+            memcpy(gen[k - 1], tg, sizeof tg);
+        }
+    r->corners = g + 1;
+    memcpy(r->corner[0], p, sizeof r->corner[0]);
+    r->edges = 0;
+    for (int h = 0; h < g; h++) {
+        double len = reach / sdf__dot3(gen[h], axis);
+        for (int a = 0; a < 3; a++)
+            r->corner[h + 1][a] = p[a] + len * gen[h][a];
+        r->edge[r->edges][0] = 0, r->edge[r->edges][1] = (uint8_t)(h + 1), r->edges++;
+        if (g > 1) {
+            r->edge[r->edges][0] = (uint8_t)(h + 1);
+            r->edge[r->edges][1] = (uint8_t)((h + 1) % g + 1);
+            r->edges++;
+        }
+    }
+    if (widest < 0.5) { /* a wide cone's cap reaches far out: its box within the reach's cube */
+        double lo[3], hi[3], unit[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+        for (int a = 0; a < 3; a++) {
+            lo[a] = hi[a] = p[a];
+            for (int c = 1; c < r->corners; c++) {
+                lo[a] = sdf__min2(lo[a], r->corner[c][a]);
+                hi[a] = sdf__max2(hi[a], r->corner[c][a]);
+            }
+            lo[a] = sdf__max2(lo[a], p[a] - reach), hi[a] = sdf__min2(hi[a], p[a] + reach);
+        }
+        double span_x[2] = {lo[0], hi[0]}, span_z[2] = {lo[2], hi[2]};
+        double origin[3] = {0, 0.5 * (lo[1] + hi[1]), 0};
+        box_corners(r, origin, unit[0], span_x, unit[1], 0.5 * (hi[1] - lo[1]), unit[2], span_z);
+    }
+    return 1;
+}
+
+int sdf__region_build(const sdf__features *s, size_t f, sdf__region *r)
+{
+    int ok = f < s->faces             ? face_region(s, f, r)
+             : f < s->faces + s->edges ? edge_region(s, f - s->faces, r)
+                                       : vertex_region(s, f - s->faces - s->edges, r);
+    return ok;
+}
+
+/* ---- adjacency --------------------------------------------------------------------------- */
+
+/* Counting sort of (key, value) pairs into a CSR list: first[key]..first[key + 1]. */
+static int csr(size_t keys, size_t pairs, const uint32_t *key, const uint32_t *value,
+               uint32_t **first_out, uint32_t **list_out)
+{
+    uint32_t *first = calloc(keys + 1, sizeof *first), *list = malloc((pairs + 1) * sizeof *list);
+    if (!first || !list) {
+        free(first), free(list);
+        return SDF_ENOMEM;
+    }
+    for (size_t p = 0; p < pairs; p++)
+        first[key[p] + 1]++;
+    for (size_t k = 0; k < keys; k++)
+        first[k + 1] += first[k];
+    uint32_t *fill = malloc((keys + 1) * sizeof *fill);
+    if (!fill) {
+        free(first), free(list);
+        return SDF_ENOMEM;
+    }
+    memcpy(fill, first, (keys + 1) * sizeof *fill);
+    for (size_t p = 0; p < pairs; p++)
+        list[fill[key[p]]++] = value[p];
+    free(fill);
+    *first_out = first, *list_out = list;
+    return 0;
+}
+
+int sdf__features_init(sdf__features *s, const sdf_mesh *m)
+{
+    memset(s, 0, sizeof *s);
+    s->triangles = m->triangles;
+    s->faces = m->report.triangles;
+    s->edges = m->edge_count;
+    s->vertices = m->report.vertices;
+    s->count = s->faces + s->edges + s->vertices;
+    size_t t3 = 3 * s->faces;
+    s->pos = malloc((3 * s->vertices + 1) * sizeof *s->pos);
+    for (size_t i = 0; s->pos && i < 3 * s->vertices; i++)
+        s->pos[i] = m->positions[i];
+    uint32_t *key = malloc((t3 + 1) * sizeof *key), *val = malloc((2 * t3 + 1) * sizeof *val);
+    uint32_t *key2 = malloc((2 * t3 + 1) * sizeof *key2);
+    s->edge_end = malloc((2 * s->edges + 1) * sizeof *s->edge_end);
+    int rc = key && val && key2 && s->edge_end && s->pos ? 0 : SDF_ENOMEM;
+    if (!rc) {
+        for (size_t c = 0; c < t3; c++) { /* each triangle's edges, and their ends */
+            uint32_t e = m->edge_of[c];
+            key[c] = e, val[c] = (uint32_t)(c / 3);
+            uint32_t a = m->triangles[c], b = m->triangles[c - c % 3 + (c % 3 + 1) % 3];
+            s->edge_end[2 * e] = a < b ? a : b, s->edge_end[2 * e + 1] = a < b ? b : a;
+        }
+        rc = csr(s->edges, t3, key, val, &s->edge_first, &s->edge_tri);
+    }
+    if (!rc) { /* every edge is a neighbour relation both ways */
+        for (size_t e = 0; e < s->edges; e++) {
+            key2[2 * e] = s->edge_end[2 * e], val[2 * e] = s->edge_end[2 * e + 1];
+            key2[2 * e + 1] = s->edge_end[2 * e + 1], val[2 * e + 1] = s->edge_end[2 * e];
+        }
+        rc = csr(s->vertices, 2 * s->edges, key2, val, &s->vert_first, &s->vert_nbr);
+    }
+    if (!rc) {
+        for (size_t c = 0; c < t3; c++)
+            val[c] = (uint32_t)(c / 3);
+        rc = csr(s->vertices, t3, m->triangles, val, &s->vtri_first, &s->vtri);
+    }
+    free(key), free(val), free(key2);
+    if (rc)
+        sdf__features_free(s);
+    return rc;
+}
+
+void sdf__features_free(sdf__features *s)
+{
+    free(s->pos), free(s->edge_end), free(s->edge_first), free(s->edge_tri);
+    free(s->vert_first), free(s->vert_nbr), free(s->vtri_first), free(s->vtri);
+    memset(s, 0, sizeof *s);
+}
+
+uint32_t sdf__feature_triangle(const sdf__features *s, size_t feature)
+{
+    return feature < s->faces ? (uint32_t)feature
+           : feature < s->faces + s->edges ? s->edge_tri[s->edge_first[feature - s->faces]]
+                                           : s->vtri[s->vtri_first[feature - s->faces - s->edges]];
+}
+
+void sdf__feature_position(const sdf__features *s, size_t feature, float out[3])
+{
+    const uint32_t *ends;
+    uint32_t one;
+    int n;
+    if (feature < s->faces)
+        ends = s->triangles + 3 * feature, n = 3;
+    else if (feature < s->faces + s->edges)
+        ends = s->edge_end + 2 * (feature - s->faces), n = 2;
+    else
+        one = (uint32_t)(feature - s->faces - s->edges), ends = &one, n = 1;
+    for (int a = 0; a < 3; a++) {
+        double sum = 0;
+        for (int c = 0; c < n; c++)
+            sum += s->pos[3 * (size_t)ends[c] + a];
+        out[a] = (float)(sum / n);
+    }
+}
+
