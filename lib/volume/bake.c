@@ -341,27 +341,137 @@ static void free_slab(slab *s)
     free(s->bound), free(s->hint), free(s->run_start);
 }
 
-/* Zero order from the raw field by closest-feature scan conversion (volume/scan.h): the same
- * floats as querying every node, in slabs of whole z-slices. */
-static int scan_bake(const bake_plan *plan, sdf_volume *v, const sdf_bake_options *opts,
+/* The bake's distances: the span of f at the nodes (for packing) and, for first order, the
+ * local planes, one call per run of slices or slab of nodes. */
+typedef struct bake_out {
+    sdf_volume *v;
+    float *planes;               /* order 1: 4 per node */
+    double smallest_f, largest_f;
+} bake_out;
+
+/* Report progress; SDF_ECANCELED (with its message) when asked to stop. */
+static int progress(const sdf_bake_options *opts, double fraction, sdf_diag *diag)
+{
+    if (opts->progress && opts->progress(opts->user, fraction))
+        return sdf__diag_set(diag, SDF_ECANCELED, 0, -1, "the bake was canceled");
+    return 0;
+}
+
+/* Samples the scan could not place (NAN) are asked through sdf_query. */
+static int search_missing(const bake_plan *plan, size_t first_node, size_t count, float *f)
+{
+    size_t m = (size_t)plan->fine_count;
+    for (size_t q = 0; q < count * m; q++) {
+        if (!isnan(f[q]))
+            continue;
+        size_t ijk[3];
+        double x[3];
+        float p[3];
+        node_index(&plan->info, first_node + q / m, ijk);
+        sdf__volume_node(&plan->info, ijk[0], ijk[1], ijk[2], x);
+        for (int a = 0; a < 3; a++)
+            p[a] = (float)((double)(float)x[a] + plan->fine[q % m][a]);
+        sdf_query_result res = {.distance = f + q};
+        int rc = sdf_query(plan->mesh, p, 1, &plan->query, &res);
+        if (rc)
+            return rc;
+    }
+    return 0;
+}
+
+/* The raw field on a closed mesh by closest-feature scan conversion (volume/scan.h), in runs
+ * of whole z-slices: zero order gives sdf_query's floats at the nodes, first order the fine
+ * samples that the planes are fitted to. */
+static int scan_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options *opts,
                      sdf_diag *diag)
 {
-    sdf__scan *scan = NULL;
     const sdf_volume_info *in = &plan->info;
+    int first = in->order == 1;
+    size_t slice = in->dims[0] * in->dims[1], m = first ? (size_t)plan->fine_count : 1;
+    sdf__scan *scan = NULL;
     int rc = sdf__scan_create(plan->mesh, in, &plan->query, &scan);
-    size_t slice = in->dims[0] * in->dims[1], per_slab = rc ? 1 : sdf__scan_slices_per_call(scan);
-    for (size_t k = 0; !rc && k < in->dims[2]; k += per_slab) {
-        size_t end = k + per_slab < in->dims[2] ? k + per_slab : in->dims[2];
-        rc = sdf__scan_slices(scan, k, end, v->data.f + k * slice);
-        if (!rc && opts->progress && opts->progress(opts->user, (double)end / (double)in->dims[2]))
-            rc = SDF_ECANCELED;
-    }
-    sdf__scan_destroy(scan);
-    if (rc == SDF_ECANCELED)
-        return sdf__diag_set(diag, rc, 0, -1, "the bake was canceled");
+    size_t per_call = rc          ? 1
+                      : first     ? sdf__scan_sample_slices_per_call(scan, in->fine_half)
+                                  : sdf__scan_slices_per_call(scan);
+    per_call = per_call < in->dims[2] ? per_call : in->dims[2];
+    float *samples = first && !rc ? malloc(per_call * slice * m * sizeof(float)) : NULL;
+    if (!rc && first && !samples)
+        rc = SDF_ENOMEM;
     if (rc)
-        return sdf__diag_set(diag, rc, 0, -1, "no memory for the bake's scratch");
-    return 0;
+        sdf__diag_set(diag, rc, 0, -1, "no memory for the bake's scratch");
+    for (size_t k = 0; !rc && k < in->dims[2]; k += per_call) {
+        size_t end = k + per_call < in->dims[2] ? k + per_call : in->dims[2];
+        if (!first) {
+            rc = sdf__scan_slices(scan, k, end, o->v->data.f + k * slice);
+        } else if (!(rc = sdf__scan_samples(scan, k, end, in->fine_half, in->fine_spacing,
+                                            samples)) &&
+                   !(rc = search_missing(plan, k * slice, (end - k) * slice, samples))) {
+            slab s = {.plan = plan, .first = k * slice, .count = (end - k) * slice,
+                      .sample_f = samples, .plane = o->planes + 4 * k * slice};
+            sdf__parallel_for(s.count, 256, plan->query.threads, fit_range, &s);
+            for (size_t n = 0; n < s.count; n++) { /* the centre sample is the node */
+                double f = samples[n * m + m / 2];
+                o->largest_f = fmax(o->largest_f, f), o->smallest_f = fmin(o->smallest_f, f);
+            }
+        }
+        if (rc)
+            sdf__diag_set(diag, rc, 0, -1, "the scan failed: %s", sdf_strerror(rc));
+        else
+            rc = progress(opts, (double)end / (double)in->dims[2], diag);
+    }
+    free(samples);
+    sdf__scan_destroy(scan);
+    return rc;
+}
+
+/* Any field, any mesh: every node (and fine sample) asked through sdf_query or
+ * sdf_query_filtered, in slabs of nodes. */
+static int query_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options *opts,
+                      sdf_diag *diag)
+{
+    sdf_volume *v = o->v;
+    int first = plan->info.order == 1, rc = 0;
+    size_t m = first ? (size_t)plan->fine_count : 1;
+    size_t per_slab = SLAB_QUERIES / (m * plan->queries_per_point);
+    if (per_slab < 1)
+        per_slab = 1;
+    if (per_slab > v->nodes)
+        per_slab = v->nodes;
+    slab s = {.plan = plan};
+    s.node_pos = malloc(per_slab * 3 * sizeof(float));
+    s.node_f = first ? malloc(per_slab * sizeof(float)) : NULL;
+    if (first) {
+        s.sample_pos = malloc(per_slab * m * 3 * sizeof(float));
+        s.sample_f = malloc(per_slab * m * sizeof(float));
+        s.bound = malloc(per_slab * m * sizeof(double));
+        s.hint = malloc(per_slab * m);
+        s.run_start = malloc(per_slab * m);
+    }
+    if (!s.node_pos || (first && (!s.node_f || !s.sample_pos || !s.sample_f || !s.bound ||
+                                  !s.hint || !s.run_start)))
+        rc = sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory for the bake's scratch");
+    for (size_t done = 0; !rc && done < v->nodes; done += s.count) {
+        s.first = done;
+        s.count = v->nodes - done < per_slab ? v->nodes - done : per_slab;
+        if (!first) {
+            s.node_f = v->data.f + done;
+            rc = slab_nodes(&s);
+            s.node_f = NULL;
+        } else if (!(rc = slab_nodes(&s)) && !(rc = slab_samples(&s))) {
+            for (size_t n = 0; n < s.count; n++) {
+                o->largest_f = fmax(o->largest_f, (double)s.node_f[n]);
+                o->smallest_f = fmin(o->smallest_f, (double)s.node_f[n]);
+            }
+            s.plane = o->planes + 4 * done;
+            sdf__parallel_for(s.count, 256, plan->query.threads, fit_range, &s);
+        }
+        if (rc)
+            sdf__diag_set(diag, rc, 0, -1, "distance queries failed: %s", sdf_strerror(rc));
+        else
+            rc = progress(opts, (double)(done + s.count) / (double)v->nodes, diag);
+    }
+    free_slab(&s);
+    return rc;
 }
 
 int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume **out,
@@ -381,80 +491,31 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
     int rc = resolve(mesh, opts, plan, diag);
     if (!rc && plan->info.order == 1 && plan_fine_grid(plan))
         rc = sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the fine grid's normal matrix is singular");
-    sdf_volume *v = NULL;
-    if (!rc && (rc = sdf__volume_alloc(&plan->info, &v)))
+    bake_out o = {.smallest_f = INFINITY, .largest_f = -INFINITY};
+    if (!rc && (rc = sdf__volume_alloc(&plan->info, &o.v)))
         sdf__diag_set(diag, rc, 0, -1, "no memory for a volume of %zu x %zu x %zu nodes",
                       plan->info.dims[0], plan->info.dims[1], plan->info.dims[2]);
-    if (rc) {
-        free(plan);
-        return rc;
-    }
     int first = plan->info.order == 1;
-    if (!first && !plan->filter && sdf__scan_supported(mesh, plan->query.sign)) {
-        rc = scan_bake(plan, v, opts, diag);
-        free(plan);
-        if (rc) {
-            sdf_volume_destroy(v);
-            return rc;
-        }
-        *out = v;
-        return 0;
-    }
-    size_t m = first ? (size_t)plan->fine_count : 1;
-    size_t per_slab = SLAB_QUERIES / (m * plan->queries_per_point);
-    if (per_slab < 1)
-        per_slab = 1;
-    if (per_slab > v->nodes)
-        per_slab = v->nodes;
-    float *planes = first ? malloc(v->nodes * 4 * sizeof(float)) : NULL;
-    slab s = {.plan = plan};
-    double largest_f = -INFINITY, smallest_f = INFINITY;
-    s.node_pos = malloc(per_slab * 3 * sizeof(float));
-    s.node_f = first ? malloc(per_slab * sizeof(float)) : NULL;
-    if (first) {
-        s.sample_pos = malloc(per_slab * m * 3 * sizeof(float));
-        s.sample_f = malloc(per_slab * m * sizeof(float));
-        s.bound = malloc(per_slab * m * sizeof(double));
-        s.hint = malloc(per_slab * m);
-        s.run_start = malloc(per_slab * m);
-    }
-    if (!s.node_pos || (first && (!planes || !s.node_f || !s.sample_pos || !s.sample_f ||
-                                  !s.bound || !s.hint || !s.run_start)))
+    if (!rc && first && !(o.planes = malloc(o.v->nodes * 4 * sizeof(float))))
         rc = sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory for the bake's scratch");
-    for (size_t done = 0; !rc && done < v->nodes; done += s.count) {
-        s.first = done;
-        s.count = v->nodes - done < per_slab ? v->nodes - done : per_slab;
-        if (!first) {
-            s.node_f = v->data.f + done;
-            rc = slab_nodes(&s);
-            s.node_f = NULL;
-        } else if (!(rc = slab_nodes(&s)) && !(rc = slab_samples(&s))) {
-            for (size_t n = 0; n < s.count; n++) {
-                largest_f = fmax(largest_f, (double)s.node_f[n]);
-                smallest_f = fmin(smallest_f, (double)s.node_f[n]);
-            }
-            s.plane = planes + 4 * done;
-            sdf__parallel_for(s.count, 256, plan->query.threads, fit_range, &s);
-        }
-        if (rc)
-            sdf__diag_set(diag, rc, 0, -1, "distance queries failed: %s", sdf_strerror(rc));
-        else if (opts->progress &&
-                 opts->progress(opts->user, (double)(done + s.count) / (double)v->nodes))
-            rc = sdf__diag_set(diag, SDF_ECANCELED, 0, -1, "the bake was canceled");
-    }
+    if (!rc)
+        rc = !plan->filter && sdf__scan_supported(mesh, plan->query.sign)
+                 ? scan_bake(plan, &o, opts, diag)
+                 : query_bake(plan, &o, opts, diag);
+    sdf_volume *v = o.v;
     if (!rc && first) {
         /* The packed values span the distances at the nodes, [smallest f, largest f]. A plane
          * whose fitted gradient is short (near the medial axis) has its value inflated by
          * step 6's normalisation; spanning those outliers would coarsen every other node, so
          * they clamp to the span instead. */
         if (v->info.encoding == SDF_ENCODING_PACKED32) {
-            v->info.packed_center = 0.5 * (largest_f + smallest_f);
-            v->info.packed_range = largest_f > smallest_f ? 0.5 * (largest_f - smallest_f) : 1;
+            v->info.packed_center = 0.5 * (o.largest_f + o.smallest_f);
+            v->info.packed_range =
+                o.largest_f > o.smallest_f ? 0.5 * (o.largest_f - o.smallest_f) : 1;
         }
-        store_planes(v, planes);
+        store_planes(v, o.planes);
     }
-    free_slab(&s);
-    free(planes);
+    free(o.planes);
     free(plan);
     if (rc) {
         sdf_volume_destroy(v);

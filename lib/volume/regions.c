@@ -116,6 +116,7 @@ static int face_region(const sdf__features *s, size_t t, sdf__region *r)
     r->kind = SDF__REGION_FACE;
     memcpy(r->origin, v[0], sizeof r->origin);
     memcpy(r->dir, n, sizeof r->dir);
+    memcpy(r->sign_dir, n, sizeof r->sign_dir);
     r->planes = 0;
     for (int q = 0; q < 3; q++) {
         double e[3], m[3];
@@ -160,6 +161,7 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
     r->kind = SDF__REGION_EDGE;
     memcpy(r->origin, a, sizeof r->origin);
     memcpy(r->dir, d, sizeof r->dir);
+    r->sign_dir[0] = r->sign_dir[1] = r->sign_dir[2] = 0; /* the sum of the faces' normals */
     r->planes = 0;
     double minus_d[3] = {-d[0], -d[1], -d[2]};
     add_plane_at(s, r, minus_d, a, 0);
@@ -178,14 +180,17 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
         double along = sdf__dot3(w, d);
         for (int x = 0; x < 3; x++)
             uf[x] = w[x] - along * d[x];
+        double nf[3];
+        sdf__triangle_normal(vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2]), nf);
+        normalize3(nf);
+        for (int x = 0; x < 3; x++)
+            r->sign_dir[x] += nf[x];
         if (normalize3(uf) == 0)
             continue; /* a zero-area face does not bound the edge's region */
         add_plane_at(s, r, uf, a, 0);
         if (valid < 2) {
             memcpy(u[valid], uf, sizeof uf);
-            const double *v3[3] = {vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2])};
-            sdf__triangle_normal(v3[0], v3[1], v3[2], normals[valid]);
-            normalize3(normals[valid]);
+            memcpy(normals[valid], nf, sizeof nf);
         }
         valid++;
     }
@@ -310,6 +315,21 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
         return 0;
     r->kind = SDF__REGION_VERTEX;
     memcpy(r->origin, p, sizeof r->origin);
+    /* Its pseudonormal: the faces' normals weighted by their angles at the vertex. */
+    r->sign_dir[0] = r->sign_dir[1] = r->sign_dir[2] = 0;
+    for (uint32_t k = s->vtri_first[v]; k < s->vtri_first[v + 1]; k++) {
+        const uint32_t *tri = s->triangles + 3 * (size_t)s->vtri[k];
+        int c = tri[0] == v ? 0 : tri[1] == v ? 1 : 2;
+        const double *q0 = vertex(s, tri[(c + 1) % 3]), *q1 = vertex(s, tri[(c + 2) % 3]);
+        double nf[3], e0[3] = {q0[0] - p[0], q0[1] - p[1], q0[2] - p[2]};
+        double e1[3] = {q1[0] - p[0], q1[1] - p[1], q1[2] - p[2]}, x[3];
+        sdf__triangle_normal(vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2]), nf);
+        normalize3(nf);
+        sdf__cross3(x, e0, e1);
+        double angle = atan2(sqrt(sdf__dot3(x, x)), sdf__dot3(e0, e1));
+        for (int a = 0; a < 3; a++)
+            r->sign_dir[a] += angle * nf[a];
+    }
     r->planes = 0;
     double e[SDF__REGION_PLANES][3];
     int n = 0;
@@ -362,15 +382,7 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
         box_corners(r, p, x, span, y, reach, z, span);
         return 1;
     }
-    /* The side the cone opens to: the mean of its faces' normals. */
-    double side = 0;
-    for (uint32_t k = s->vtri_first[v]; k < s->vtri_first[v + 1]; k++) {
-        const uint32_t *tri = s->triangles + 3 * (size_t)s->vtri[k];
-        double nf[3];
-        sdf__triangle_normal(vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2]), nf);
-        normalize3(nf);
-        side += sdf__dot3(nf, axis);
-    }
+    double side = sdf__dot3(r->sign_dir, axis); /* the side the cone opens to */
     double widest = 1; /* cos of the largest angle between a generator and the axis */
     for (int h = 0; h < g; h++)
         widest = sdf__min2(widest, sdf__dot3(gen[h], axis));

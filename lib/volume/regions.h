@@ -40,6 +40,9 @@ typedef struct sdf__region {
     int kind;
     double origin[3], dir[3]; /* face: a corner and the unit normal; edge: an end and the
                                  unit direction; vertex: its position */
+    double sign_dir[3];       /* the feature's pseudonormal (Baerentzen & Aanaes): a point
+                                 the feature is closest to is inside where
+                                 (p - origin) . sign_dir < 0 */
     int planes;
     double plane[SDF__REGION_PLANES][4]; /* n . p <= c as (n, c), slack included */
     int corners;

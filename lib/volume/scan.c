@@ -28,6 +28,7 @@
 #define COARSE_STEP 8      /* nodes between the coarse lattice's nodes */
 #define FEATURE_CHUNK 256  /* features per work item */
 #define SCAN_BUDGET_BYTES ((size_t)64 << 20) /* the workers' per-node arrays of one call */
+#define SCAN_SAMPLE_BUDGET_BYTES ((size_t)256 << 20) /* the same, first order */
 
 struct sdf__scan {
     const sdf_mesh *mesh;
@@ -60,6 +61,12 @@ typedef struct call_state {
     sdf__hit *hits;    /* per worker: their closest points */
     int workers;
     float *out;
+    /* First order (sdf__scan_samples): a node stands for its fine grid of W^3 samples. */
+    int fine_w;            /* W = 2H + 1; 0 for zero order */
+    double rho[3];         /* the fine grid's half-extent per axis: regions are dilated by it */
+    double *fine_coord[3]; /* per axis, node i's W sample coordinates at [i * W] */
+    float *sample_best;    /* per worker, node and sample: the smallest squared distance so
+                              far, negative where its feature's pseudonormal says inside */
 } call_state;
 
 /* Node index range [lo, hi] of coordinates [from, to] on axis a, widened by the float
@@ -76,6 +83,78 @@ static int node_range(const sdf__scan *s, int a, double from, double to, size_t 
     return 1;
 }
 
+#define POW3(w) ((size_t)(w) * (size_t)(w) * (size_t)(w))
+#define MAX_W (2 * 4 + 1) /* H <= 4 */
+
+/* First order: the region's feature at each fine sample of node idx that the region holds,
+ * kept where nearer than the sample's best so far. Every quantity is separable over the
+ * axes (sample = node + per-axis offsets), so the W^3 samples cost sums of per-axis terms:
+ * a plane's value, the face's height, a vertex's squared distance, the edge's cross product
+ * and the pseudonormal's side. A plane that holds the whole fine cube is not tested per
+ * sample. */
+static void fat_node(const call_state *st, const sdf__region *r, float *best, size_t n,
+                     const size_t idx[3])
+{
+    int w = st->fine_w;
+    double d[3][MAX_W], side[3][MAX_W], lin[3][MAX_W], sq[3][MAX_W], cr[3][MAX_W][3];
+    for (int a = 0; a < 3; a++)
+        for (int o = 0; o < w; o++) {
+            double x = st->fine_coord[a][idx[a] * (size_t)w + (size_t)o] - r->origin[a];
+            d[a][o] = x;
+            side[a][o] = r->sign_dir[a] * x;
+            lin[a][o] = r->dir[a] * x; /* face: the height */
+            sq[a][o] = x * x;          /* vertex: the squared distance */
+            double unit[3] = {0, 0, 0};
+            unit[a] = x;
+            sdf__cross3(cr[a][o], unit, r->dir); /* edge: x e_a cross dir */
+        }
+    /* Planes straddling the fine cube, each as per-axis terms and its bound. */
+    double part[SDF__REGION_PLANES][3][MAX_W], bound[SDF__REGION_PLANES];
+    int straddling = 0;
+    for (int p = 0; p < r->planes; p++) {
+        const double *pl = r->plane[p];
+        double hi = 0, lo = 0, c = pl[3] - sdf__dot3(pl, r->origin);
+        for (int a = 0; a < 3; a++) {
+            double mx = -INFINITY, mn = INFINITY;
+            for (int o = 0; o < w; o++) {
+                double v = pl[a] * d[a][o];
+                part[straddling][a][o] = v;
+                mx = sdf__max2(mx, v), mn = sdf__min2(mn, v);
+            }
+            hi += mx, lo += mn;
+        }
+        if (lo > c)
+            return; /* no sample in the region */
+        if (hi > c)
+            bound[straddling++] = c;
+    }
+    float *out = best + n * POW3(w);
+    for (int z = 0, j = 0; z < w; z++)
+        for (int y = 0; y < w; y++)
+            for (int x = 0; x < w; x++, j++) {
+                int in = 1;
+                for (int p = 0; p < straddling; p++)
+                    in &= part[p][0][x] + part[p][1][y] + part[p][2][z] <= bound[p];
+                if (!in)
+                    continue;
+                double d2;
+                if (r->kind == SDF__REGION_FACE) {
+                    double h = lin[0][x] + lin[1][y] + lin[2][z];
+                    d2 = h * h;
+                } else if (r->kind == SDF__REGION_EDGE) {
+                    double c0 = cr[0][x][0] + cr[1][y][0] + cr[2][z][0];
+                    double c1 = cr[0][x][1] + cr[1][y][1] + cr[2][z][1];
+                    double c2 = cr[0][x][2] + cr[1][y][2] + cr[2][z][2];
+                    d2 = c0 * c0 + c1 * c1 + c2 * c2;
+                } else {
+                    d2 = sq[0][x] + sq[1][y] + sq[2][z];
+                }
+                float f2 = (float)d2;
+                if (f2 < fabsf(out[j]))
+                    out[j] = side[0][x] + side[1][y] + side[2][z] < 0 ? -f2 : f2;
+            }
+}
+
 /* A slice's cross-section fits this many lattice points or fewer: test each one against the
  * planes instead of computing row intervals (thin prisms cross a slice in a point or two). */
 #define FEW_POINTS 12
@@ -83,18 +162,19 @@ static int node_range(const sdf__scan *s, int a, double from, double to, size_t 
 /* Hand the region's feature to every node of the call it holds. Slices run across the
  * region's thinnest axis A, rows across the middle one B, and each row along its longest C. */
 static void scan_region(const call_state *st, const sdf__region *r, uint32_t feature, double *best,
-                        uint32_t *winner)
+                        uint32_t *winner, float *best_samples)
 {
     const sdf__scan *s = st->scan;
     double pad = s->feat.row_pad;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    const double *rho = st->rho;
     for (int c = 0; c < r->corners; c++)
         for (int a = 0; a < 3; a++)
             lo[a] = sdf__min2(lo[a], r->corner[c][a]), hi[a] = sdf__max2(hi[a], r->corner[c][a]);
     size_t first[3] = {0, 0, st->k0}, last[3] = {s->dims[0] - 1, s->dims[1] - 1, st->k1 - 1};
     size_t from[3], to[3];
     for (int a = 0; a < 3; a++)
-        if (!node_range(s, a, lo[a] - pad, hi[a] + pad, first[a], last[a],
+        if (!node_range(s, a, lo[a] - pad - rho[a], hi[a] + pad + rho[a], first[a], last[a],
                         &from[a], &to[a]))
             return;
     int A = 0, C = 0;
@@ -119,7 +199,7 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
                 continue;
             double *o5 = pl_sorted[n_up + n_down + n_flat];
             o5[0] = pl[A], o5[1] = pl[B], o5[2] = pl[C], o5[3] = kind < 2 ? 1 / pl[C] : 0;
-            o5[4] = pl[3];
+            o5[4] = pl[3] + fabs(pl[0]) * rho[0] + fabs(pl[1]) * rho[1] + fabs(pl[2]) * rho[2];
             *(kind == 0 ? &n_up : kind == 1 ? &n_down : &n_flat) += 1;
         }
     const double (*up)[5] = pl_sorted, (*down)[5] = pl_sorted + n_up;
@@ -145,27 +225,34 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
         double ca = s->coord[A][sa];
         /* The slice's cross-section: where it crosses the region's edges (the slice clamped
          * into the region's span, whose planes already carry the slack), padded. */
-        double cq = sdf__min2(sdf__max2(ca, lo[A]), hi[A]);
         double blo = INFINITY, bhi = -INFINITY, clo = INFINITY, chi = -INFINITY;
-        for (int e = 0; e < r->edges; e++) {
-            const double *l = line[e];
-            if (cq < l[0] || cq > l[1])
-                continue;
-            if (l[0] != l[1]) {
-                double b = l[2] + l[3] * cq, c = l[4] + l[5] * cq;
-                blo = sdf__min2(blo, b), bhi = sdf__max2(bhi, b);
-                clo = sdf__min2(clo, c), chi = sdf__max2(chi, c);
-            } else {
-                blo = sdf__min2(blo, sdf__min2(l[2], l[3]));
-                bhi = sdf__max2(bhi, sdf__max2(l[2], l[3]));
-                clo = sdf__min2(clo, sdf__min2(l[4], l[5]));
-                chi = sdf__max2(chi, sdf__max2(l[4], l[5]));
+        for (int end = rho[A] > 0 ? -1 : 1; end <= 1; end += 2) {
+            double cq = sdf__min2(sdf__max2(ca + end * rho[A], lo[A]), hi[A]);
+            for (int e = 0; e < r->edges; e++) {
+                const double *l = line[e];
+                if (cq < l[0] || cq > l[1])
+                    continue;
+                if (l[0] != l[1]) {
+                    double b = l[2] + l[3] * cq, c = l[4] + l[5] * cq;
+                    blo = sdf__min2(blo, b), bhi = sdf__max2(bhi, b);
+                    clo = sdf__min2(clo, c), chi = sdf__max2(chi, c);
+                } else {
+                    blo = sdf__min2(blo, sdf__min2(l[2], l[3]));
+                    bhi = sdf__max2(bhi, sdf__max2(l[2], l[3]));
+                    clo = sdf__min2(clo, sdf__min2(l[4], l[5]));
+                    chi = sdf__max2(chi, sdf__max2(l[4], l[5]));
+                }
             }
         }
+        for (int c = 0; rho[A] > 0 && c < r->corners; c++) /* corners between the two ends */
+            if (fabs(r->corner[c][A] - ca) <= rho[A]) {
+                blo = sdf__min2(blo, r->corner[c][B]), bhi = sdf__max2(bhi, r->corner[c][B]);
+                clo = sdf__min2(clo, r->corner[c][C]), chi = sdf__max2(chi, r->corner[c][C]);
+            }
         size_t b0, b1, u0, u1;
         if (blo > bhi ||
-            !node_range(s, B, blo - pad, bhi + pad, from[B], to[B], &b0, &b1) ||
-            !node_range(s, C, clo - pad, chi + pad, from[C], to[C], &u0, &u1))
+            !node_range(s, B, blo - pad - rho[B], bhi + pad + rho[B], from[B], to[B], &b0, &b1) ||
+            !node_range(s, C, clo - pad - rho[C], chi + pad + rho[C], from[C], to[C], &u0, &u1))
             continue;
         for (int p = 0; p < r->planes; p++) /* the planes' offsets on this slice */
             off[p] = pl_sorted[p][4] - pl_sorted[p][0] * ca;
@@ -216,6 +303,12 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
                 } else if (cc < lo_c || cc > hi_c) {
                     continue; /* the node's own coordinate decides */
                 }
+                if (st->fine_w) {
+                    size_t idx[3];
+                    idx[A] = sa, idx[B] = sb, idx[C] = u;
+                    fat_node(st, r, best_samples, row + u * stride[C], idx);
+                    continue;
+                }
                 double t = cc - o[C], d2;
                 if (r->kind == SDF__REGION_FACE) {
                     double h = h0 + h1 * t;
@@ -238,12 +331,14 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
 {
     call_state *st = ctx;
     sdf__region *r = &st->regions[worker];
-    double *best = st->best + (size_t)worker * st->nodes;
-    uint32_t *winner = st->winner + (size_t)worker * st->nodes;
+    size_t mine = (size_t)worker * st->nodes;
+    double *best = st->best ? st->best + mine : NULL;
+    uint32_t *winner = st->winner ? st->winner + mine : NULL;
+    float *samples = st->sample_best ? st->sample_best + mine * POW3(st->fine_w) : NULL;
     for (size_t q = begin; q < end; q++) {
         uint32_t f = st->scan->order[q];
         if (sdf__region_build(&st->scan->feat, f, r))
-            scan_region(st, r, f, best, winner);
+            scan_region(st, r, f, best, winner, samples);
     }
 }
 
@@ -323,7 +418,7 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
     call_state st = {s, k0, k1, nodes, malloc(w * nodes * sizeof(double)),
                      malloc(w * nodes * sizeof(uint32_t)), malloc(w * sizeof(sdf__region)),
                      malloc(w * nx * 3 * sizeof(float)), malloc(w * nx * sizeof(sdf__hit)),
-                     workers, out};
+                     workers, out, 0, {0, 0, 0}, {NULL, NULL, NULL}, NULL};
     int rc = st.best && st.winner && st.regions && st.points && st.hits ? 0 : SDF_ENOMEM;
     if (!rc) {
         sdf__parallel_for(w * nodes, (size_t)1 << 16, workers, clear_range, &st);
@@ -331,6 +426,77 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
         sdf__parallel_for(rows, 8, workers, rows_range, &st);
     }
     free(st.best), free(st.winner), free(st.regions), free(st.points), free(st.hits);
+    return rc;
+}
+
+/* ---- first order ------------------------------------------------------------------------ */
+
+size_t sdf__scan_sample_slices_per_call(const sdf__scan *s, int half)
+{
+    size_t workers = (size_t)sdf__effective_threads(s->query.threads, s->feat.count, 1);
+    size_t per_node = workers * POW3(2 * half + 1) * sizeof(float);
+    size_t slices = SCAN_SAMPLE_BUDGET_BYTES / per_node / (s->dims[0] * s->dims[1]);
+    return slices ? slices : 1;
+}
+
+static void clear_samples(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    call_state *st = ctx;
+    for (size_t n = begin; n < end; n++)
+        st->sample_best[n] = INFINITY;
+}
+
+/* The workers' bests merged into signed distances; samples no region held (none should be)
+ * are marked NAN for a search. */
+static void merge_samples(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    call_state *st = ctx;
+    size_t m = POW3(st->fine_w), all = st->nodes * m;
+    int sign = st->scan->query.sign != SDF_SIGN_NONE;
+    for (size_t q = begin; q < end; q++) {
+        float v = st->sample_best[q];
+        for (int t = 1; t < st->workers; t++) {
+            float u = st->sample_best[(size_t)t * all + q];
+            v = fabsf(u) < fabsf(v) ? u : v;
+        }
+        float f = sqrtf(fabsf(v));
+        st->out[q] = isinf(v) ? NAN : sign && v < 0 ? -f : f;
+    }
+}
+
+int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_spacing,
+                      float *out)
+{
+    size_t w3 = POW3(2 * half + 1), nodes = (k1 - k0) * s->dims[0] * s->dims[1];
+    int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
+    size_t w = (size_t)workers;
+    call_state st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
+                     .regions = malloc(w * sizeof(sdf__region)), .workers = workers, .out = out,
+                     .fine_w = 2 * half + 1, .sample_best = malloc(w * nodes * w3 * sizeof(float))};
+    int rc = st.regions && st.sample_best && half >= 1 && half <= 4 ? 0 : SDF_ENOMEM;
+    for (int a = 0; a < 3 && !rc; a++) {
+        /* Sample coordinates as the bake forms them: the float node plus the offset. */
+        st.fine_coord[a] = malloc(s->dims[a] * (size_t)st.fine_w * sizeof(double));
+        if (!st.fine_coord[a]) {
+            rc = SDF_ENOMEM;
+            break;
+        }
+        for (size_t i = 0; i < s->dims[a]; i++)
+            for (int o = -half; o <= half; o++)
+                st.fine_coord[a][i * (size_t)st.fine_w + (size_t)(o + half)] =
+                    (float)(s->coord[a][i] + o * fine_spacing * s->spacing[a]);
+        st.rho[a] = half * fine_spacing * s->spacing[a] + s->index_slack[a] * s->spacing[a];
+    }
+    if (!rc) {
+        sdf__parallel_for(w * nodes * w3, (size_t)1 << 16, workers, clear_samples, &st);
+        sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
+        sdf__parallel_for(nodes * w3, (size_t)1 << 14, workers, merge_samples, &st);
+    }
+    for (int a = 0; a < 3; a++)
+        free(st.fine_coord[a]);
+    free(st.regions), free(st.sample_best);
     return rc;
 }
 

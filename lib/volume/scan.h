@@ -44,6 +44,20 @@ size_t sdf__scan_slices_per_call(const sdf__scan *scan);
  * (N, M = dims[0], dims[1]). Returns 0 or SDF_ENOMEM. */
 int sdf__scan_slices(sdf__scan *scan, size_t k0, size_t k1, float *out);
 
+/* First order (Algorithm 1's fine grids): the signed distances at the (2 half + 1)^3 samples
+ * around every node of slices k0 <= k < k1, at offsets (i, j, k) * fine_spacing * spacing,
+ * i, j, k in -half..half, x fastest, each node's samples consecutive (node-major as in
+ * sdf__scan_slices), with the same float coordinates a bake forms (the float node plus the
+ * offset). The values are the exact distances in double to the winning feature rounded to
+ * float, signed by its pseudonormal: a fit needs no more, and no triangle test runs per
+ * sample. A sample no region held (none should be) comes back NAN. 0 or SDF_ENOMEM. */
+int sdf__scan_samples(sdf__scan *scan, size_t k0, size_t k1, int half, double fine_spacing,
+                      float *out);
+
+/* Slices per sdf__scan_samples call (its scratch: 4 bytes per sample and worker, kept
+ * under 256 MiB). */
+size_t sdf__scan_sample_slices_per_call(const sdf__scan *scan, int half);
+
 void sdf__scan_destroy(sdf__scan *scan);
 
 #endif

@@ -150,7 +150,9 @@ class Volumes(unittest.TestCase):
         self.assertLess(np.abs(a - b).max(), 0.1 * np.abs(a).max())
 
     def test_cancel_and_forget(self):
-        job = self.c.bake("fandisk", volume="big", resolution=90, order=1)  # ~20 M queries
+        # The filtered field is baked by queries (~18 M here): long enough to cancel.
+        job = self.c.bake("fandisk", volume="big", resolution=34, order=1, field="filtered",
+                          filter={"samples": 16})
         time.sleep(0.3)
         s = self.c.cancel(job["id"])
         self.assertTrue(s["cancel_requested"])

@@ -495,9 +495,21 @@ static int on_progress(void *user, double fraction)
 
 static void test_progress_and_options(const sdf_mesh *mesh)
 {
+    /* The query path (winding signs) reports after every slab of nodes; the scan path
+     * (pseudonormals) after every run of slices, here one. */
     progress_log log = {0, -1, 0, 1};
     sdf_bake_options o = {.dims = {40, 40, 40}, .order = 1, .progress = on_progress, .user = &log};
     sdf_volume *v = NULL;
+    CHECK(sdf_volume_bake(mesh, &o, &v, NULL) == 0, "bake with progress");
+    CHECK(log.calls >= 1 && log.monotonic && log.last == 1, "scan progress: %d calls, last %g",
+          log.calls, log.last);
+    sdf_volume_destroy(v);
+    log = (progress_log){0, 1, 0, 1};
+    v = (sdf_volume *)1;
+    CHECK(sdf_volume_bake(mesh, &o, &v, NULL) == SDF_ECANCELED && v == NULL && log.calls == 1,
+          "cancel must stop a scanned bake at its first report");
+    o.query.sign = SDF_SIGN_WINDING;
+    log = (progress_log){0, -1, 0, 1};
     CHECK(sdf_volume_bake(mesh, &o, &v, NULL) == 0, "bake with progress");
     CHECK(log.calls > 1 && log.monotonic && log.last == 1, "progress: %d calls, last %g",
           log.calls, log.last);
