@@ -6,7 +6,6 @@
 #include <stdlib.h>
 #include <unistd.h>
 
-#define SDF__MAX_THREADS 256
 
 typedef struct job {
     atomic_size_t next;

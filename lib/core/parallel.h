@@ -8,6 +8,8 @@
 
 #include <stddef.h>
 
+#define SDF__MAX_THREADS 256 /* workers of one call, at most */
+
 /* Processes items [begin, end). `worker` is 0..threads-1 (for per-thread scratch). */
 typedef void (*sdf__range_fn)(void *ctx, size_t begin, size_t end, int worker);
 

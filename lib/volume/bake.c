@@ -288,27 +288,29 @@ static int slab_samples(slab *s)
 /* Algorithm 1, steps 3-6 for nodes [begin, end) of the slab: a~ = X_o^+ f, normalised by
  * |(a~, b~, c~)| (all four coefficients, or with SDF_NORMALIZE_GRADIENT the first three). The plane is kept local here (unit normal, value at the node); the global
  * constant d = value - n . x_i (eq. 2) is formed when the volume is written. */
+static void fit_node(const bake_plan *plan, const float *f, float out[4])
+{
+    size_t m = (size_t)plan->fine_count;
+    double c[4] = {0, 0, 0, 0};
+    for (int r = 0; r < 4; r++)
+        for (size_t j = 0; j < m; j++)
+            c[r] += plan->pinv[r][j] * f[j];
+    double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    /* A vanishing fitted gradient (a perfectly symmetric spot of the medial axis) has no
+     * direction to normalise to: keep the value with a zero gradient. */
+    double scale = len > 1e-12 ? 1 / len : 1;
+    out[0] = (float)(c[0] * scale), out[1] = (float)(c[1] * scale);
+    out[2] = (float)(c[2] * scale);
+    out[3] = (float)(plan->info.normalize == SDF_NORMALIZE_PLANE ? c[3] * scale : c[3]);
+}
+
 static void fit_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     slab *s = ctx;
-    const bake_plan *plan = s->plan;
-    size_t m = (size_t)plan->fine_count;
-    for (size_t n = begin; n < end; n++) {
-        const float *f = s->sample_f + n * m;
-        double c[4] = {0, 0, 0, 0};
-        for (int r = 0; r < 4; r++)
-            for (size_t j = 0; j < m; j++)
-                c[r] += plan->pinv[r][j] * f[j];
-        double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-        /* A vanishing fitted gradient (a perfectly symmetric spot of the medial axis) has no
-         * direction to normalise to: keep the value with a zero gradient. */
-        double scale = len > 1e-12 ? 1 / len : 1;
-        float *out = s->plane + 4 * n;
-        out[0] = (float)(c[0] * scale), out[1] = (float)(c[1] * scale);
-        out[2] = (float)(c[2] * scale);
-        out[3] = (float)(plan->info.normalize == SDF_NORMALIZE_PLANE ? c[3] * scale : c[3]);
-    }
+    size_t m = (size_t)s->plan->fine_count;
+    for (size_t n = begin; n < end; n++)
+        fit_node(s->plan, s->sample_f + n * m, s->plane + 4 * n);
 }
 
 /* ---- assembly ---------------------------------------------------------------------------- */
@@ -379,6 +381,27 @@ static int search_missing(const bake_plan *plan, size_t first_node, size_t count
     return 0;
 }
 
+typedef struct fit_state {
+    const bake_plan *plan;
+    bake_out *o;
+    double smallest_f[SDF__MAX_THREADS], largest_f[SDF__MAX_THREADS]; /* per worker */
+} fit_state;
+
+/* sdf__sample_fn: Algorithm 1's fit of a run of nodes from their scanned samples. */
+static int fit_samples(void *user, size_t first, size_t count, float *f, int worker)
+{
+    fit_state *fs = user;
+    size_t m = (size_t)fs->plan->fine_count;
+    int rc = search_missing(fs->plan, first, count, f);
+    for (size_t n = 0; !rc && n < count; n++) {
+        fit_node(fs->plan, f + n * m, fs->o->planes + 4 * (first + n));
+        double centre = f[n * m + m / 2]; /* the centre sample is the node */
+        fs->smallest_f[worker] = fmin(fs->smallest_f[worker], centre);
+        fs->largest_f[worker] = fmax(fs->largest_f[worker], centre);
+    }
+    return rc;
+}
+
 /* The raw field on a closed mesh by closest-feature scan conversion (volume/scan.h), in runs
  * of whole z-slices: zero order gives sdf_query's floats at the nodes, first order the fine
  * samples that the planes are fitted to. */
@@ -387,39 +410,34 @@ static int scan_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options 
 {
     const sdf_volume_info *in = &plan->info;
     int first = in->order == 1;
-    size_t slice = in->dims[0] * in->dims[1], m = first ? (size_t)plan->fine_count : 1;
+    size_t slice = in->dims[0] * in->dims[1];
     sdf__scan *scan = NULL;
-    int rc = sdf__scan_create(plan->mesh, in, &plan->query, &scan);
+    fit_state *fs = first ? malloc(sizeof *fs) : NULL;
+    int rc = first && !fs ? SDF_ENOMEM : sdf__scan_create(plan->mesh, in, &plan->query, &scan);
+    if (rc)
+        sdf__diag_set(diag, rc, 0, -1, "no memory for the bake's scratch");
+    for (int t = 0; fs && t < SDF__MAX_THREADS; t++)
+        fs->smallest_f[t] = INFINITY, fs->largest_f[t] = -INFINITY;
+    if (fs)
+        fs->plan = plan, fs->o = o;
     size_t per_call = rc          ? 1
                       : first     ? sdf__scan_sample_slices_per_call(scan, in->fine_half)
                                   : sdf__scan_slices_per_call(scan);
-    per_call = per_call < in->dims[2] ? per_call : in->dims[2];
-    float *samples = first && !rc ? malloc(per_call * slice * m * sizeof(float)) : NULL;
-    if (!rc && first && !samples)
-        rc = SDF_ENOMEM;
-    if (rc)
-        sdf__diag_set(diag, rc, 0, -1, "no memory for the bake's scratch");
     for (size_t k = 0; !rc && k < in->dims[2]; k += per_call) {
         size_t end = k + per_call < in->dims[2] ? k + per_call : in->dims[2];
-        if (!first) {
-            rc = sdf__scan_slices(scan, k, end, o->v->data.f + k * slice);
-        } else if (!(rc = sdf__scan_samples(scan, k, end, in->fine_half, in->fine_spacing,
-                                            samples)) &&
-                   !(rc = search_missing(plan, k * slice, (end - k) * slice, samples))) {
-            slab s = {.plan = plan, .first = k * slice, .count = (end - k) * slice,
-                      .sample_f = samples, .plane = o->planes + 4 * k * slice};
-            sdf__parallel_for(s.count, 256, plan->query.threads, fit_range, &s);
-            for (size_t n = 0; n < s.count; n++) { /* the centre sample is the node */
-                double f = samples[n * m + m / 2];
-                o->largest_f = fmax(o->largest_f, f), o->smallest_f = fmin(o->smallest_f, f);
-            }
-        }
+        rc = first ? sdf__scan_samples(scan, k, end, in->fine_half, in->fine_spacing,
+                                       fit_samples, fs)
+                   : sdf__scan_slices(scan, k, end, o->v->data.f + k * slice);
         if (rc)
             sdf__diag_set(diag, rc, 0, -1, "the scan failed: %s", sdf_strerror(rc));
         else
             rc = progress(opts, (double)end / (double)in->dims[2], diag);
     }
-    free(samples);
+    for (int t = 0; fs && t < SDF__MAX_THREADS; t++) {
+        o->smallest_f = fmin(o->smallest_f, fs->smallest_f[t]);
+        o->largest_f = fmax(o->largest_f, fs->largest_f[t]);
+    }
+    free(fs);
     sdf__scan_destroy(scan);
     return rc;
 }

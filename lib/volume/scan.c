@@ -28,7 +28,8 @@
 #define COARSE_STEP 8      /* nodes between the coarse lattice's nodes */
 #define FEATURE_CHUNK 256  /* features per work item */
 #define SCAN_BUDGET_BYTES ((size_t)64 << 20) /* the workers' per-node arrays of one call */
-#define SCAN_SAMPLE_BUDGET_BYTES ((size_t)256 << 20) /* the same, first order */
+#define MERGE_NODES 256    /* nodes per sdf__sample_fn call */
+#define SCAN_SAMPLE_BUDGET_BYTES ((size_t)64 << 20) /* the same, first order */
 
 struct sdf__scan {
     const sdf_mesh *mesh;
@@ -42,13 +43,20 @@ struct sdf__scan {
                                   this order write to nearby nodes, so the per-node arrays stay
                                   in cache */
     float *coarse;             /* |f| on every COARSE_STEP-th node (feat.bound) */
+    float *sample_scratch;     /* sdf__scan_samples' per-worker bests, kept between calls */
+    float *zspan;              /* per feature its region's z-span (NAN: none), or NULL */
+    size_t sample_scratch_count;
     double inv_spacing[3];
     double index_slack[3];     /* float rounding of node coordinates, in nodes */
     double scale2;             /* squared size of the scene: the floor of the exactness check */
 };
 
 
+#define MAX_W_STATE 9
+
 /* ---- scanning ---------------------------------------------------------------------------- */
+
+typedef struct fat_region fat_region;
 
 typedef struct call_state {
     sdf__scan *scan;
@@ -64,9 +72,14 @@ typedef struct call_state {
     /* First order (sdf__scan_samples): a node stands for its fine grid of W^3 samples. */
     int fine_w;            /* W = 2H + 1; 0 for zero order */
     double rho[3];         /* the fine grid's half-extent per axis: regions are dilated by it */
-    double *fine_coord[3]; /* per axis, node i's W sample coordinates at [i * W] */
+    double fine_offset[3][MAX_W_STATE]; /* per axis, the W offsets of the fine grid */
+    fat_region *fat;       /* per worker */
     float *sample_best;    /* per worker, node and sample: the smallest squared distance so
                               far, negative where its feature's pseudonormal says inside */
+    float *merged;         /* per worker: MERGE_NODES nodes' signed distances */
+    sdf__sample_fn consume;
+    void *user;
+    int consume_rc[SDF__MAX_THREADS];
 } call_state;
 
 /* Node index range [lo, hi] of coordinates [from, to] on axis a, widened by the float
@@ -85,74 +98,108 @@ static int node_range(const sdf__scan *s, int a, double from, double to, size_t 
 
 #define POW3(w) ((size_t)(w) * (size_t)(w) * (size_t)(w))
 #define MAX_W (2 * 4 + 1) /* H <= 4 */
+#define MAX_SAMPLES (MAX_W * MAX_W * MAX_W)
 
-/* First order: the region's feature at each fine sample of node idx that the region holds,
- * kept where nearer than the sample's best so far. Every quantity is separable over the
- * axes (sample = node + per-axis offsets), so the W^3 samples cost sums of per-axis terms:
- * a plane's value, the face's height, a vertex's squared distance, the edge's cross product
- * and the pseudonormal's side. A plane that holds the whole fine cube is not tested per
- * sample. */
-static void fat_node(const call_state *st, const sdf__region *r, float *best, size_t n,
-                     const size_t idx[3])
+/* First order: what a region needs at every fine offset delta_j, once per region (the fine
+ * grid is the same around every node). Samples sit at the float node plus delta_j, in
+ * double: their distances are exact there, and within float rounding of the points a query
+ * would be asked at. */
+struct fat_region {
+    double height[MAX_SAMPLES]; /* face: dir . delta */
+    double side[MAX_SAMPLES];   /* sign_dir . delta */
+    double delta[3][MAX_SAMPLES];
+    double delta2[MAX_SAMPLES]; /* vertex: |delta|^2 */
+    double cross[3][MAX_SAMPLES]; /* edge: delta x dir */
+    double plane_c[SDF__REGION_PLANES]; /* planes n . (p - origin) <= c */
+    double plane_lo[SDF__REGION_PLANES], plane_hi[SDF__REGION_PLANES]; /* n . delta's range */
+    float cand[MAX_SAMPLES];
+};
+
+static void fat_prepare(const call_state *st, const sdf__region *r, fat_region *fr)
 {
     int w = st->fine_w;
-    double d[3][MAX_W], side[3][MAX_W], lin[3][MAX_W], sq[3][MAX_W], cr[3][MAX_W][3];
-    for (int a = 0; a < 3; a++)
-        for (int o = 0; o < w; o++) {
-            double x = st->fine_coord[a][idx[a] * (size_t)w + (size_t)o] - r->origin[a];
-            d[a][o] = x;
-            side[a][o] = r->sign_dir[a] * x;
-            lin[a][o] = r->dir[a] * x; /* face: the height */
-            sq[a][o] = x * x;          /* vertex: the squared distance */
-            double unit[3] = {0, 0, 0};
-            unit[a] = x;
-            sdf__cross3(cr[a][o], unit, r->dir); /* edge: x e_a cross dir */
-        }
-    /* Planes straddling the fine cube, each as per-axis terms and its bound. */
-    double part[SDF__REGION_PLANES][3][MAX_W], bound[SDF__REGION_PLANES];
-    int straddling = 0;
+    size_t m = POW3(w);
+    for (size_t j = 0; j < m; j++) {
+        size_t o[3] = {j % (size_t)w, j / (size_t)w % (size_t)w, j / (size_t)w / (size_t)w};
+        double dl[3], c[3];
+        for (int a = 0; a < 3; a++)
+            dl[a] = fr->delta[a][j] = st->fine_offset[a][o[a]];
+        fr->height[j] = sdf__dot3(r->dir, dl);
+        fr->side[j] = sdf__dot3(r->sign_dir, dl);
+        fr->delta2[j] = sdf__dot3(dl, dl);
+        sdf__cross3(c, dl, r->dir);
+        fr->cross[0][j] = c[0], fr->cross[1][j] = c[1], fr->cross[2][j] = c[2];
+    }
     for (int p = 0; p < r->planes; p++) {
         const double *pl = r->plane[p];
-        double hi = 0, lo = 0, c = pl[3] - sdf__dot3(pl, r->origin);
-        for (int a = 0; a < 3; a++) {
-            double mx = -INFINITY, mn = INFINITY;
+        fr->plane_c[p] = pl[3] - sdf__dot3(pl, r->origin);
+        fr->plane_lo[p] = fr->plane_hi[p] = 0;
+        for (int a = 0; a < 3; a++) { /* separable: the extremes per axis */
+            double lo = INFINITY, hi = -INFINITY;
             for (int o = 0; o < w; o++) {
-                double v = pl[a] * d[a][o];
-                part[straddling][a][o] = v;
-                mx = sdf__max2(mx, v), mn = sdf__min2(mn, v);
+                double v = pl[a] * st->fine_offset[a][o];
+                lo = sdf__min2(lo, v), hi = sdf__max2(hi, v);
             }
-            hi += mx, lo += mn;
+            fr->plane_lo[p] += lo, fr->plane_hi[p] += hi;
         }
-        if (lo > c)
-            return; /* no sample in the region */
-        if (hi > c)
-            bound[straddling++] = c;
     }
-    float *out = best + n * POW3(w);
-    for (int z = 0, j = 0; z < w; z++)
-        for (int y = 0; y < w; y++)
-            for (int x = 0; x < w; x++, j++) {
-                int in = 1;
-                for (int p = 0; p < straddling; p++)
-                    in &= part[p][0][x] + part[p][1][y] + part[p][2][z] <= bound[p];
-                if (!in)
-                    continue;
-                double d2;
-                if (r->kind == SDF__REGION_FACE) {
-                    double h = lin[0][x] + lin[1][y] + lin[2][z];
-                    d2 = h * h;
-                } else if (r->kind == SDF__REGION_EDGE) {
-                    double c0 = cr[0][x][0] + cr[1][y][0] + cr[2][z][0];
-                    double c1 = cr[0][x][1] + cr[1][y][1] + cr[2][z][1];
-                    double c2 = cr[0][x][2] + cr[1][y][2] + cr[2][z][2];
-                    d2 = c0 * c0 + c1 * c1 + c2 * c2;
-                } else {
-                    d2 = sq[0][x] + sq[1][y] + sq[2][z];
-                }
-                float f2 = (float)d2;
-                if (f2 < fabsf(out[j]))
-                    out[j] = side[0][x] + side[1][y] + side[2][z] < 0 ? -f2 : f2;
-            }
+}
+
+/* First order: the region's feature at each fine sample of node idx that the region holds,
+ * kept where nearer than the sample's best so far (signed by the pseudonormal). A plane that
+ * holds every sample is not tested per sample. */
+static void fat_node(const call_state *st, const sdf__region *r, fat_region *fr, float *best,
+                     size_t n, const size_t idx[3])
+{
+    size_t m = POW3(st->fine_w);
+    double d[3];
+    for (int a = 0; a < 3; a++)
+        d[a] = st->scan->coord[a][idx[a]] - r->origin[a];
+    int straddling[SDF__REGION_PLANES], count = 0;
+    double value[SDF__REGION_PLANES];
+    for (int p = 0; p < r->planes; p++) {
+        value[p] = sdf__dot3(r->plane[p], d) - fr->plane_c[p];
+        if (value[p] + fr->plane_lo[p] > 0)
+            return; /* no sample in the region */
+        if (value[p] + fr->plane_hi[p] > 0)
+            straddling[count++] = p;
+    }
+    double side = sdf__dot3(r->sign_dir, d);
+    float *cand = fr->cand;
+    if (r->kind == SDF__REGION_FACE) {
+        double h0 = sdf__dot3(r->dir, d);
+        for (size_t j = 0; j < m; j++) {
+            double h = h0 + fr->height[j];
+            float d2 = (float)(h * h);
+            cand[j] = side + fr->side[j] < 0 ? -d2 : d2;
+        }
+    } else if (r->kind == SDF__REGION_VERTEX) {
+        double dd = sdf__dot3(d, d);
+        for (size_t j = 0; j < m; j++) {
+            double t = d[0] * fr->delta[0][j] + d[1] * fr->delta[1][j] + d[2] * fr->delta[2][j];
+            float d2 = (float)(dd + 2 * t + fr->delta2[j]);
+            cand[j] = side + fr->side[j] < 0 ? -d2 : d2;
+        }
+    } else {
+        double x0[3];
+        sdf__cross3(x0, d, r->dir);
+        for (size_t j = 0; j < m; j++) {
+            double x = x0[0] + fr->cross[0][j], y = x0[1] + fr->cross[1][j];
+            double z = x0[2] + fr->cross[2][j];
+            float d2 = (float)(x * x + y * y + z * z);
+            cand[j] = side + fr->side[j] < 0 ? -d2 : d2;
+        }
+    }
+    for (int k = 0; k < count; k++) {
+        const double *pl = r->plane[straddling[k]];
+        double v = value[straddling[k]];
+        for (size_t j = 0; j < m; j++)
+            if (v + pl[0] * fr->delta[0][j] + pl[1] * fr->delta[1][j] + pl[2] * fr->delta[2][j] > 0)
+                cand[j] = INFINITY;
+    }
+    float *out = best + n * m;
+    for (size_t j = 0; j < m; j++) /* branchless, vectorised */
+        out[j] = fabsf(cand[j]) < fabsf(out[j]) ? cand[j] : out[j];
 }
 
 /* A slice's cross-section fits this many lattice points or fewer: test each one against the
@@ -162,7 +209,7 @@ static void fat_node(const call_state *st, const sdf__region *r, float *best, si
 /* Hand the region's feature to every node of the call it holds. Slices run across the
  * region's thinnest axis A, rows across the middle one B, and each row along its longest C. */
 static void scan_region(const call_state *st, const sdf__region *r, uint32_t feature, double *best,
-                        uint32_t *winner, float *best_samples)
+                        uint32_t *winner, float *best_samples, fat_region *fr)
 {
     const sdf__scan *s = st->scan;
     double pad = s->feat.row_pad;
@@ -306,7 +353,7 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
                 if (st->fine_w) {
                     size_t idx[3];
                     idx[A] = sa, idx[B] = sb, idx[C] = u;
-                    fat_node(st, r, best_samples, row + u * stride[C], idx);
+                    fat_node(st, r, fr, best_samples, row + u * stride[C], idx);
                     continue;
                 }
                 double t = cc - o[C], d2;
@@ -335,11 +382,55 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
     double *best = st->best ? st->best + mine : NULL;
     uint32_t *winner = st->winner ? st->winner + mine : NULL;
     float *samples = st->sample_best ? st->sample_best + mine * POW3(st->fine_w) : NULL;
+    const sdf__scan *s = st->scan;
+    /* The call's z-span, widened by the dilation and padding: regions wholly outside it are
+     * not built (when their spans are known). */
+    double z0 = s->coord[2][st->k0] - st->rho[2] - s->feat.row_pad;
+    double z1 = s->coord[2][st->k1 - 1] + st->rho[2] + s->feat.row_pad;
     for (size_t q = begin; q < end; q++) {
-        uint32_t f = st->scan->order[q];
-        if (sdf__region_build(&st->scan->feat, f, r))
-            scan_region(st, r, f, best, winner, samples);
+        uint32_t f = s->order[q];
+        if (s->zspan && (s->zspan[2 * f] > z1 || s->zspan[2 * f + 1] < z0))
+            continue;
+        if (!sdf__region_build(&s->feat, f, r))
+            continue;
+        fat_region *fr = st->fine_w ? &st->fat[worker] : NULL;
+        if (fr)
+            fat_prepare(st, r, fr);
+        scan_region(st, r, f, best, winner, samples, fr);
     }
+}
+
+/* The z-span of every feature's region (NAN..NAN for none), once, for bakes in several
+ * calls. */
+static void zspan_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    call_state *st = ctx;
+    sdf__region *r = &st->regions[worker];
+    float *span = st->scan->zspan;
+    for (size_t f = begin; f < end; f++) {
+        span[2 * f] = span[2 * f + 1] = NAN;
+        if (!sdf__region_build(&st->scan->feat, f, r))
+            continue;
+        double lo = INFINITY, hi = -INFINITY;
+        for (int c = 0; c < r->corners; c++)
+            lo = sdf__min2(lo, r->corner[c][2]), hi = sdf__max2(hi, r->corner[c][2]);
+        /* Rounded outwards to float. */
+        span[2 * f] = nextafterf((float)lo, -INFINITY);
+        span[2 * f + 1] = nextafterf((float)hi, INFINITY);
+    }
+}
+
+/* Known spans let the calls of a bake in several calls skip the regions outside them. */
+static int ensure_zspans(sdf__scan *s, call_state *st)
+{
+    if (s->zspan || (st->k0 == 0 && st->k1 == s->dims[2]))
+        return 0;
+    float *span = malloc((2 * s->feat.count + 1) * sizeof *span);
+    if (!span)
+        return SDF_ENOMEM;
+    s->zspan = span;
+    sdf__parallel_for(s->feat.count, FEATURE_CHUNK, st->workers, zspan_range, st);
+    return 0;
 }
 
 /* The exact closest point on a triangle of the winning feature: the face itself, or the
@@ -418,8 +509,11 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
     call_state st = {s, k0, k1, nodes, malloc(w * nodes * sizeof(double)),
                      malloc(w * nodes * sizeof(uint32_t)), malloc(w * sizeof(sdf__region)),
                      malloc(w * nx * 3 * sizeof(float)), malloc(w * nx * sizeof(sdf__hit)),
-                     workers, out, 0, {0, 0, 0}, {NULL, NULL, NULL}, NULL};
+                     workers, out, 0, {0, 0, 0}, {{0}}, NULL, NULL, NULL, NULL, NULL,
+                     {0}};
     int rc = st.best && st.winner && st.regions && st.points && st.hits ? 0 : SDF_ENOMEM;
+    if (!rc)
+        rc = ensure_zspans(s, &st);
     if (!rc) {
         sdf__parallel_for(w * nodes, (size_t)1 << 16, workers, clear_range, &st);
         sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
@@ -447,56 +541,63 @@ static void clear_samples(void *ctx, size_t begin, size_t end, int worker)
         st->sample_best[n] = INFINITY;
 }
 
-/* The workers' bests merged into signed distances; samples no region held (none should be)
- * are marked NAN for a search. */
+/* Runs of nodes: the workers' bests merged into signed distances (NAN for a sample no
+ * region held; none should be), handed to the consumer. */
 static void merge_samples(void *ctx, size_t begin, size_t end, int worker)
 {
-    (void)worker;
     call_state *st = ctx;
     size_t m = POW3(st->fine_w), all = st->nodes * m;
     int sign = st->scan->query.sign != SDF_SIGN_NONE;
-    for (size_t q = begin; q < end; q++) {
+    float *f = st->merged + (size_t)worker * MERGE_NODES * m;
+    for (size_t q = begin * m; q < end * m; q++) {
         float v = st->sample_best[q];
         for (int t = 1; t < st->workers; t++) {
             float u = st->sample_best[(size_t)t * all + q];
             v = fabsf(u) < fabsf(v) ? u : v;
         }
-        float f = sqrtf(fabsf(v));
-        st->out[q] = isinf(v) ? NAN : sign && v < 0 ? -f : f;
+        float d = sqrtf(fabsf(v));
+        f[q - begin * m] = isinf(v) ? NAN : sign && v < 0 ? -d : d;
     }
+    size_t first = st->k0 * st->scan->dims[0] * st->scan->dims[1] + begin;
+    int rc = st->consume(st->user, first, end - begin, f, worker);
+    if (rc)
+        st->consume_rc[worker] = rc;
 }
 
 int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_spacing,
-                      float *out)
+                      sdf__sample_fn consume, void *user)
 {
     size_t w3 = POW3(2 * half + 1), nodes = (k1 - k0) * s->dims[0] * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
-    size_t w = (size_t)workers;
+    size_t w = (size_t)workers, scratch = w * nodes * w3;
+    if (scratch > s->sample_scratch_count) { /* kept between calls: fresh pages cost */
+        free(s->sample_scratch);
+        s->sample_scratch = malloc(scratch * sizeof(float));
+        s->sample_scratch_count = s->sample_scratch ? scratch : 0;
+    }
     call_state st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
-                     .regions = malloc(w * sizeof(sdf__region)), .workers = workers, .out = out,
-                     .fine_w = 2 * half + 1, .sample_best = malloc(w * nodes * w3 * sizeof(float))};
-    int rc = st.regions && st.sample_best && half >= 1 && half <= 4 ? 0 : SDF_ENOMEM;
-    for (int a = 0; a < 3 && !rc; a++) {
-        /* Sample coordinates as the bake forms them: the float node plus the offset. */
-        st.fine_coord[a] = malloc(s->dims[a] * (size_t)st.fine_w * sizeof(double));
-        if (!st.fine_coord[a]) {
-            rc = SDF_ENOMEM;
-            break;
-        }
-        for (size_t i = 0; i < s->dims[a]; i++)
-            for (int o = -half; o <= half; o++)
-                st.fine_coord[a][i * (size_t)st.fine_w + (size_t)(o + half)] =
-                    (float)(s->coord[a][i] + o * fine_spacing * s->spacing[a]);
+                     .regions = malloc(w * sizeof(sdf__region)), .workers = workers,
+                     .fine_w = 2 * half + 1, .sample_best = s->sample_scratch,
+                     .merged = malloc(w * MERGE_NODES * w3 * sizeof(float)),
+                     .fat = malloc(w * sizeof(fat_region)), .consume = consume, .user = user};
+    int rc = st.regions && st.sample_best && st.merged && st.fat ? 0 : SDF_ENOMEM;
+    if (half < 1 || half > 4)
+        rc = SDF_EINVAL;
+    for (int a = 0; a < 3; a++) {
+        for (int o = -half; o <= half && !rc; o++) /* as the bake forms them */
+            st.fine_offset[a][o + half] = o * fine_spacing * s->spacing[a];
         st.rho[a] = half * fine_spacing * s->spacing[a] + s->index_slack[a] * s->spacing[a];
     }
+    if (!rc)
+        rc = ensure_zspans(s, &st);
     if (!rc) {
-        sdf__parallel_for(w * nodes * w3, (size_t)1 << 16, workers, clear_samples, &st);
+        sdf__parallel_for(scratch, (size_t)1 << 16, workers, clear_samples, &st);
         sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
-        sdf__parallel_for(nodes * w3, (size_t)1 << 14, workers, merge_samples, &st);
+        sdf__parallel_for(nodes, MERGE_NODES, workers, merge_samples, &st);
+        for (int t = 0; t < workers && !rc; t++)
+            rc = st.consume_rc[t];
     }
-    for (int a = 0; a < 3; a++)
-        free(st.fine_coord[a]);
-    free(st.regions), free(st.sample_best);
+    free(st.regions), free(st.merged), free(st.fat);
     return rc;
 }
 
@@ -652,6 +753,6 @@ void sdf__scan_destroy(sdf__scan *s)
     for (int a = 0; a < 3; a++)
         free(s->coarse_coord[a]);
     sdf__features_free(&s->feat);
-    free(s->order), free(s->coarse);
+    free(s->order), free(s->coarse), free(s->sample_scratch), free(s->zspan);
     free(s);
 }

@@ -44,18 +44,23 @@ size_t sdf__scan_slices_per_call(const sdf__scan *scan);
  * (N, M = dims[0], dims[1]). Returns 0 or SDF_ENOMEM. */
 int sdf__scan_slices(sdf__scan *scan, size_t k0, size_t k1, float *out);
 
+/* Receives the signed distances at the fine samples of nodes [first, first + count) of the
+ * volume (count * (2 half + 1)^3 floats, node-major), on worker `worker`; may write them.
+ * A non-zero return fails the call with that code. */
+typedef int (*sdf__sample_fn)(void *user, size_t first, size_t count, float *f, int worker);
+
 /* First order (Algorithm 1's fine grids): the signed distances at the (2 half + 1)^3 samples
  * around every node of slices k0 <= k < k1, at offsets (i, j, k) * fine_spacing * spacing,
- * i, j, k in -half..half, x fastest, each node's samples consecutive (node-major as in
- * sdf__scan_slices), with the same float coordinates a bake forms (the float node plus the
- * offset). The values are the exact distances in double to the winning feature rounded to
- * float, signed by its pseudonormal: a fit needs no more, and no triangle test runs per
- * sample. A sample no region held (none should be) comes back NAN. 0 or SDF_ENOMEM. */
+ * i, j, k in -half..half, x fastest, with the same float coordinates a bake forms (the float
+ * node plus the offset), handed to `consume` in runs of nodes from worker threads. The
+ * values are the exact distances in double to the winning feature rounded to float, signed
+ * by its pseudonormal: a fit needs no more, and no triangle test runs per sample. A sample
+ * no region held (none should be) is NAN. 0, SDF_ENOMEM or the consumer's code. */
 int sdf__scan_samples(sdf__scan *scan, size_t k0, size_t k1, int half, double fine_spacing,
-                      float *out);
+                      sdf__sample_fn consume, void *user);
 
 /* Slices per sdf__scan_samples call (its scratch: 4 bytes per sample and worker, kept
- * under 256 MiB). */
+ * under 64 MiB). */
 size_t sdf__scan_sample_slices_per_call(const sdf__scan *scan, int half);
 
 void sdf__scan_destroy(sdf__scan *scan);

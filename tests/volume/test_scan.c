@@ -169,6 +169,20 @@ static void test_threads(void)
     sdf_mesh_release(mesh);
 }
 
+typedef struct copy_ctx {
+    float *all;
+    size_t m;
+} copy_ctx;
+
+/* sdf__sample_fn: keep every node's samples. */
+static int copy_samples(void *user, size_t first, size_t count, float *f, int worker)
+{
+    (void)worker;
+    copy_ctx *c = user;
+    memcpy(c->all + first * c->m, f, count * c->m * sizeof *f);
+    return 0;
+}
+
 /* sdf__scan_samples against sdf_query at every fine sample of a small lattice. */
 static void test_samples(const char *file, sdf_sign_method sign, int half, double spacing_cells,
                          size_t dim)
@@ -192,10 +206,12 @@ static void test_samples(const char *file, sdf_sign_method sign, int half, doubl
     float *f = malloc(nodes * m * sizeof *f), *p = malloc(nodes * m * 3 * sizeof *p);
     float *g = malloc(nodes * m * sizeof *g);
     /* In two calls, as a bake makes them. */
-    size_t split = in.dims[2] / 2, per_slice = in.dims[0] * in.dims[1] * m;
-    CHECK(scan && sdf__scan_samples(scan, 0, split, half, spacing_cells, f) == 0 &&
-              sdf__scan_samples(scan, split, in.dims[2], half, spacing_cells,
-                                f + split * per_slice) == 0,
+    size_t split = in.dims[2] / 2;
+    copy_ctx copy = {f, m};
+    CHECK(scan &&
+              sdf__scan_samples(scan, 0, split, half, spacing_cells, copy_samples, &copy) == 0 &&
+              sdf__scan_samples(scan, split, in.dims[2], half, spacing_cells, copy_samples,
+                                &copy) == 0,
           "%s: samples", file);
     for (size_t n = 0, q = 0; n < nodes; n++) {
         size_t ijk[3] = {n % in.dims[0], n / in.dims[0] % in.dims[1], n / in.dims[0] / in.dims[1]};
