@@ -39,7 +39,8 @@ typedef struct bake_plan {
     int fine_count;               /* (2H+1)^3; 1 for order 0 */
     double fine[MAX_FINE][3];     /* s_oj, origin-centred fine grid, in world units */
     double reach[MAX_FINE];       /* |s_oj| */
-    double pinv[4][MAX_FINE];     /* X_o^+, rows giving a, b, c and the constant */
+    double pinv_t[MAX_FINE][4];   /* X_o^+ transposed: sample j's weights in a, b, c and the
+                                     constant */
 } bake_plan;
 
 /* ---- options ----------------------------------------------------------------------------- */
@@ -199,8 +200,8 @@ static int plan_fine_grid(bake_plan *plan)
     for (int r = 0; r < 4; r++)
         for (int s = 0; s < n; s++) {
             double row[4] = {plan->fine[s][0], plan->fine[s][1], plan->fine[s][2], 1};
-            plan->pinv[r][s] = inv[r][0] * row[0] + inv[r][1] * row[1] + inv[r][2] * row[2] +
-                               inv[r][3] * row[3];
+            plan->pinv_t[s][r] = inv[r][0] * row[0] + inv[r][1] * row[1] + inv[r][2] * row[2] +
+                                 inv[r][3] * row[3];
         }
     return 0;
 }
@@ -292,9 +293,9 @@ static void fit_node(const bake_plan *plan, const float *f, float out[4])
 {
     size_t m = (size_t)plan->fine_count;
     double c[4] = {0, 0, 0, 0};
-    for (int r = 0; r < 4; r++)
-        for (size_t j = 0; j < m; j++)
-            c[r] += plan->pinv[r][j] * f[j];
+    for (size_t j = 0; j < m; j++) /* the four sums side by side, each in order of j */
+        for (int r = 0; r < 4; r++)
+            c[r] += plan->pinv_t[j][r] * f[j];
     double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
     /* A vanishing fitted gradient (a perfectly symmetric spot of the medial axis) has no
      * direction to normalise to: keep the value with a zero gradient. */

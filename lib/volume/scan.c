@@ -546,17 +546,18 @@ static void clear_samples(void *ctx, size_t begin, size_t end, int worker)
 static void merge_samples(void *ctx, size_t begin, size_t end, int worker)
 {
     call_state *st = ctx;
-    size_t m = POW3(st->fine_w), all = st->nodes * m;
+    size_t m = POW3(st->fine_w), all = st->nodes * m, count = (end - begin) * m;
     int sign = st->scan->query.sign != SDF_SIGN_NONE;
     float *f = st->merged + (size_t)worker * MERGE_NODES * m;
-    for (size_t q = begin * m; q < end * m; q++) {
-        float v = st->sample_best[q];
-        for (int t = 1; t < st->workers; t++) {
-            float u = st->sample_best[(size_t)t * all + q];
-            v = fabsf(u) < fabsf(v) ? u : v;
-        }
-        float d = sqrtf(fabsf(v));
-        f[q - begin * m] = isinf(v) ? NAN : sign && v < 0 ? -d : d;
+    memcpy(f, st->sample_best + begin * m, count * sizeof *f);
+    for (int t = 1; t < st->workers; t++) {
+        const float *b = st->sample_best + (size_t)t * all + begin * m;
+        for (size_t q = 0; q < count; q++)
+            f[q] = fabsf(b[q]) < fabsf(f[q]) ? b[q] : f[q];
+    }
+    for (size_t q = 0; q < count; q++) {
+        float v = f[q], d = sqrtf(fabsf(v));
+        f[q] = v == INFINITY ? NAN : sign && v < 0 ? -d : d;
     }
     size_t first = st->k0 * st->scan->dims[0] * st->scan->dims[1] + begin;
     int rc = st->consume(st->user, first, end - begin, f, worker);
