@@ -28,6 +28,7 @@
 #define MAX_FINE ((2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1))
 #define SLAB_QUERIES ((size_t)1 << 18) /* distance queries per slab: bounds memory and the
                                           time between progress reports */
+#define SCAN_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one z-slice may take */
 
 typedef struct bake_plan {
     sdf_volume_info info;
@@ -403,6 +404,18 @@ static int fit_samples(void *user, size_t first, size_t count, float *f, int wor
     return rc;
 }
 
+/* The scan takes the raw field on closed meshes signed by pseudonormals or unsigned
+ * (volume/scan.h), in runs of whole z-slices: not when one slice's scratch alone (12 bytes
+ * per node, or 4 per fine sample, and worker) would pass SCAN_SLICE_LIMIT. */
+static int scannable(const bake_plan *plan)
+{
+    const sdf_volume_info *in = &plan->info;
+    size_t per_node = in->order == 1 ? (size_t)plan->fine_count * sizeof(float) : 12;
+    size_t workers = (size_t)sdf__effective_threads(plan->query.threads, in->dims[2], 1);
+    return !plan->filter && sdf__scan_supported(plan->mesh, plan->query.sign) &&
+           in->dims[0] * in->dims[1] * per_node * workers <= SCAN_SLICE_LIMIT;
+}
+
 /* The raw field on a closed mesh by closest-feature scan conversion (volume/scan.h), in runs
  * of whole z-slices: zero order gives sdf_query's floats at the nodes, first order the fine
  * samples that the planes are fitted to. */
@@ -518,9 +531,7 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
     if (!rc && first && !(o.planes = malloc(o.v->nodes * 4 * sizeof(float))))
         rc = sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory for the bake's scratch");
     if (!rc)
-        rc = !plan->filter && sdf__scan_supported(mesh, plan->query.sign)
-                 ? scan_bake(plan, &o, opts, diag)
-                 : query_bake(plan, &o, opts, diag);
+        rc = scannable(plan) ? scan_bake(plan, &o, opts, diag) : query_bake(plan, &o, opts, diag);
     sdf_volume *v = o.v;
     if (!rc && first) {
         /* The packed values span the distances at the nodes, [smallest f, largest f]. A plane
