@@ -484,12 +484,17 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
-size_t sdf__scan_slices_per_call(const sdf__scan *s)
+/* Slices per call: the workers' per-node scratch within `budget`, at least one slice. */
+static size_t slices_within(const sdf__scan *s, size_t node_bytes, size_t budget)
 {
     size_t workers = (size_t)sdf__effective_threads(s->query.threads, s->feat.count, 1);
-    size_t per_node = workers * (sizeof(double) + sizeof(uint32_t));
-    size_t slices = SCAN_BUDGET_BYTES / per_node / (s->dims[0] * s->dims[1]);
+    size_t slices = budget / (workers * node_bytes) / (s->dims[0] * s->dims[1]);
     return slices ? slices : 1;
+}
+
+size_t sdf__scan_slices_per_call(const sdf__scan *s)
+{
+    return slices_within(s, sizeof(double) + sizeof(uint32_t), SCAN_BUDGET_BYTES);
 }
 
 /* Fresh per-node arrays, each part first touched by the thread that clears it. */
@@ -497,8 +502,12 @@ static void clear_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     call_state *st = ctx;
-    for (size_t n = begin; n < end; n++)
-        st->best[n] = INFINITY, st->winner[n] = UINT32_MAX;
+    for (size_t n = begin; n < end; n++) {
+        if (st->sample_best)
+            st->sample_best[n] = INFINITY;
+        else
+            st->best[n] = INFINITY, st->winner[n] = UINT32_MAX;
+    }
 }
 
 int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
@@ -506,11 +515,12 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
     size_t nx = s->dims[0], rows = (k1 - k0) * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, nodes = rows * nx;
-    call_state st = {s, k0, k1, nodes, malloc(w * nodes * sizeof(double)),
-                     malloc(w * nodes * sizeof(uint32_t)), malloc(w * sizeof(sdf__region)),
-                     malloc(w * nx * 3 * sizeof(float)), malloc(w * nx * sizeof(sdf__hit)),
-                     workers, out, 0, {0, 0, 0}, {{0}}, NULL, NULL, NULL, NULL, NULL,
-                     {0}};
+    call_state st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
+                     .best = malloc(w * nodes * sizeof(double)),
+                     .winner = malloc(w * nodes * sizeof(uint32_t)),
+                     .regions = malloc(w * sizeof(sdf__region)),
+                     .points = malloc(w * nx * 3 * sizeof(float)),
+                     .hits = malloc(w * nx * sizeof(sdf__hit)), .workers = workers, .out = out};
     int rc = st.best && st.winner && st.regions && st.points && st.hits ? 0 : SDF_ENOMEM;
     if (!rc)
         rc = ensure_zspans(s, &st);
@@ -527,18 +537,7 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
 
 size_t sdf__scan_sample_slices_per_call(const sdf__scan *s, int half)
 {
-    size_t workers = (size_t)sdf__effective_threads(s->query.threads, s->feat.count, 1);
-    size_t per_node = workers * POW3(2 * half + 1) * sizeof(float);
-    size_t slices = SCAN_SAMPLE_BUDGET_BYTES / per_node / (s->dims[0] * s->dims[1]);
-    return slices ? slices : 1;
-}
-
-static void clear_samples(void *ctx, size_t begin, size_t end, int worker)
-{
-    (void)worker;
-    call_state *st = ctx;
-    for (size_t n = begin; n < end; n++)
-        st->sample_best[n] = INFINITY;
+    return slices_within(s, POW3(2 * half + 1) * sizeof(float), SCAN_SAMPLE_BUDGET_BYTES);
 }
 
 /* Runs of nodes: the workers' bests merged into signed distances (NAN for a sample no
@@ -592,7 +591,7 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
     if (!rc)
         rc = ensure_zspans(s, &st);
     if (!rc) {
-        sdf__parallel_for(scratch, (size_t)1 << 16, workers, clear_samples, &st);
+        sdf__parallel_for(scratch, (size_t)1 << 16, workers, clear_range, &st);
         sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
         sdf__parallel_for(nodes, MERGE_NODES, workers, merge_samples, &st);
         for (int t = 0; t < workers && !rc; t++)
@@ -684,8 +683,10 @@ int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign)
 {
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
-    if (!mesh->report.closed || mesh->report.triangles == 0 ||
-        (sign != SDF_SIGN_PSEUDONORMAL && sign != SDF_SIGN_NONE))
+    const sdf_mesh_report *r = &mesh->report;
+    if (!r->closed || r->triangles == 0 ||
+        (sign != SDF_SIGN_PSEUDONORMAL && sign != SDF_SIGN_NONE) ||
+        r->triangles + mesh->edge_count + r->vertices >= UINT32_MAX) /* feature ids */
         return 0;
     for (size_t c = 0; c < 3 * mesh->report.triangles; c++)
         if (mesh->edge_of[c] == SDF__NO_EDGE)
