@@ -30,6 +30,9 @@
 #define SCAN_BUDGET_BYTES ((size_t)64 << 20) /* the workers' per-node arrays of one call */
 #define MERGE_NODES 256    /* nodes per sdf__sample_fn call */
 #define SCAN_SAMPLE_BUDGET_BYTES ((size_t)64 << 20) /* the same, first order */
+#define MAX_W (2 * 4 + 1)  /* first order: the fine grid's width, H <= 4 */
+#define MAX_SAMPLES (MAX_W * MAX_W * MAX_W)
+#define POW3(w) ((size_t)(w) * (size_t)(w) * (size_t)(w))
 
 struct sdf__scan {
     const sdf_mesh *mesh;
@@ -51,9 +54,6 @@ struct sdf__scan {
     double scale2;             /* squared size of the scene: the floor of the exactness check */
 };
 
-
-#define MAX_W_STATE 9
-
 /* ---- scanning ---------------------------------------------------------------------------- */
 
 typedef struct fat_region fat_region;
@@ -72,7 +72,7 @@ typedef struct call_state {
     /* First order (sdf__scan_samples): a node stands for its fine grid of W^3 samples. */
     int fine_w;            /* W = 2H + 1; 0 for zero order */
     double rho[3];         /* the fine grid's half-extent per axis: regions are dilated by it */
-    double fine_offset[3][MAX_W_STATE]; /* per axis, the W offsets of the fine grid */
+    double fine_offset[3][MAX_W]; /* per axis, the W offsets of the fine grid */
     fat_region *fat;       /* per worker */
     float *sample_best;    /* per worker, node and sample: the smallest squared distance so
                               far, negative where its feature's pseudonormal says inside */
@@ -95,10 +95,6 @@ static int node_range(const sdf__scan *s, int a, double from, double to, size_t 
     *hi = h > (double)last ? last : (size_t)h;
     return 1;
 }
-
-#define POW3(w) ((size_t)(w) * (size_t)(w) * (size_t)(w))
-#define MAX_W (2 * 4 + 1) /* H <= 4 */
-#define MAX_SAMPLES (MAX_W * MAX_W * MAX_W)
 
 /* First order: what a region needs at every fine offset delta_j, once per region (the fine
  * grid is the same around every node). Samples sit at the float node plus delta_j, in
@@ -194,7 +190,8 @@ static void fat_node(const call_state *st, const sdf__region *r, fat_region *fr,
         const double *pl = r->plane[straddling[k]];
         double v = value[straddling[k]];
         for (size_t j = 0; j < m; j++)
-            if (v + pl[0] * fr->delta[0][j] + pl[1] * fr->delta[1][j] + pl[2] * fr->delta[2][j] > 0)
+            if (v + pl[0] * fr->delta[0][j] + pl[1] * fr->delta[1][j] + pl[2] * fr->delta[2][j] >
+                0)
                 cand[j] = INFINITY;
     }
     float *out = best + n * m;

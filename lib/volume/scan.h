@@ -1,20 +1,20 @@
-/* scan.h - exact signed distances at every node of a volume's lattice by closest-feature
- * scan conversion (after Mauch's CSC), for zero-order bakes of the raw field.
+/* scan.h - signed distances at every node of a volume's lattice (zero order) or at every
+ * node's fine grid (first order) by closest-feature scan conversion (after Mauch's CSC), for
+ * bakes of the raw field.
  *
  * Querying node after node makes each far node rule out every triangle within its distance
  * (docs/performance.md): the cost grows with the distance. Turned around, the work is small:
  * a point's closest surface point lies inside a face, on an edge or at a vertex, and then the
- * point lies in that feature's Voronoi region - the prism over the face, the wedge beside the
- * edge between its faces' normal planes, the cone of directions at the vertex that make
- * obtuse angles with all its edges. Each region is a convex polyhedron; scan-converting all of
- * them over the lattice hands every node the few features (14 on refined_elephant, 6 on
- * fandisk) whose region holds it, and the nearest of those is the closest. The regions are
- * necessary conditions taken with a rounding slack, so a node can only get extra candidates,
- * never miss its closest feature; the winner's distance is then the exact double test of
- * query/triangle.c on its triangles, and sign and float output are sdf_query's own
- * (sdf__query_finish), so a node gets the same float as sdf_query at the same point. A node
- * whose winner was an extra candidate (its exact distance exceeds the region's estimate) is
- * asked again through sdf_query's search. */
+ * point lies in that feature's region (volume/regions.h). Each region is a convex polyhedron;
+ * scan-converting all of them over the lattice hands every node the few features whose
+ * region holds it (2.3 per node on refined_elephant at 128^3, 8 before the regions were
+ * truncated), and the nearest of those is the closest. The regions are necessary conditions
+ * taken with a rounding slack, so a node can only get extra candidates, never miss its
+ * closest feature. Zero order: the winner's distance is then the exact double test of
+ * query/triangle.c, and sign and float output are sdf_query's own (sdf__query_finish), so a
+ * node gets the same float as sdf_query at the same point; a node whose winner was an extra
+ * candidate (its exact distance exceeds the region's estimate) is asked again through
+ * sdf_query's search. */
 #ifndef SDF_VOLUME_SCAN_H
 #define SDF_VOLUME_SCAN_H
 
@@ -51,11 +51,12 @@ typedef int (*sdf__sample_fn)(void *user, size_t first, size_t count, float *f, 
 
 /* First order (Algorithm 1's fine grids): the signed distances at the (2 half + 1)^3 samples
  * around every node of slices k0 <= k < k1, at offsets (i, j, k) * fine_spacing * spacing,
- * i, j, k in -half..half, x fastest, with the same float coordinates a bake forms (the float
- * node plus the offset), handed to `consume` in runs of nodes from worker threads. The
- * values are the exact distances in double to the winning feature rounded to float, signed
- * by its pseudonormal: a fit needs no more, and no triangle test runs per sample. A sample
- * no region held (none should be) is NAN. 0, SDF_ENOMEM or the consumer's code. */
+ * i, j, k in -half..half, x fastest, handed to `consume` in runs of nodes from worker
+ * threads. A sample sits at the float node plus the offset, in double (a query would round it
+ * to float first); its value is the exact distance there to the winning feature, rounded to
+ * float and signed by the feature's pseudonormal: a fit needs no more, and no triangle test
+ * runs per sample. A sample no region held (none should be) is NAN. 0, SDF_ENOMEM or the
+ * consumer's code. */
 int sdf__scan_samples(sdf__scan *scan, size_t k0, size_t k1, int half, double fine_spacing,
                       sdf__sample_fn consume, void *user);
 
