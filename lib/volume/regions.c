@@ -11,6 +11,7 @@
 
 #include "mesh/mesh.h"
 #include "query/triangle.h"
+#include "sign/pseudonormal.h"
 #include "volume/regions.h"
 
 /* Corners 0-2 and 3-5 of a triangular prism are its two ends, i and i + 3 joined. */
@@ -161,7 +162,8 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
     r->kind = SDF__REGION_EDGE;
     memcpy(r->origin, a, sizeof r->origin);
     memcpy(r->dir, d, sizeof r->dir);
-    r->sign_dir[0] = r->sign_dir[1] = r->sign_dir[2] = 0; /* the sum of the faces' normals */
+    for (int x = 0; x < 3; x++)
+        r->sign_dir[x] = s->edge_normal[3 * e + (size_t)x];
     r->planes = 0;
     double minus_d[3] = {-d[0], -d[1], -d[2]};
     add_plane_at(s, r, minus_d, a, 0);
@@ -180,17 +182,14 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
         double along = sdf__dot3(w, d);
         for (int x = 0; x < 3; x++)
             uf[x] = w[x] - along * d[x];
-        double nf[3];
-        sdf__triangle_normal(vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2]), nf);
-        normalize3(nf);
-        for (int x = 0; x < 3; x++)
-            r->sign_dir[x] += nf[x];
         if (normalize3(uf) == 0)
             continue; /* a zero-area face does not bound the edge's region */
         add_plane_at(s, r, uf, a, 0);
         if (valid < 2) {
             memcpy(u[valid], uf, sizeof uf);
-            memcpy(normals[valid], nf, sizeof nf);
+            sdf__triangle_normal(vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2]),
+                                 normals[valid]);
+            normalize3(normals[valid]);
         }
         valid++;
     }
@@ -315,21 +314,8 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
         return 0;
     r->kind = SDF__REGION_VERTEX;
     memcpy(r->origin, p, sizeof r->origin);
-    /* Its pseudonormal: the faces' normals weighted by their angles at the vertex. */
-    r->sign_dir[0] = r->sign_dir[1] = r->sign_dir[2] = 0;
-    for (uint32_t k = s->vtri_first[v]; k < s->vtri_first[v + 1]; k++) {
-        const uint32_t *tri = s->triangles + 3 * (size_t)s->vtri[k];
-        int c = tri[0] == v ? 0 : tri[1] == v ? 1 : 2;
-        const double *q0 = vertex(s, tri[(c + 1) % 3]), *q1 = vertex(s, tri[(c + 2) % 3]);
-        double nf[3], e0[3] = {q0[0] - p[0], q0[1] - p[1], q0[2] - p[2]};
-        double e1[3] = {q1[0] - p[0], q1[1] - p[1], q1[2] - p[2]}, x[3];
-        sdf__triangle_normal(vertex(s, tri[0]), vertex(s, tri[1]), vertex(s, tri[2]), nf);
-        normalize3(nf);
-        sdf__cross3(x, e0, e1);
-        double angle = atan2(sqrt(sdf__dot3(x, x)), sdf__dot3(e0, e1));
-        for (int a = 0; a < 3; a++)
-            r->sign_dir[a] += angle * nf[a];
-    }
+    for (int a = 0; a < 3; a++)
+        r->sign_dir[a] = s->vertex_normal[3 * v + (size_t)a];
     r->planes = 0;
     double e[SDF__REGION_PLANES][3];
     int n = 0;
@@ -396,8 +382,11 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
     sdf__cross3(b1, axis, any);
     normalize3(b1);
     sdf__cross3(b2, axis, b1);
-    for (int h = 0; h < g; h++)
-        angle[h] = atan2(sdf__dot3(gen[h], b2), sdf__dot3(gen[h], b1));
+    for (int h = 0; h < g; h++) { /* a pseudo-angle: monotone in the angle, no atan2 */
+        double x = sdf__dot3(gen[h], b1), y = sdf__dot3(gen[h], b2), l1 = fabs(x) + fabs(y);
+        double q = l1 > 0 ? x / l1 : 1;
+        angle[h] = y >= 0 ? 1 - q : 3 + q;
+    }
     for (int h = 1; h < g; h++) /* insertion sort: a handful of generators */
         for (int k = h; k > 0 && angle[k - 1] > angle[k]; k--) {
             double ta = angle[k], tg[3];
@@ -477,6 +466,8 @@ int sdf__features_init(sdf__features *s, const sdf_mesh *m)
 {
     memset(s, 0, sizeof *s);
     s->triangles = m->triangles;
+    s->edge_normal = m->normals->edge;
+    s->vertex_normal = m->normals->vertex;
     s->faces = m->report.triangles;
     s->edges = m->edge_count;
     s->vertices = m->report.vertices;

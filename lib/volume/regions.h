@@ -60,6 +60,8 @@ typedef struct sdf__features {
     uint32_t *edge_first, *edge_tri;     /* triangles of each edge (CSR, ascending) */
     uint32_t *vert_first, *vert_nbr;     /* neighbour vertices of each vertex (CSR) */
     uint32_t *vtri_first, *vtri;         /* triangles of each vertex (CSR, ascending) */
+    const float *edge_normal;            /* the mesh's edge and vertex pseudonormals, 3 each */
+    const float *vertex_normal;
     /* Set by the caller before building regions: */
     double reach_front, reach_back;      /* farthest a node lies outside / inside */
     double slack;                        /* rounding slack of every half-space, world units */
