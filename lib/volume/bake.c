@@ -287,9 +287,10 @@ static int slab_samples(slab *s)
                              &plan->query, &out);
 }
 
-/* Algorithm 1, steps 3-6 for nodes [begin, end) of the slab: a~ = X_o^+ f, normalised by
- * |(a~, b~, c~)| (all four coefficients, or with SDF_NORMALIZE_GRADIENT the first three). The plane is kept local here (unit normal, value at the node); the global
- * constant d = value - n . x_i (eq. 2) is formed when the volume is written. */
+/* Algorithm 1, steps 3-6 for one node from its fine samples f: a~ = X_o^+ f, normalised by
+ * |(a~, b~, c~)| (all four coefficients, or with SDF_NORMALIZE_GRADIENT the first three).
+ * The plane is kept local here (unit normal, value at the node); the global constant
+ * d = value - n . x_i (eq. 2) is formed when the volume is written. */
 static void fit_node(const bake_plan *plan, const float *f, float out[4])
 {
     size_t m = (size_t)plan->fine_count;
