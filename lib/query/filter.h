@@ -37,6 +37,17 @@ int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *b
                       const int8_t *sign_hint, const uint8_t *run_start, size_t count,
                       const sdf_query_options *opts, sdf_query_result *out);
 
+/* Is the batch (xyz floats `stride` bytes apart, 0 = packed) a full lattice: point
+ * (k ny + j) nx + i at (x_i, y_j, z_k), each axis at least 2 long? Then 1, its dims and its
+ * axes (malloc'ed, the caller frees them); else 0 and NULLs. Defined in query.c. */
+int sdf__find_lattice(const float *points, size_t stride, size_t count, size_t dims[3],
+                      float *axis[3]);
+
+/* sdf_query without its lattice path (volume/scan.c queries its coarse lattice with it):
+ * packets or single queries only. Defined in query.c. */
+int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,
+                      const sdf_query_options *opts, sdf_query_result *out);
+
 /* Answer `count` packed points whose closest points are already known (hits[i]; a hit with
  * dist2 == INFINITY is searched again): signs and outputs exactly as sdf_query gives them for
  * the same closest points. Runs on the calling thread. Defined in query.c. */

@@ -19,6 +19,7 @@
 #include "sign/pseudonormal.h"
 #include "sign/raycast.h"
 #include "sign/winding.h"
+#include "volume/scan.h"
 
 #define CHUNK 256          /* points per work item, single traversal */
 #define PACKET_CHUNK 4096  /* most Morton-ordered points per work item, packet traversal */
@@ -29,6 +30,11 @@
  * best of both. Without the leaf size, near-surface points (d_prev ~ 0) fell back needlessly:
  * refined_elephant 1M band 0.85 -> 1.24 Mq/s (1 thread) with it. */
 #define PACKET_SPREAD 3.0
+/* A batch of at least this many points laid out as a lattice is answered by closest-feature
+ * scan conversion (volume/scan.h; the same floats): below it the scan's set-up (adjacency,
+ * a coarse lattice of queries) outweighs the packets it saves. */
+#define LATTICE_MIN_POINTS 32768
+#define LATTICE_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one slice may take */
 
 static const char *const sign_names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
 
@@ -332,6 +338,86 @@ int sdf__query_finish(const sdf_mesh *mesh, const float *points, const sdf__hit 
     return 0;
 }
 
+static int query_points(const batch *b, size_t count, const sdf_query_options *opts);
+
+int sdf__find_lattice(const float *points, size_t stride, size_t count, size_t dims[3],
+                      float *axis[3])
+{
+    batch b = {.points = (const char *)points, .stride = stride ? stride : 3 * sizeof(float)};
+    axis[0] = axis[1] = axis[2] = NULL;
+    if (count < 8)
+        return 0;
+    const float *p0 = point_at(&b, 0);
+    size_t nx = 1, ny = 1;
+    while (nx < count && point_at(&b, nx)[1] == p0[1] && point_at(&b, nx)[2] == p0[2])
+        nx++;
+    while (ny * nx < count && point_at(&b, ny * nx)[2] == p0[2])
+        ny++;
+    if (nx < 2 || ny < 2 || count % (nx * ny) || count / (nx * ny) < 2)
+        return 0;
+    dims[0] = nx, dims[1] = ny, dims[2] = count / (nx * ny);
+    size_t step[3] = {1, nx, nx * ny};
+    for (int a = 0; a < 3; a++) {
+        axis[a] = malloc(dims[a] * sizeof(float));
+        for (size_t i = 0; axis[a] && i < dims[a]; i++)
+            axis[a][i] = point_at(&b, i * step[a])[a];
+    }
+    int ok = axis[0] && axis[1] && axis[2];
+    for (size_t n = 0; ok && n < count; n++) {
+        const float *p = point_at(&b, n);
+        ok = p[0] == axis[0][n % nx] && p[1] == axis[1][n / nx % ny] &&
+             p[2] == axis[2][n / (nx * ny)];
+    }
+    if (!ok) {
+        for (int a = 0; a < 3; a++)
+            free(axis[a]), axis[a] = NULL;
+    }
+    return ok;
+}
+
+/* A lattice batch through the scan. 0 when answered; otherwise (not a lattice, a mesh or
+ * sign the scan does not take, no memory) the packets answer it, with the same floats. */
+static int lattice_query(const batch *b, size_t count, const sdf_query_options *opts,
+                         sdf_query_result *out)
+{
+    int threads = opts ? opts->threads : 0;
+    if (count < LATTICE_MIN_POINTS || (opts && opts->traversal == SDF_TRAVERSAL_SINGLE) ||
+        !sdf__scan_supported(b->mesh, b->sign))
+        return -1;
+    size_t dims[3];
+    float *axis[3] = {NULL, NULL, NULL};
+    if (!sdf__find_lattice((const float *)b->points, b->stride, count, dims, axis))
+        return -1;
+    int even = 1; /* nodes within 1 % of a cell of even spacing: the scan's index arithmetic */
+    for (int a = 0; a < 3 && even; a++) {
+        double first = axis[a][0];
+        double step = ((double)axis[a][dims[a] - 1] - first) / (double)(dims[a] - 1);
+        for (size_t i = 0; i < dims[a] && even; i++)
+            even = fabs(axis[a][i] - (first + (double)i * step)) <= 0.01 * step;
+    }
+    size_t workers = (size_t)sdf__effective_threads(threads, count, 1);
+    sdf_query_options o = {.sign = b->sign, .threads = threads};
+    sdf__scan *scan = NULL;
+    int rc = !even || dims[0] * dims[1] * 12 * workers > LATTICE_SLICE_LIMIT
+                 ? -1
+                 : sdf__scan_create_lattice(b->mesh, dims, (const float *const *)axis, &o, &scan);
+    size_t slice = dims[0] * dims[1], per_call = rc ? 1 : sdf__scan_slices_per_call(scan);
+    for (size_t k = 0; !rc && k < dims[2]; k += per_call) {
+        size_t first = k * slice;
+        sdf_query_result part = {
+            .distance = out->distance ? out->distance + first : NULL,
+            .gradient = out->gradient ? out->gradient + 3 * first : NULL,
+            .closest = out->closest ? out->closest + 3 * first : NULL,
+            .triangle = out->triangle ? out->triangle + first : NULL,
+            .barycentric = out->barycentric ? out->barycentric + 3 * first : NULL,
+        };
+        rc = sdf__scan_slices(scan, k, k + per_call < dims[2] ? k + per_call : dims[2], &part);
+    }
+    sdf__scan_destroy(scan);
+    free(axis[0]), free(axis[1]), free(axis[2]);
+    return rc;
+}
+
 int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
               const sdf_query_options *opts, sdf_query_result *out)
 {
@@ -342,6 +428,28 @@ int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
     if (rc)
         return rc;
     b.out = out;
+    if (lattice_query(&b, count, opts, out) == 0)
+        return 0;
+    return query_points(&b, count, opts);
+}
+
+int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,
+                      const sdf_query_options *opts, sdf_query_result *out)
+{
+    if (!out)
+        return SDF_EINVAL;
+    batch b;
+    int rc = check_batch(mesh, points, count, opts, &b, &out->bad_index);
+    if (rc)
+        return rc;
+    b.out = out;
+    return query_points(&b, count, opts);
+}
+
+/* Packets (or single queries) over a checked batch. */
+static int query_points(const batch *b0, size_t count, const sdf_query_options *opts)
+{
+    batch b = *b0;
     int threads = opts ? opts->threads : 0;
     uint32_t *order = packet_order(&b, count, opts);
     if (order) {

@@ -442,7 +442,8 @@ static int scan_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options 
         size_t end = k + per_call < in->dims[2] ? k + per_call : in->dims[2];
         rc = first ? sdf__scan_samples(scan, k, end, in->fine_half, in->fine_spacing,
                                        fit_samples, fs)
-                   : sdf__scan_slices(scan, k, end, o->v->data.f + k * slice);
+                   : sdf__scan_slices(scan, k, end,
+                                      &(sdf_query_result){.distance = o->v->data.f + k * slice});
         if (rc)
             sdf__diag_set(diag, rc, 0, -1, "the scan failed: %s", sdf_strerror(rc));
         else

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "mesh/mesh.h"
+#include "query/filter.h"
 #include "query/triangle.h"
 #include "sign/pseudonormal.h"
 #include "volume/regions.h"
@@ -432,6 +433,67 @@ int sdf__region_build(const sdf__features *s, size_t f, sdf__region *r)
              : f < s->faces + s->edges ? edge_region(s, f - s->faces, r)
                                        : vertex_region(s, f - s->faces - s->edges, r);
     return ok;
+}
+
+/* ---- reach and bound ---------------------------------------------------------------------- */
+
+int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *const coord[3],
+                        const size_t dims[3], size_t step, int threads, float **bound,
+                        double *bound_coord[3])
+{
+    size_t n[3], count = 1;
+    double half_diag2 = 0, finest = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        n[a] = (dims[a] - 1 + step - 1) / step + 1;
+        count *= n[a];
+    }
+    float *pts = calloc(count * 3, sizeof *pts), *d = malloc(count * sizeof *d);
+    *bound = d;
+    for (int a = 0; a < 3; a++) {
+        bound_coord[a] = malloc(n[a] * sizeof(double));
+        double gap = 0;
+        for (size_t i = 0; bound_coord[a] && i < n[a]; i++) {
+            bound_coord[a][i] = coord[a][i * step < dims[a] ? i * step : dims[a] - 1];
+            if (i > 0)
+                gap = sdf__max2(gap, bound_coord[a][i] - bound_coord[a][i - 1]);
+        }
+        half_diag2 += 0.25 * gap * gap;
+        finest = sdf__min2(finest, (coord[a][dims[a] - 1] - coord[a][0]) / (double)(dims[a] - 1));
+        f->bound_inv_step[a] = (double)(n[a] - 1) / (coord[a][dims[a] - 1] - coord[a][0]);
+    }
+    if (!pts || !d || !bound_coord[0] || !bound_coord[1] || !bound_coord[2]) {
+        free(pts);
+        return SDF_ENOMEM;
+    }
+    size_t q = 0;
+    for (size_t k = 0; k < n[2]; k++)
+        for (size_t j = 0; j < n[1]; j++)
+            for (size_t i = 0; i < n[0]; i++, q++) {
+                size_t idx[3] = {i, j, k};
+                for (int a = 0; a < 3; a++)
+                    pts[3 * q + a] = (float)bound_coord[a][idx[a]];
+            }
+    int sided = mesh->report.auto_sign == SDF_SIGN_PSEUDONORMAL;
+    sdf_query_options o = {.sign = sided ? SDF_SIGN_PSEUDONORMAL : SDF_SIGN_NONE,
+                           .threads = threads};
+    sdf_query_result res = {.distance = d};
+    int rc = sdf__query_points(mesh, pts, count, &o, &res);
+    double outside = 0, inside = 0;
+    for (size_t p = 0; !rc && p < count; p++) {
+        outside = sdf__max2(outside, d[p]);
+        inside = sdf__max2(inside, -d[p]);
+        d[p] = fabsf(d[p]);
+    }
+    f->bound = d;
+    for (int a = 0; a < 3; a++)
+        f->bound_dims[a] = n[a], f->bound_coord[a] = bound_coord[a];
+    f->march = 0.5 * (double)step * finest;
+    /* Widened past the float rounding of the coarse distances. */
+    double widen = sqrt(half_diag2) * (1 + 1e-6) + f->slack;
+    f->reach_front = (sided ? outside : sdf__max2(outside, inside)) * (1 + 1e-6) + widen;
+    f->reach_back = (sided ? inside : sdf__max2(outside, inside)) * (1 + 1e-6) + widen;
+    free(pts);
+    return rc;
 }
 
 /* ---- adjacency --------------------------------------------------------------------------- */

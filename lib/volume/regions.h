@@ -77,6 +77,17 @@ typedef struct sdf__features {
 int sdf__features_init(sdf__features *f, const sdf_mesh *mesh);
 void sdf__features_free(sdf__features *f);
 
+/* How far from the surface any node of the lattice coord[a][0..dims[a]) can lie, and an
+ * upper-bound field of |f| for truncating regions: exact distances on every step-th node
+ * (sdf__query_points with `threads`), a node being within half the largest coarse cell's
+ * diagonal of one of them. On a closed mesh signed by pseudonormals the two sides are bounded
+ * apart (a point whose closest point is on a face's front lies outside). Sets reach_front,
+ * reach_back, bound*, march; *bound and bound_coord[] are the caller's to free (also on
+ * failure). Needs `slack` set. 0, SDF_ENOMEM or a query's code. */
+int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *const coord[3],
+                        const size_t dims[3], size_t step, int threads, float **bound,
+                        double *bound_coord[3]);
+
 /* The region of `feature`; 0 when it has none worth scanning (a face or edge without
  * extent, a vertex whose cone is only itself). */
 int sdf__region_build(const sdf__features *f, size_t feature, sdf__region *r);

@@ -68,7 +68,7 @@ typedef struct call_state {
     float *points;     /* per worker: a row of nodes */
     sdf__hit *hits;    /* per worker: their closest points */
     int workers;
-    float *out;
+    sdf_query_result out;  /* zero order: the outputs, at the call's first node */
     /* First order (sdf__scan_samples): a node stands for its fine grid of W^3 samples. */
     int fine_w;            /* W = 2H + 1; 0 for zero order */
     double rho[3];         /* the fine grid's half-extent per axis: regions are dilated by it */
@@ -430,19 +430,45 @@ static int ensure_zspans(sdf__scan *s, call_state *st)
     return 0;
 }
 
-/* The exact closest point on a triangle of the winning feature: the face itself, or the
- * lowest-numbered triangle of the edge or vertex (the searches break ties the same way; the
- * others reach the same point, and the same distance when the closest point is the vertex). */
+/* The exact test of the triangles in `list`, kept in *hit where nearer (ties: the lower id,
+ * the searches' rule). */
+static void exact_tests(const sdf__scan *s, const uint32_t *list, size_t count, const double p[3],
+                        sdf__hit *hit)
+{
+    const sdf__features *f = &s->feat;
+    for (size_t c = 0; c < count; c++) {
+        const uint32_t *t = s->mesh->triangles + 3 * (size_t)list[c];
+        const double *v[3] = {f->pos + 3 * (size_t)t[0], f->pos + 3 * (size_t)t[1],
+                              f->pos + 3 * (size_t)t[2]};
+        double point[3], bary[3];
+        int feat;
+        double d2 = sdf__closest_on_triangle(p, v[0], v[1], v[2], point, bary, &feat);
+        if (d2 < hit->dist2 || (d2 == hit->dist2 && list[c] < hit->triangle)) {
+            hit->dist2 = d2, hit->triangle = list[c], hit->feature = feat;
+            memcpy(hit->point, point, sizeof point);
+            memcpy(hit->bary, bary, sizeof bary);
+            sdf__triangle_normal(v[0], v[1], v[2], hit->face_normal);
+        }
+    }
+}
+
+/* The exact closest point on a triangle of the winning feature: the face itself; of an
+ * edge's triangles, the nearer (each computes the shared point from its own corners, and the
+ * two may round apart; ties: the lower id); of a vertex's, the lowest-numbered (each computes
+ * the vertex itself: the same distance). The distance is the one a search finds; at such an
+ * exact tie a search may name another of the triangles, as packets and single queries do. */
 static void exact_hit(const sdf__scan *s, uint32_t feature, const double p[3], sdf__hit *hit)
 {
-    uint32_t tri = sdf__feature_triangle(&s->feat, feature);
-    const uint32_t *t = s->mesh->triangles + 3 * (size_t)tri;
-    const double *pos = s->feat.pos;
-    const double *v[3] = {pos + 3 * (size_t)t[0], pos + 3 * (size_t)t[1], pos + 3 * (size_t)t[2]};
-    hit->dist2 = sdf__closest_on_triangle(p, v[0], v[1], v[2], hit->point, hit->bary,
-                                          &hit->feature);
-    sdf__triangle_normal(v[0], v[1], v[2], hit->face_normal);
-    hit->triangle = tri;
+    const sdf__features *f = &s->feat;
+    uint32_t one = sdf__feature_triangle(f, feature);
+    hit->dist2 = INFINITY;
+    if (feature >= f->faces && feature < f->faces + f->edges) {
+        size_t e = feature - f->faces;
+        exact_tests(s, f->edge_tri + f->edge_first[e], f->edge_first[e + 1] - f->edge_first[e],
+                    p, hit);
+    } else {
+        exact_tests(s, &one, 1, p, hit);
+    }
 }
 
 /* Rows of the call: the workers' winners merged, their exact distances, then sdf_query's own
@@ -454,6 +480,7 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
     size_t nx = s->dims[0], ny = s->dims[1];
     float *points = st->points + (size_t)worker * nx * 3;
     sdf__hit *hits = st->hits + (size_t)worker * nx;
+    const sdf_query_result *o = &st->out;
     for (size_t row = begin; row < end; row++) {
         size_t j = row % ny, k = st->k0 + row / ny, first = row * nx;
         for (size_t i = 0; i < nx; i++) {
@@ -476,7 +503,13 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
             if (hits[i].dist2 - estimate > 1e-12 * hits[i].dist2 + 1e-24 * s->scale2)
                 hits[i].dist2 = INFINITY;
         }
-        sdf_query_result res = {.distance = st->out + first};
+        sdf_query_result res = {
+            .distance = o->distance ? o->distance + first : NULL,
+            .gradient = o->gradient ? o->gradient + 3 * first : NULL,
+            .closest = o->closest ? o->closest + 3 * first : NULL,
+            .triangle = o->triangle ? o->triangle + first : NULL,
+            .barycentric = o->barycentric ? o->barycentric + 3 * first : NULL,
+        };
         sdf__query_finish(s->mesh, points, hits, nx, &s->query, &res);
     }
 }
@@ -507,7 +540,7 @@ static void clear_range(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
-int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
+int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result *out)
 {
     size_t nx = s->dims[0], rows = (k1 - k0) * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
@@ -517,7 +550,7 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, float *out)
                      .winner = malloc(w * nodes * sizeof(uint32_t)),
                      .regions = malloc(w * sizeof(sdf__region)),
                      .points = malloc(w * nx * 3 * sizeof(float)),
-                     .hits = malloc(w * nx * sizeof(sdf__hit)), .workers = workers, .out = out};
+                     .hits = malloc(w * nx * sizeof(sdf__hit)), .workers = workers, .out = *out};
     int rc = st.best && st.winner && st.regions && st.points && st.hits ? 0 : SDF_ENOMEM;
     if (!rc)
         rc = ensure_zspans(s, &st);
@@ -600,66 +633,6 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
 
 /* ---- set-up ------------------------------------------------------------------------------ */
 
-/* How far from the surface a node can be, from exact distances on every COARSE_STEP-th node:
- * a node is within half a coarse cell's diagonal of one of them. On a closed, consistently
- * outward mesh the two sides are bounded apart (a point whose closest point is on a face's
- * front lies outside). */
-static int reaches(sdf__scan *s)
-{
-    size_t n[3], count = 1;
-    for (int a = 0; a < 3; a++) {
-        n[a] = (s->dims[a] - 1 + COARSE_STEP - 1) / COARSE_STEP + 1;
-        count *= n[a];
-    }
-    float *pts = malloc(count * 3 * sizeof *pts), *f = malloc(count * sizeof *f);
-    for (int a = 0; a < 3; a++) {
-        s->coarse_coord[a] = malloc(n[a] * sizeof(double));
-        for (size_t i = 0; s->coarse_coord[a] && i < n[a]; i++)
-            s->coarse_coord[a][i] = s->coord[a][i * COARSE_STEP < s->dims[a] ? i * COARSE_STEP
-                                                                            : s->dims[a] - 1];
-    }
-    if (!pts || !f || !s->coarse_coord[0] || !s->coarse_coord[1] || !s->coarse_coord[2]) {
-        free(pts), free(f);
-        return SDF_ENOMEM;
-    }
-    size_t q = 0;
-    for (size_t k = 0; k < n[2]; k++)
-        for (size_t j = 0; j < n[1]; j++)
-            for (size_t i = 0; i < n[0]; i++, q++) {
-                size_t idx[3] = {i, j, k};
-                for (int a = 0; a < 3; a++)
-                    pts[3 * q + a] = (float)s->coarse_coord[a][idx[a]];
-            }
-    int sided = s->mesh->report.auto_sign == SDF_SIGN_PSEUDONORMAL;
-    sdf_query_options o = {.sign = sided ? SDF_SIGN_PSEUDONORMAL : SDF_SIGN_NONE,
-                           .threads = s->query.threads};
-    sdf_query_result res = {.distance = f};
-    int rc = sdf_query(s->mesh, pts, count, &o, &res);
-    double outside = 0, inside = 0, half_diag = 0;
-    for (int a = 0; a < 3; a++)
-        half_diag += (0.5 * COARSE_STEP * s->spacing[a]) * (0.5 * COARSE_STEP * s->spacing[a]);
-    for (size_t p = 0; !rc && p < count; p++) {
-        outside = sdf__max2(outside, f[p]);
-        inside = sdf__max2(inside, -f[p]);
-        f[p] = fabsf(f[p]);
-    }
-    sdf__features *ft = &s->feat;
-    ft->bound = s->coarse = f;
-    for (int a = 0; a < 3; a++) {
-        ft->bound_dims[a] = n[a];
-        ft->bound_coord[a] = s->coarse_coord[a];
-        ft->bound_inv_step[a] = 1 / (COARSE_STEP * s->spacing[a]);
-    }
-    ft->march = 0.5 * COARSE_STEP *
-                sdf__min2(s->spacing[0], sdf__min2(s->spacing[1], s->spacing[2]));
-    /* Widened past the float rounding of the coarse distances. */
-    double widen = sqrt(half_diag) * (1 + 1e-6) + ft->slack;
-    ft->reach_front = (sided ? outside : sdf__max2(outside, inside)) * (1 + 1e-6) + widen;
-    ft->reach_back = (sided ? inside : sdf__max2(outside, inside)) * (1 + 1e-6) + widen;
-    free(pts);
-    return rc;
-}
-
 /* The visit order of the features: faces at their centroids, edges at their midpoints. */
 static int feature_order(sdf__scan *s)
 {
@@ -691,8 +664,12 @@ int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign)
     return 1;
 }
 
-int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
-                     const sdf_query_options *opts, sdf__scan **out)
+/* A scan of the lattice of node coordinates axis[a][0..dims[a]), strictly increasing; origin
+ * and spacing give the index arithmetic (nodes may stray from origin + i spacing by rounding,
+ * which the index slack covers: a node's own coordinate always decides). */
+static int scan_new(const sdf_mesh *mesh, const size_t dims[3], const float *const axis[3],
+                    const double origin[3], const double spacing[3],
+                    const sdf_query_options *opts, sdf__scan **out)
 {
     sdf__scan *s = calloc(1, sizeof *s);
     if (!s)
@@ -701,30 +678,26 @@ int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
     s->query = *opts;
     s->query.point_stride = 0;
     double extent = mesh->report.diagonal;
-    for (int a = 0; a < 3; a++) {
-        s->dims[a] = info->dims[a];
-        s->origin[a] = info->origin[a];
-        s->spacing[a] = info->spacing[a];
-        double far = (double)(info->dims[a] - 1) * info->spacing[a];
-        extent = sdf__max2(extent, sdf__max2(fabs(info->origin[a]), fabs(info->origin[a] + far)));
-        extent = sdf__max2(extent, sdf__max2(fabs(mesh->report.bbox_min[a]),
-                                             fabs(mesh->report.bbox_max[a])));
+    int rc = 0;
+    for (int a = 0; a < 3 && !rc; a++) {
+        s->dims[a] = dims[a], s->origin[a] = origin[a], s->spacing[a] = spacing[a];
+        s->inv_spacing[a] = 1 / spacing[a];
+        s->coord[a] = malloc(dims[a] * sizeof(double));
+        if (!s->coord[a]) {
+            rc = SDF_ENOMEM;
+            break;
+        }
+        double stray = 0, far = 0;
+        for (size_t i = 0; i < dims[a]; i++) {
+            s->coord[a][i] = axis[a][i];
+            stray = sdf__max2(stray, fabs(axis[a][i] - (origin[a] + (double)i * spacing[a])));
+            far = sdf__max2(far, fabs(axis[a][i]));
+        }
+        s->index_slack[a] = (stray + 2 * FLT_EPSILON * far) / spacing[a] + 1e-9;
+        extent = sdf__max2(extent, sdf__max2(far, sdf__max2(fabs(mesh->report.bbox_min[a]),
+                                                            fabs(mesh->report.bbox_max[a]))));
     }
     s->scale2 = extent * extent;
-    int rc = 0;
-    for (int a = 0; a < 3; a++) {
-        double far = fmax(fabs(info->origin[a]),
-                          fabs(info->origin[a] + (double)(info->dims[a] - 1) * info->spacing[a]));
-        s->inv_spacing[a] = 1 / info->spacing[a];
-        s->index_slack[a] = 2 * FLT_EPSILON * far / info->spacing[a] + 1e-9;
-    }
-    for (int a = 0; a < 3 && !rc; a++) {
-        s->coord[a] = malloc(s->dims[a] * sizeof(double));
-        if (!s->coord[a])
-            rc = SDF_ENOMEM;
-        for (size_t i = 0; !rc && i < s->dims[a]; i++)
-            s->coord[a][i] = (float)(info->origin[a] + (double)i * info->spacing[a]);
-    }
     if (!rc)
         rc = sdf__features_init(&s->feat, mesh);
     /* Double rounding of a plane's value is ~1e-16 of the coordinates; node coordinates are
@@ -732,7 +705,8 @@ int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
     s->feat.slack = 1e-12 * extent;
     s->feat.row_pad = 1e-6 * extent;
     if (!rc)
-        rc = reaches(s);
+        rc = sdf__features_bound(&s->feat, mesh, (const double *const *)s->coord, dims,
+                                 COARSE_STEP, s->query.threads, &s->coarse, s->coarse_coord);
     if (!rc)
         rc = feature_order(s);
     if (rc) {
@@ -741,6 +715,42 @@ int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
     }
     *out = s;
     return 0;
+}
+
+int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
+                     const sdf_query_options *opts, sdf__scan **out)
+{
+    float *axis[3] = {NULL, NULL, NULL};
+    int rc = 0;
+    for (int a = 0; a < 3 && !rc; a++) { /* the float points a query would be given */
+        axis[a] = malloc(info->dims[a] * sizeof(float));
+        if (!axis[a])
+            rc = SDF_ENOMEM;
+        for (size_t i = 0; !rc && i < info->dims[a]; i++)
+            axis[a][i] = (float)(info->origin[a] + (double)i * info->spacing[a]);
+    }
+    if (!rc)
+        rc = scan_new(mesh, info->dims, (const float *const *)axis, info->origin, info->spacing,
+                      opts, out);
+    free(axis[0]), free(axis[1]), free(axis[2]);
+    return rc;
+}
+
+int sdf__scan_create_lattice(const sdf_mesh *mesh, const size_t dims[3],
+                             const float *const axis[3], const sdf_query_options *opts,
+                             sdf__scan **out)
+{
+    double origin[3], spacing[3];
+    for (int a = 0; a < 3; a++) {
+        if (dims[a] < 2)
+            return SDF_EINVAL;
+        for (size_t i = 1; i < dims[a]; i++)
+            if (!(axis[a][i] > axis[a][i - 1]))
+                return SDF_EINVAL;
+        origin[a] = axis[a][0];
+        spacing[a] = ((double)axis[a][dims[a] - 1] - axis[a][0]) / (double)(dims[a] - 1);
+    }
+    return scan_new(mesh, dims, axis, origin, spacing, opts, out);
 }
 
 void sdf__scan_destroy(sdf__scan *s)

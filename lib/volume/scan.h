@@ -40,9 +40,17 @@ int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
  * and worker, kept under 64 MiB). */
 size_t sdf__scan_slices_per_call(const sdf__scan *scan);
 
-/* Signed distances of the nodes of slices k0 <= k < k1 into out[(k - k0) * N * M + j * N + i]
- * (N, M = dims[0], dims[1]). Returns 0 or SDF_ENOMEM. */
-int sdf__scan_slices(sdf__scan *scan, size_t k0, size_t k1, float *out);
+/* A scan of the lattice whose node (i, j, k) is (axis[0][i], axis[1][j], axis[2][k]), each
+ * axis strictly increasing with at least 2 nodes (a batch of query points laid out as a
+ * lattice, x fastest). SDF_EINVAL if it is not such a lattice; else as sdf__scan_create. */
+int sdf__scan_create_lattice(const sdf_mesh *mesh, const size_t dims[3],
+                             const float *const axis[3], const sdf_query_options *opts,
+                             sdf__scan **out);
+
+/* Zero order: sdf_query's outputs (those `out` asks for) at the nodes of slices k0 <= k < k1,
+ * node (i, j, k) at index (k - k0) N M + j N + i of each array (N, M = dims[0], dims[1]).
+ * Returns 0 or SDF_ENOMEM. */
+int sdf__scan_slices(sdf__scan *scan, size_t k0, size_t k1, const sdf_query_result *out);
 
 /* Receives the signed distances at the fine samples of nodes [first, first + count) of the
  * volume (count * (2 half + 1)^3 floats, node-major), on worker `worker`; may write them.

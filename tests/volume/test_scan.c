@@ -8,7 +8,9 @@
  *  - 1 and 2 threads give the same bits; the sign methods the scan does not take (winding,
  *    raycast) and open meshes still bake sdf_query's values;
  *  - first order: the fine samples of every node (H = 1..2) match sdf_query at the same float
- *    points to float rounding, signs included. */
+ *    points to float rounding, signs included;
+ *  - sdf_query on a batch laid out as a lattice (which takes the scan) gives every output as
+ *    one Embree query per point does, on uneven axes too; lattices are recognised exactly. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,6 +18,7 @@
 #include "../common/check.h"
 #include "../common/reference.h"
 #include "../common/workload.h"
+#include "query/filter.h"
 #include "volume/scan.h"
 
 static size_t node_count(const sdf_volume_info *in)
@@ -47,7 +50,9 @@ static sdf_volume *bake_and_compare(const char *what, const sdf_mesh *mesh,
     float *p = malloc(n * 3 * sizeof *p), *f = malloc(n * sizeof *f);
     for (size_t q = 0; q < n; q++)
         node_position(&in, q, p + 3 * q);
+    /* One Embree query per point: sdf_query would take the scan itself for a lattice. */
     sdf_query_options qo = o->query;
+    qo.traversal = SDF_TRAVERSAL_SINGLE;
     sdf_query_result res = {.distance = f};
     CHECK(sdf_query(mesh, p, n, &qo, &res) == 0, "%s: query", what);
     const float *baked = sdf_volume_data(v);
@@ -225,8 +230,10 @@ static void test_samples(const char *file, sdf_sign_method sign, int half, doubl
                     }
                 }
     }
+    sdf_query_options single = qo;
+    single.traversal = SDF_TRAVERSAL_SINGLE;
     sdf_query_result res = {.distance = g};
-    CHECK(sdf_query(mesh, p, nodes * m, &qo, &res) == 0, "%s: query", file);
+    CHECK(sdf_query(mesh, p, nodes * m, &single, &res) == 0, "%s: query", file);
     size_t bad = 0, first = 0;
     for (size_t q = 0; q < nodes * m; q++)
         if (!(fabsf(f[q] - g[q]) <= 1e-6f * fabsf(g[q]) + 1e-7f * (float)r.diagonal) && bad++ == 0)
@@ -235,6 +242,97 @@ static void test_samples(const char *file, sdf_sign_method sign, int half, doubl
           file, half, bad, nodes * m, first, bad ? f[first] : 0.0, bad ? g[first] : 0.0);
     free(f), free(p), free(g);
     sdf__scan_destroy(scan);
+    sdf_mesh_release(mesh);
+}
+
+/* A lattice batch: axis a runs from lo to hi in n[a] steps computed in double and rounded
+ * to float (numpy's linspace does the same: the floats are not evenly spaced). */
+static float *lattice(const double lo[3], const double hi[3], const size_t n[3])
+{
+    float *p = malloc(n[0] * n[1] * n[2] * 3 * sizeof *p);
+    for (size_t k = 0, q = 0; k < n[2]; k++)
+        for (size_t j = 0; j < n[1]; j++)
+            for (size_t i = 0; i < n[0]; i++, q++) {
+                size_t idx[3] = {i, j, k};
+                for (int a = 0; a < 3; a++)
+                    p[3 * q + a] =
+                        (float)(lo[a] + (hi[a] - lo[a]) * (double)idx[a] / (double)(n[a] - 1));
+            }
+    return p;
+}
+
+static void test_lattice_queries(const char *file)
+{
+    sdf_mesh *mesh = load_data_mesh(file);
+    if (!mesh)
+        return;
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; a++)
+        lo[a] = r.bbox_min[a] - 0.2 * r.diagonal, hi[a] = r.bbox_max[a] + 0.13 * r.diagonal;
+    size_t n[3] = {41, 37, 33}, count = n[0] * n[1] * n[2], dims[3];
+    float *p = lattice(lo, hi, n), *axis[3];
+    CHECK(sdf__find_lattice(p, 0, count, dims, axis) == 1 && dims[0] == n[0] &&
+              dims[1] == n[1] && dims[2] == n[2],
+          "%s: the lattice is recognised", file);
+    for (int a = 0; a < 3; a++)
+        free(axis[a]);
+    float *f[2], *g[2], *c[2], *w[2];
+    uint32_t *t[2];
+    /* The lattice path, then the packets on the same points in reverse order (no lattice);
+     * both name the lowest-numbered of equally close triangles. */
+    float *reversed = malloc(count * 3 * sizeof *reversed);
+    for (size_t q = 0; q < count; q++)
+        memcpy(reversed + 3 * (count - 1 - q), p + 3 * q, 3 * sizeof *p);
+    for (int pass = 0; pass < 2; pass++) {
+        f[pass] = malloc(count * sizeof(float)), t[pass] = malloc(count * sizeof(uint32_t));
+        g[pass] = malloc(3 * count * sizeof(float)), c[pass] = malloc(3 * count * sizeof(float));
+        w[pass] = malloc(3 * count * sizeof(float));
+        sdf_query_options qo = {.threads = 2};
+        sdf_query_result res = {f[pass], g[pass], c[pass], t[pass], w[pass], 0};
+        CHECK(sdf_query(mesh, pass ? reversed : p, count, &qo, &res) == 0, "%s: query", file);
+    }
+    for (size_t q = 0; q < count / 2; q++) { /* back to lattice order */
+        size_t e = count - 1 - q;
+        float tf = f[1][q];
+        f[1][q] = f[1][e], f[1][e] = tf;
+        uint32_t tt = t[1][q];
+        t[1][q] = t[1][e], t[1][e] = tt;
+        for (int a = 0; a < 3; a++) {
+            float *arr[3] = {g[1], c[1], w[1]};
+            for (int k = 0; k < 3; k++) {
+                float x = arr[k][3 * q + a];
+                arr[k][3 * q + a] = arr[k][3 * e + a], arr[k][3 * e + a] = x;
+            }
+        }
+    }
+    free(reversed);
+    size_t differ = 0, other = 0;
+    for (size_t q = 0; q < count; q++) {
+        differ += memcmp(&f[0][q], &f[1][q], sizeof(float)) != 0;
+        if (t[0][q] != t[1][q]) {
+            /* An exact tie (two triangles sharing the closest vertex or edge) may name the
+             * other triangle, as packets and single queries may: the same point, though. */
+            other++;
+            for (int a = 0; a < 3; a++)
+                differ += fabsf(c[0][3 * q + a] - c[1][3 * q + a]) > 1e-6f * (float)r.diagonal;
+        } else {
+            differ += memcmp(g[0] + 3 * q, g[1] + 3 * q, 3 * sizeof(float)) ||
+                      memcmp(c[0] + 3 * q, c[1] + 3 * q, 3 * sizeof(float)) ||
+                      memcmp(w[0] + 3 * q, w[1] + 3 * q, 3 * sizeof(float));
+        }
+    }
+    CHECK(differ == 0 && other < count / 20, "%s: lattice queries differ at %zu of %zu "
+          "points (%zu name another, equally close triangle)", file, differ, count, other);
+    for (int pass = 0; pass < 2; pass++)
+        free(f[pass]), free(g[pass]), free(c[pass]), free(w[pass]), free(t[pass]);
+    /* Not lattices: one point moved; a count that is not a whole number of slices. */
+    p[3 * 1234 + 1] = nextafterf(p[3 * 1234 + 1], INFINITY);
+    CHECK(sdf__find_lattice(p, 0, count, dims, axis) == 0 && !axis[0] && !axis[1] && !axis[2],
+          "%s: a moved point is no lattice", file);
+    CHECK(sdf__find_lattice(p, 0, count - 7, dims, axis) == 0, "%s: a cut lattice is none", file);
+    free(p);
     sdf_mesh_release(mesh);
 }
 
@@ -252,5 +350,7 @@ int main(void)
     test_samples("fandisk.off", SDF_SIGN_AUTO, 1, 0.1, 28);
     test_samples("knot1.off", SDF_SIGN_AUTO, 2, 0.4, 20);
     test_samples("cow.off", SDF_SIGN_NONE, 1, 0.25, 22); /* self-intersecting: unsigned */
+    test_lattice_queries("fandisk.off");
+    test_lattice_queries("knot1.off");
     return check_finish("scan");
 }
