@@ -48,6 +48,19 @@ int sdf__find_lattice(const float *points, size_t stride, size_t count, size_t d
 int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,
                       const sdf_query_options *opts, sdf_query_result *out);
 
+/* The outputs `r` asks for, from point `first` on. */
+static inline sdf_query_result sdf__result_at(const sdf_query_result *r, size_t first)
+{
+    sdf_query_result part = {
+        .distance = r->distance ? r->distance + first : NULL,
+        .gradient = r->gradient ? r->gradient + 3 * first : NULL,
+        .closest = r->closest ? r->closest + 3 * first : NULL,
+        .triangle = r->triangle ? r->triangle + first : NULL,
+        .barycentric = r->barycentric ? r->barycentric + 3 * first : NULL,
+    };
+    return part;
+}
+
 /* Answer `count` packed points whose closest points are already known (hits[i]; a hit with
  * dist2 == INFINITY is searched again): signs and outputs exactly as sdf_query gives them for
  * the same closest points. Runs on the calling thread. Defined in query.c. */

@@ -408,14 +408,7 @@ static int lattice_query(const batch *b, size_t count, const sdf_query_options *
                  : sdf__scan_create_lattice(b->mesh, dims, (const float *const *)axis, &o, &scan);
     size_t slice = dims[0] * dims[1], per_call = rc ? 1 : sdf__scan_slices_per_call(scan);
     for (size_t k = 0; !rc && k < dims[2]; k += per_call) {
-        size_t first = k * slice;
-        sdf_query_result part = {
-            .distance = out->distance ? out->distance + first : NULL,
-            .gradient = out->gradient ? out->gradient + 3 * first : NULL,
-            .closest = out->closest ? out->closest + 3 * first : NULL,
-            .triangle = out->triangle ? out->triangle + first : NULL,
-            .barycentric = out->barycentric ? out->barycentric + 3 * first : NULL,
-        };
+        sdf_query_result part = sdf__result_at(out, k * slice);
         rc = sdf__scan_slices(scan, k, k + per_call < dims[2] ? k + per_call : dims[2], &part);
     }
     sdf__scan_destroy(scan);
@@ -423,32 +416,33 @@ static int lattice_query(const batch *b, size_t count, const sdf_query_options *
     return rc;
 }
 
-int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
-              const sdf_query_options *opts, sdf_query_result *out)
+/* A checked batch writing to `out`. */
+static int begin_batch(const sdf_mesh *mesh, const float *points, size_t count,
+                       const sdf_query_options *opts, sdf_query_result *out, batch *b)
 {
     if (!out)
         return SDF_EINVAL;
+    int rc = check_batch(mesh, points, count, opts, b, &out->bad_index);
+    b->out = out;
+    return rc;
+}
+
+int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
+              const sdf_query_options *opts, sdf_query_result *out)
+{
     batch b;
-    int rc = check_batch(mesh, points, count, opts, &b, &out->bad_index);
-    if (rc)
+    int rc = begin_batch(mesh, points, count, opts, out, &b);
+    if (rc || lattice_query(&b, count, opts, out) == 0)
         return rc;
-    b.out = out;
-    if (lattice_query(&b, count, opts, out) == 0)
-        return 0;
     return query_points(&b, count, opts);
 }
 
 int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,
                       const sdf_query_options *opts, sdf_query_result *out)
 {
-    if (!out)
-        return SDF_EINVAL;
     batch b;
-    int rc = check_batch(mesh, points, count, opts, &b, &out->bad_index);
-    if (rc)
-        return rc;
-    b.out = out;
-    return query_points(&b, count, opts);
+    int rc = begin_batch(mesh, points, count, opts, out, &b);
+    return rc ? rc : query_points(&b, count, opts);
 }
 
 /* Packets (or single queries) over a checked batch. */

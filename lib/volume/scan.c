@@ -480,7 +480,6 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
     size_t nx = s->dims[0], ny = s->dims[1];
     float *points = st->points + (size_t)worker * nx * 3;
     sdf__hit *hits = st->hits + (size_t)worker * nx;
-    const sdf_query_result *o = &st->out;
     for (size_t row = begin; row < end; row++) {
         size_t j = row % ny, k = st->k0 + row / ny, first = row * nx;
         for (size_t i = 0; i < nx; i++) {
@@ -503,13 +502,7 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
             if (hits[i].dist2 - estimate > 1e-12 * hits[i].dist2 + 1e-24 * s->scale2)
                 hits[i].dist2 = INFINITY;
         }
-        sdf_query_result res = {
-            .distance = o->distance ? o->distance + first : NULL,
-            .gradient = o->gradient ? o->gradient + 3 * first : NULL,
-            .closest = o->closest ? o->closest + 3 * first : NULL,
-            .triangle = o->triangle ? o->triangle + first : NULL,
-            .barycentric = o->barycentric ? o->barycentric + 3 * first : NULL,
-        };
+        sdf_query_result res = sdf__result_at(&st->out, first);
         sdf__query_finish(s->mesh, points, hits, nx, &s->query, &res);
     }
 }
