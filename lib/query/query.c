@@ -6,7 +6,10 @@
  * our BVH together (query/packet.c), or with SDF_TRAVERSAL_SINGLE from one Embree
  * rtcPointQuery per point; both run the same exact double-precision triangle test. Then,
  * per point, the sign by the requested method and the outputs asked for. The distances do
- * not depend on the thread count or the traversal. */
+ * not depend on the thread count or the traversal. A large batch laid out as a lattice on a
+ * closed mesh is instead answered by closest-feature scan conversion (volume/scan.h), whose
+ * winners get the same exact test and the same finish (sdf__query_finish), so the same
+ * distances. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
