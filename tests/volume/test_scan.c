@@ -1,16 +1,17 @@
-/* test_scan.c - zero-order bakes by closest-feature scan conversion (lib/volume/scan.c)
- * against the slow, obvious computations:
- *  - every node holds exactly sdf_query's float at the node's position (the search path,
- *    itself tested against brute force), on closed meshes signed by pseudonormals and
- *    unsigned, over default, anisotropic, off-centre and far-away boxes;
- *  - on sampled nodes, |f| equals brute force over every triangle in double precision;
+/* test_scan.c - closest-feature scan conversion (lib/volume/scan.c) against the slow, obvious
+ * computations:
+ *  - zero-order bakes: every node holds exactly sdf_query's float at the node's position,
+ *    asked one Embree query per point (itself tested against brute force), on closed meshes
+ *    signed by pseudonormals and unsigned, over default, anisotropic, off-centre and far-away
+ *    boxes; on sampled nodes |f| equals brute force over every triangle in double precision;
  *  - nodes lying exactly on faces, edges and corners (a cube on an aligned grid) are 0;
  *  - 1 and 2 threads give the same bits; the sign methods the scan does not take (winding,
  *    raycast) and open meshes still bake sdf_query's values;
  *  - first order: the fine samples of every node (H = 1..2) match sdf_query at the same float
  *    points to float rounding, signs included;
- *  - sdf_query on a batch laid out as a lattice (which takes the scan) gives every output as
- *    one Embree query per point does, on uneven axes too; lattices are recognised exactly. */
+ *  - sdf_query on a batch laid out as a lattice (which takes the scan; uneven float axes)
+ *    gives every output the packets give on the same points in reverse order, up to which of
+ *    exactly tied triangles is named; lattices are recognised exactly. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
