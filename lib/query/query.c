@@ -40,7 +40,6 @@
  * refined_elephant 40^3 0.39 Mq/s scanned vs 0.45 by packets, 64^3 1.08 vs 0.76; fandisk
  * 40^3 2.38 vs 1.42. */
 #define LATTICE_MIN_POINTS 32768
-#define LATTICE_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one slice may take */
 
 static const char *const sign_names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
 
@@ -381,8 +380,9 @@ int sdf__find_lattice(const float *points, size_t stride, size_t count, size_t d
     return ok;
 }
 
-/* A lattice batch through the scan. 0 when answered; otherwise (not a lattice, a mesh or
- * sign the scan does not take, no memory) the packets answer it, with the same floats. */
+/* A lattice batch through the scan. 0 when answered; otherwise (not an evenly spaced lattice,
+ * a mesh or sign the scan does not take, no memory) the packets answer it, with the same
+ * floats. */
 static int lattice_query(const batch *b, size_t count, const sdf_query_options *opts,
                          sdf_query_result *out)
 {
@@ -396,17 +396,9 @@ static int lattice_query(const batch *b, size_t count, const sdf_query_options *
     float *axis[3] = {NULL, NULL, NULL};
     if (!sdf__find_lattice((const float *)b->points, b->stride, count, dims, axis))
         return -1;
-    int even = 1; /* nodes within 1 % of a cell of even spacing: the scan's index arithmetic */
-    for (int a = 0; a < 3 && even; a++) {
-        double first = axis[a][0];
-        double step = ((double)axis[a][dims[a] - 1] - first) / (double)(dims[a] - 1);
-        for (size_t i = 0; i < dims[a] && even; i++)
-            even = fabs(axis[a][i] - (first + (double)i * step)) <= 0.01 * step;
-    }
-    size_t workers = (size_t)sdf__effective_threads(threads, count, 1);
     sdf_query_options o = {.sign = b->sign, .threads = threads};
     sdf__scan *scan = NULL;
-    int rc = !even || dims[0] * dims[1] * 12 * workers > LATTICE_SLICE_LIMIT
+    int rc = !sdf__scan_fits(dims[0], dims[1], 0, threads)
                  ? -1
                  : sdf__scan_create_lattice(b->mesh, dims, (const float *const *)axis, &o, &scan);
     size_t slice = dims[0] * dims[1], per_call = rc ? 1 : sdf__scan_slices_per_call(scan);

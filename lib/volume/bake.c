@@ -28,7 +28,6 @@
 #define MAX_FINE ((2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1) * (2 * MAX_FINE_HALF + 1))
 #define SLAB_QUERIES ((size_t)1 << 18) /* distance queries per slab: bounds memory and the
                                           time between progress reports */
-#define SCAN_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one z-slice may take */
 
 typedef struct bake_plan {
     sdf_volume_info info;
@@ -39,7 +38,6 @@ typedef struct bake_plan {
     size_t queries_per_point;     /* 1, or what one filtered value costs */
     int fine_count;               /* (2H+1)^3; 1 for order 0 */
     double fine[MAX_FINE][3];     /* s_oj, origin-centred fine grid, in world units */
-    double reach[MAX_FINE];       /* |s_oj| */
     double pinv_t[MAX_FINE][4];   /* X_o^+ transposed: sample j's weights in a, b, c and the
                                      constant */
 } bake_plan;
@@ -186,7 +184,7 @@ static int plan_fine_grid(bake_plan *plan)
                 s[0] = i * in->fine_spacing * in->spacing[0];
                 s[1] = j * in->fine_spacing * in->spacing[1];
                 s[2] = k * in->fine_spacing * in->spacing[2];
-                plan->reach[n++] = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+                n++;
             }
     plan->fine_count = n;
     double xtx[4][4] = {{0}}, inv[4][4];
@@ -252,6 +250,13 @@ static int slab_nodes(slab *s)
     return field(s->plan, s->node_pos, s->count, s->node_f);
 }
 
+/* Fine sample j of the node at float position x: the float point a query is asked at. */
+static void sample_point(const bake_plan *plan, const float x[3], size_t j, float p[3])
+{
+    for (int a = 0; a < 3; a++)
+        p[a] = (float)(x[a] + plan->fine[j][a]);
+}
+
 static int slab_samples(slab *s)
 {
     const bake_plan *plan = s->plan;
@@ -263,8 +268,8 @@ static int slab_samples(slab *s)
             size_t q = n * m + j;
             float *p = s->sample_pos + 3 * q;
             double gap2 = 0;
+            sample_point(plan, x, j, p);
             for (int a = 0; a < 3; a++) {
-                p[a] = (float)(x[a] + plan->fine[j][a]);
                 double d = (double)p[a] - x[a];
                 gap2 += d * d;
             }
@@ -371,11 +376,12 @@ static int search_missing(const bake_plan *plan, size_t first_node, size_t count
             continue;
         size_t ijk[3];
         double x[3];
-        float p[3];
+        float node[3], p[3];
         node_index(&plan->info, first_node + q / m, ijk);
         sdf__volume_node(&plan->info, ijk[0], ijk[1], ijk[2], x);
         for (int a = 0; a < 3; a++)
-            p[a] = (float)((double)(float)x[a] + plan->fine[q % m][a]);
+            node[a] = (float)x[a];
+        sample_point(plan, node, q % m, p);
         sdf_query_result res = {.distance = f + q};
         int rc = sdf_query(plan->mesh, p, 1, &plan->query, &res);
         if (rc)
@@ -406,15 +412,13 @@ static int fit_samples(void *user, size_t first, size_t count, float *f, int wor
 }
 
 /* The scan takes the raw field on closed meshes signed by pseudonormals or unsigned
- * (volume/scan.h), in runs of whole z-slices: not when one slice's scratch alone (12 bytes
- * per node, or 4 per fine sample, and worker) would pass SCAN_SLICE_LIMIT. */
+ * (volume/scan.h), in runs of whole z-slices that fit its scratch. */
 static int scannable(const bake_plan *plan)
 {
     const sdf_volume_info *in = &plan->info;
-    size_t per_node = in->order == 1 ? (size_t)plan->fine_count * sizeof(float) : 12;
-    size_t workers = (size_t)sdf__effective_threads(plan->query.threads, in->dims[2], 1);
     return !plan->filter && sdf__scan_supported(plan->mesh, plan->query.sign) &&
-           in->dims[0] * in->dims[1] * per_node * workers <= SCAN_SLICE_LIMIT;
+           sdf__scan_fits(in->dims[0], in->dims[1], in->order == 1 ? in->fine_half : 0,
+                          plan->query.threads);
 }
 
 /* The raw field on a closed mesh by closest-feature scan conversion (volume/scan.h), in runs

@@ -29,6 +29,7 @@
 #define FEATURE_CHUNK 256  /* features per work item */
 #define SCAN_BUDGET_BYTES ((size_t)64 << 20) /* the workers' per-node arrays of one call */
 #define MERGE_NODES 256    /* nodes per sdf__sample_fn call */
+#define SCAN_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one z-slice may take */
 #define SCAN_SAMPLE_BUDGET_BYTES ((size_t)64 << 20) /* the same, first order */
 #define MAX_W (2 * 4 + 1)  /* first order: the fine grid's width, H <= 4 */
 #define MAX_SAMPLES (MAX_W * MAX_W * MAX_W)
@@ -507,6 +508,14 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
+int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads)
+{
+    size_t node_bytes = fine_half ? POW3(2 * fine_half + 1) * sizeof(float)
+                                  : sizeof(double) + sizeof(uint32_t);
+    size_t workers = (size_t)sdf__effective_threads(threads, SIZE_MAX, 1);
+    return nx * ny * node_bytes * workers <= SCAN_SLICE_LIMIT;
+}
+
 /* Slices per call: the workers' per-node scratch within `budget`, at least one slice. */
 static size_t slices_within(const sdf__scan *s, size_t node_bytes, size_t budget)
 {
@@ -737,11 +746,15 @@ int sdf__scan_create_lattice(const sdf_mesh *mesh, const size_t dims[3],
     for (int a = 0; a < 3; a++) {
         if (dims[a] < 2)
             return SDF_EINVAL;
-        for (size_t i = 1; i < dims[a]; i++)
-            if (!(axis[a][i] > axis[a][i - 1]))
-                return SDF_EINVAL;
         origin[a] = axis[a][0];
         spacing[a] = ((double)axis[a][dims[a] - 1] - axis[a][0]) / (double)(dims[a] - 1);
+        if (!(spacing[a] > 0))
+            return SDF_EINVAL;
+        /* Nodes within 1 % of a cell of even spacing (so also increasing): the index
+         * arithmetic's slack stays under a node. */
+        for (size_t i = 0; i < dims[a]; i++)
+            if (!(fabs(axis[a][i] - (origin[a] + (double)i * spacing[a])) <= 0.01 * spacing[a]))
+                return SDF_EINVAL;
     }
     return scan_new(mesh, dims, axis, origin, spacing, opts, out);
 }

@@ -30,6 +30,11 @@ typedef struct sdf__scan sdf__scan;
  * as much per node either way, and sdf_query's Morton-ordered packets share more of it. */
 int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign);
 
+/* Does one z-slice of nx * ny nodes keep its scratch (12 bytes per node, or first order, with
+ * fine_half = H > 0, 4 per fine sample; per worker of `threads`) under 256 MiB? Scans run in
+ * whole slices: a bake or query whose slice does not fit takes the search path instead. */
+int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads);
+
 /* Prepare the scan of `info`'s lattice (dims, origin, spacing): the mesh's adjacency and how
  * far from the surface any node lies (from a coarse lattice of exact queries). `opts` gives
  * the sign and threads. Returns 0 or SDF_ENOMEM. */
@@ -41,8 +46,9 @@ int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
 size_t sdf__scan_slices_per_call(const sdf__scan *scan);
 
 /* A scan of the lattice whose node (i, j, k) is (axis[0][i], axis[1][j], axis[2][k]), each
- * axis strictly increasing with at least 2 nodes (a batch of query points laid out as a
- * lattice, x fastest). SDF_EINVAL if it is not such a lattice; else as sdf__scan_create. */
+ * axis increasing with at least 2 nodes, every node within 1 % of a cell of even spacing (a
+ * batch of query points laid out as a lattice, x fastest). SDF_EINVAL if it is not such a
+ * lattice; else as sdf__scan_create. */
 int sdf__scan_create_lattice(const sdf_mesh *mesh, const size_t dims[3],
                              const float *const axis[3], const sdf_query_options *opts,
                              sdf__scan **out);
