@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "core/diag.h"
+#include "query/packet.h"
 
 #define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (~37 MB of scratch) */
 #define DEFAULT_CAP_OF_DIAGONAL 0.02
@@ -293,12 +294,21 @@ static double local_kernel_size(const sdf_smoothing_volume *v, double fs, const 
 typedef struct scratch {
     float *centre_f, *centre_grad;   /* f and grad f at the query points */
     float *volume_f, *volume_grad;   /* a mesh smoothing volume's f_s and grad f_s there */
-    float *sample_p, *sample_f, *sample_grad;
+    float *sample_p, *sample_f;
+    float *sample_grad;              /* the samples' gradients, when the caller wants g's */
     double *sample_bound;            /* |f(p)| + |x - p|: each sample's search starts there */
     int8_t *sample_sign;             /* sign(f(p)) where it is certain, else 0 (displace) */
     uint8_t *sample_run;             /* 1 at each point's first sample: packets stay within */
     int closed;                      /* the mesh is closed: its sign only flips at the surface */
 } scratch;
+
+/* Sample k's gradient, or zeros when no gradient is asked for (g's value needs none, and
+ * without one the samples whose sign is known need no exact closest point, query/cluster.h). */
+static const float *sample_gradient(const scratch *s, size_t k)
+{
+    static const float none[3] = {0, 0, 0};
+    return s->sample_grad ? s->sample_grad + 3 * k : none;
+}
 
 static void free_scratch(scratch *s)
 {
@@ -315,6 +325,7 @@ typedef struct point_plan {
     double frac, grad_n[3];
     int used;     /* samples evaluated: full (+1 with a fraction); 0 where h = 0 (g = f) */
     size_t first; /* its first sample in the block's sample arrays */
+    size_t index; /* the point's index in the request */
 } point_plan;
 
 #define STENCIL 26 /* the 3^3 grid without its centre (the centre is p itself) */
@@ -348,7 +359,7 @@ static double smoothstep_slope(double t) { return t >= 1 || t <= 0 ? 0 : 6 * t *
  * and set n_a = N_min + (n_medial + n_distance) / 2 (N_max - N_min) with its gradient. */
 static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
                         const sdf_filter_options *f, scratch *s, const float *points,
-                        size_t stride, size_t first, size_t m, point_plan *plan)
+                        size_t stride, size_t m, point_plan *plan)
 {
     double delta = f->kernel == SDF_KERNEL_GAUSSIAN ? gaussian_sigma(f->a) : f->b / 2;
     double offset[STENCIL][3];
@@ -361,9 +372,10 @@ static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
                     o++;
                 }
     for (size_t j = 0; j < m; j++) {
-        const float *p = (const float *)((const char *)points + (first + j) * stride);
+        const float *p = (const float *)((const char *)points + plan[j].index * stride);
         for (int i = 0; i < STENCIL; i++) {
-            displace(p, offset[i], plan[j].h, s->centre_f[first + j], s, j * STENCIL + (size_t)i);
+            displace(p, offset[i], plan[j].h, s->centre_f[plan[j].index], s,
+                     j * STENCIL + (size_t)i);
             s->sample_run[j * STENCIL + (size_t)i] = i == 0;
         }
     }
@@ -374,15 +386,15 @@ static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
         return rc;
     double spread = 0.5 * (f->samples - f->min_samples);
     for (size_t j = 0; j < m; j++) {
-        size_t q = first + j;
         point_plan *pl = &plan[j];
+        size_t q = pl->index;
         double fp = s->centre_f[q];
         const float *grad_fp = s->centre_grad + 3 * q;
         /* D = mean of the neighbours - centre, and its gradient through x_i = p - o_i h(p). */
         double mean = 0, grad_d[3] = {0, 0, 0};
         for (int i = 0; i < STENCIL; i++) {
             size_t k = j * STENCIL + (size_t)i;
-            const float *g = s->sample_grad + 3 * k;
+            const float *g = sample_gradient(s, k);
             double along = offset[i][0] * g[0] + offset[i][1] * g[1] + offset[i][2] * g[2];
             mean += s->sample_f[k] / STENCIL;
             for (int c = 0; c < 3; c++)
@@ -486,29 +498,37 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     size_t per_block = block * per_point;
     s.sample_p = malloc(3 * per_block * sizeof(float));
     s.sample_f = malloc(per_block * sizeof(float));
-    s.sample_grad = malloc(3 * per_block * sizeof(float));
+    s.sample_grad = out->gradient ? malloc(3 * per_block * sizeof(float)) : NULL;
     s.sample_bound = malloc(per_block * sizeof(double));
     s.sample_sign = malloc(per_block * sizeof(int8_t));
     s.sample_run = malloc(per_block * sizeof(uint8_t));
     point_plan *plan = malloc(block * sizeof *plan);
-    if (!s.sample_p || !s.sample_f || !s.sample_grad || !s.sample_bound || !s.sample_sign ||
-        !s.sample_run || !plan) {
+    if (!s.sample_p || !s.sample_f || (out->gradient && !s.sample_grad) || !s.sample_bound ||
+        !s.sample_sign || !s.sample_run || !plan) {
         free(plan);
         sdf__samples_free(&samples);
         free_scratch(&s);
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for the samples");
     }
+    /* Points in Morton order, so consecutive points' samples touch the same parts of the tree
+     * (without memory for the order: the given order, the same floats). */
+    uint32_t *order = count > 1 && count <= UINT32_MAX ? malloc(count * sizeof *order) : NULL;
+    if (order && sdf__morton_order((const char *)points, stride, count, order)) {
+        free(order);
+        order = NULL;
+    }
     for (size_t first = 0; first < count && !rc; first += block) {
         size_t m = count - first < block ? count - first : block;
         for (size_t j = 0; j < m; j++) {
-            const float *p = (const float *)((const char *)points + (first + j) * stride);
             point_plan *pl = &plan[j];
-            pl->h = size_at(&f, &s, p, first + j, pl->grad_h);
+            pl->index = order ? order[first + j] : first + j;
+            const float *p = (const float *)((const char *)points + pl->index * stride);
+            pl->h = size_at(&f, &s, p, pl->index, pl->grad_h);
             pl->full = n, pl->frac = 0;
             pl->grad_n[0] = pl->grad_n[1] = pl->grad_n[2] = 0;
         }
         if (adaptive) { /* sec. 5.2: the stencil first, then how many samples each point gets */
-            rc = plan_samples(mesh, &inner, &f, &s, points, stride, first, m, plan);
+            rc = plan_samples(mesh, &inner, &f, &s, points, stride, m, plan);
             if (rc)
                 break;
         }
@@ -517,11 +537,11 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
          * every sample is p itself and g = f. */
         size_t at = 0;
         for (size_t j = 0; j < m; j++) {
-            const float *p = (const float *)((const char *)points + (first + j) * stride);
+            const float *p = (const float *)((const char *)points + plan[j].index * stride);
             plan[j].first = at;
             plan[j].used = plan[j].h == 0 ? 0 : plan[j].full + (plan[j].frac > 0);
             for (int i = 0; i < plan[j].used; i++, at++) {
-                displace(p, samples.offset[i], plan[j].h, s.centre_f[first + j], &s, at);
+                displace(p, samples.offset[i], plan[j].h, s.centre_f[plan[j].index], &s, at);
                 s.sample_run[at] = i == 0;
             }
         }
@@ -533,8 +553,8 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
         if (rc) /* finite points displaced by finite offsets: only memory can fail here */
             break;
         for (size_t j = 0; j < m; j++) {
-            size_t q = first + j;
             const point_plan *pl = &plan[j];
+            size_t q = pl->index;
             double fp = s.centre_f[q];
             const float *grad_fp = s.centre_grad + 3 * q;
             double total = pl->full + pl->frac; /* the weights' sum: n, or n_a */
@@ -546,7 +566,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                     sgn = v < 0 ? -1 : 1;
                     v = fabs(v);
                 }
-                const float *gs = s.sample_grad + 3 * k;
+                const float *gs = sample_gradient(&s, k);
                 /* 1/n each (eq. 10), w(s_i) for the grid (eq. 9); adaptive: the last sample
                  * weighs the fractional part of n_a. */
                 double w = adaptive ? (i < pl->full ? 1 : pl->frac) / total : samples.weight[i];
@@ -578,6 +598,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                     out->gradient[3 * q + c] = (float)(outer * grad[c]);
         }
     }
+    free(order);
     free(plan);
     sdf__samples_free(&samples);
     free_scratch(&s);

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "core/simd.h"
+#include "query/lanes.h"
 #include "query/triangle.h"
 #include "sdf/sdf.h"
 
@@ -78,7 +79,7 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t 
  * point. */
 #define CULL_SLACK 1.00001f
 
-/* The float triangle test below is accurate to about 10 ulps of (d + triangle size): every
+/* The float triangle test (lanes.h) is accurate to about 10 ulps of (d + triangle size): every
  * triangle whose float distance is within TIE_REL * d + TIE_ABS of a lane's best float
  * distance is a candidate, and the candidates get the exact double test. TIE_ABS is a
  * fraction of the mesh's extent (the bounding-box diagonal sdf__closest_packet is given,
@@ -88,120 +89,24 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t 
 #define TIE_REL 1e-5f
 #define TIE_ABS_OF_EXTENT 4e-6f
 
-/* max/min of finite floats as plain comparisons, which compile to maxss/minss (and vector
- * max/min in loops): fmaxf's NaN rules stop the compiler from inlining it (it became a libm
- * call per box test). Our inputs are never NaN. */
-static inline float minf(float a, float b) { return a < b ? a : b; }
-static inline float maxf(float a, float b) { return a > b ? a : b; }
-static inline float max0(float a, float b) { return maxf(maxf(a, b), 0.0f); }
-static inline float clamp01(float t) { return minf(maxf(t, 0.0f), 1.0f); }
-
-/* Squared distance from (x, y, z) to the box [lo, hi]; 0 inside. */
-SDF__HOT_INLINE float box_dist2(const float lo[3], const float hi[3], float x, float y,
-                                float z)
-{
-    float dx = max0(lo[0] - x, x - hi[0]);
-    float dy = max0(lo[1] - y, y - hi[1]);
-    float dz = max0(lo[2] - z, z - hi[2]);
-    return dx * dx + dy * dy + dz * dz;
-}
-
 /* Lanes are handled in groups of LANE_GROUP (one AVX vector of floats): a triangle gets the
  * full float test only in the groups that have a lane near its box. */
-#define LANE_GROUP 8
+#define LANE_GROUP SDF__LANE_GROUP
 #define LANE_GROUPS (SDF__PACKET / LANE_GROUP)
-_Static_assert(SDF__PACKET % LANE_GROUP == 0 && LANE_GROUP == sizeof(uint64_t),
-               "groups_near_box reads a group's 8 one-byte flags as one word");
+_Static_assert(SDF__PACKET % LANE_GROUP == 0, "a packet is whole groups");
 
-/* Bit g set: some lane of group g lies within its limit of the box [lo, hi]. The distances
- * of all lanes (padded) come from one straight-line SoA loop the compiler vectorizes. */
+/* Bit g set: some lane of group g lies within its limit of the box [lo, hi]. */
 SDF__HOT_INLINE unsigned groups_near_box(const sdf__packet *pk, const float *limit2,
                                          const float lo[3], const float hi[3])
 {
-    uint8_t near[SDF__PACKET];
-    for (int i = 0; i < SDF__PACKET; i++)
-        near[i] = box_dist2(lo, hi, pk->x[i], pk->y[i], pk->z[i]) <= limit2[i];
     unsigned mask = 0;
     for (int g = 0; g < LANE_GROUPS; g++) {
-        uint64_t any;
-        memcpy(&any, near + g * LANE_GROUP, sizeof any);
-        mask |= (any != 0) << g;
+        const int o = g * LANE_GROUP;
+        sdf__v8f d2 = sdf__box_dist2_lanes(lo, hi, sdf__v8f_load(pk->x + o),
+                                           sdf__v8f_load(pk->y + o), sdf__v8f_load(pk->z + o));
+        mask |= (unsigned)sdf__v8i_any(d2 <= sdf__v8f_load(limit2 + o)) << g;
     }
     return mask;
-}
-
-/* One triangle prepared for the float lane test: corners, edges k = v[k] -> v[k+1], their
- * inverse squared lengths (0 for a zero-length edge), the face normal n with 1/|n|^2, and
- * the in-plane inward edge normals m[k] = n x e[k]. */
-typedef struct float_triangle {
-    float v[3][3], e[3][3], inv_len2[3], n[3], inv_n2, m[3][3];
-    int has_face; /* 0: zero area (float), only its edges count */
-} float_triangle;
-
-/* Fill the rest of `f` from its corners f->v. */
-SDF__HOT_INLINE void prepare_triangle(float_triangle *f)
-{
-    for (int k = 0; k < 3; k++) {
-        const float *a = f->v[k], *b = f->v[(k + 1) % 3];
-        float len2 = 0;
-        for (int i = 0; i < 3; i++) {
-            f->e[k][i] = b[i] - a[i];
-            len2 += f->e[k][i] * f->e[k][i];
-        }
-        f->inv_len2[k] = len2 > 0 ? 1.0f / len2 : 0.0f;
-    }
-    const float *e0 = f->e[0], *e2 = f->e[2]; /* n = e0 x (v2 - v0) = e0 x -e2 */
-    f->n[0] = e2[1] * e0[2] - e2[2] * e0[1];
-    f->n[1] = e2[2] * e0[0] - e2[0] * e0[2];
-    f->n[2] = e2[0] * e0[1] - e2[1] * e0[0];
-    float n2 = f->n[0] * f->n[0] + f->n[1] * f->n[1] + f->n[2] * f->n[2];
-    f->has_face = n2 > 0 && isfinite(1.0f / n2);
-    f->inv_n2 = f->has_face ? 1.0f / n2 : 0.0f;
-    for (int k = 0; k < 3; k++) {
-        const float *e = f->e[k];
-        f->m[k][0] = f->n[1] * e[2] - f->n[2] * e[1];
-        f->m[k][1] = f->n[2] * e[0] - f->n[0] * e[2];
-        f->m[k][2] = f->n[0] * e[1] - f->n[1] * e[0];
-    }
-}
-
-/* Squared distance from every lane to the triangle, in float, without branches: inside the
- * prism over the face it is the distance to the plane, outside it the nearest of the three
- * edge segments (the closest point of a triangle lies on its boundary when the projection
- * falls outside). */
-SDF__HOT_INLINE float edge_dist2(const float_triangle *f, int k, float qx, float qy, float qz)
-{
-    const float *e = f->e[k];
-    float t = clamp01((qx * e[0] + qy * e[1] + qz * e[2]) * f->inv_len2[k]);
-    float rx = qx - t * e[0], ry = qy - t * e[1], rz = qz - t * e[2];
-    return rx * rx + ry * ry + rz * rz;
-}
-
-SDF__HOT_INLINE float side_of(const float_triangle *f, int k, float qx, float qy, float qz)
-{
-    return qx * f->m[k][0] + qy * f->m[k][1] + qz * f->m[k][2];
-}
-
-SDF__HOT_INLINE void triangle_lanes(const float_triangle *f, const sdf__packet *pk, int group,
-                                    float *dist2)
-{
-    const float *px = pk->x + group * LANE_GROUP, *py = pk->y + group * LANE_GROUP,
-                *pz = pk->z + group * LANE_GROUP;
-    const float *v0 = f->v[0], *v1 = f->v[1], *v2 = f->v[2];
-    /* A zero-area triangle never takes the face branch: its side tests are made to fail. */
-    const float face = f->has_face ? 0.0f : -INFINITY;
-    for (int i = 0; i < LANE_GROUP; i++) {
-        float ax = px[i] - v0[0], ay = py[i] - v0[1], az = pz[i] - v0[2];
-        float bx = px[i] - v1[0], by = py[i] - v1[1], bz = pz[i] - v1[2];
-        float cx = px[i] - v2[0], cy = py[i] - v2[1], cz = pz[i] - v2[2];
-        float side = minf(minf(side_of(f, 0, ax, ay, az), side_of(f, 1, bx, by, bz)),
-                          side_of(f, 2, cx, cy, cz)) + face;
-        float plane = ax * f->n[0] + ay * f->n[1] + az * f->n[2];
-        float plane_d2 = plane * plane * f->inv_n2;
-        float edges = minf(minf(edge_dist2(f, 0, ax, ay, az), edge_dist2(f, 1, bx, by, bz)),
-                           edge_dist2(f, 2, cx, cy, cz));
-        dist2[i] = side >= 0.0f ? plane_d2 : edges;
-    }
 }
 
 /* Each lane's candidates: the triangles whose float distance was within the tie margin of
@@ -221,7 +126,7 @@ SDF__HOT_INLINE void lane_offer(lane_state *s, float *limit2, float tie_abs, uin
     if (d2 < s->best * s->best) {
         s->best = sqrtf(d2);
         float lim = s->best * (1 + TIE_REL) + tie_abs;
-        *limit2 = minf(*limit2, lim * lim);
+        *limit2 = sdf__minf(*limit2, lim * lim);
         int kept = 0; /* drop the candidates the new best put out of reach */
         for (int c = 0; c < s->count && c < MAX_CANDIDATES; c++) {
             if (s->dist2[c] <= *limit2) {
@@ -247,29 +152,30 @@ SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *nod
     for (uint32_t k = 0; k < node->count; k++) {
         uint32_t tri = tree->prims[node->first + k];
         const uint32_t *t = triangles + 3 * (size_t)tri;
-        float_triangle f; /* corners loaded once: for the box test, then for the lane test */
+        sdf__float_triangle f; /* corners loaded once: for the box test, then for the lane test */
         for (int c = 0; c < 3; c++)
             memcpy(f.v[c], positions + 3 * (size_t)t[c], 3 * sizeof(float));
         float lo[3], hi[3];
         for (int a = 0; a < 3; a++) {
-            lo[a] = minf(minf(f.v[0][a], f.v[1][a]), f.v[2][a]);
-            hi[a] = maxf(maxf(f.v[0][a], f.v[1][a]), f.v[2][a]);
+            lo[a] = sdf__minf(sdf__minf(f.v[0][a], f.v[1][a]), f.v[2][a]);
+            hi[a] = sdf__maxf(sdf__maxf(f.v[0][a], f.v[1][a]), f.v[2][a]);
         }
         unsigned near = groups & groups_near_box(pk, limit2, lo, hi);
         if (!near)
             continue;
-        prepare_triangle(&f);
+        sdf__float_triangle_prepare(&f);
         for (int g = 0; g < LANE_GROUPS; g++) {
             if (!(near >> g & 1))
                 continue;
+            const int o = g * LANE_GROUP;
+            sdf__v8f dist2 = sdf__triangle_lanes(&f, sdf__v8f_load(pk->x + o),
+                                                 sdf__v8f_load(pk->y + o), sdf__v8f_load(pk->z + o));
+            sdf__v8i within = dist2 <= sdf__v8f_load(limit2 + o); /* lanes that pass are rare */
+            if (!sdf__v8i_any(within))
+                continue;
             float d2[LANE_GROUP];
-            triangle_lanes(&f, pk, g, d2);
-            uint8_t within[LANE_GROUP]; /* vector compare; lanes that pass are rare */
+            memcpy(d2, &dist2, sizeof d2);
             for (int j = 0; j < LANE_GROUP; j++)
-                within[j] = d2[j] <= limit2[g * LANE_GROUP + j];
-            uint64_t any;
-            memcpy(&any, within, sizeof any);
-            for (int j = 0; any && j < LANE_GROUP; j++)
                 if (within[j])
                     lane_offer(&lanes[g * LANE_GROUP + j], &limit2[g * LANE_GROUP + j], tie_abs,
                                tri, d2[j]);
@@ -287,21 +193,7 @@ static void exact_lane(const float *positions, const uint32_t *triangles, const 
     for (int c = 0; c < s->count; c++) {
         if (s->dist2[c] > limit2)
             continue;
-        const uint32_t *t = triangles + 3 * (size_t)s->tri[c];
-        double v[3][3], closest[3], bary[3];
-        for (int k = 0; k < 3; k++)
-            for (int a = 0; a < 3; a++)
-                v[k][a] = positions[3 * (size_t)t[k] + a];
-        int feature;
-        double d2 = sdf__closest_on_triangle(p, v[0], v[1], v[2], closest, bary, &feature);
-        if (d2 < hit->dist2 || (d2 == hit->dist2 && s->tri[c] < hit->triangle)) {
-            hit->dist2 = d2;
-            sdf__triangle_normal(v[0], v[1], v[2], hit->face_normal);
-            hit->triangle = s->tri[c];
-            hit->feature = feature;
-            memcpy(hit->point, closest, sizeof closest);
-            memcpy(hit->bary, bary, sizeof bary);
-        }
+        sdf__triangle_offer(positions, triangles, s->tri[c], p, hit);
     }
 }
 
@@ -339,7 +231,8 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
         }
         /* Near child last on the stack, so it is visited first and shrinks the bounds. */
         const sdf__tree_node *a = &tree->nodes[node->first], *b = a + 1;
-        float da = box_dist2(a->lo, a->hi, cx, cy, cz), db = box_dist2(b->lo, b->hi, cx, cy, cz);
+        float da = sdf__box_dist2f(a->lo, a->hi, cx, cy, cz);
+        float db = sdf__box_dist2f(b->lo, b->hi, cx, cy, cz);
         uint32_t near = da <= db ? node->first : node->first + 1;
         stack[top++] = near == node->first ? node->first + 1 : node->first;
         stack[top++] = near;

@@ -17,6 +17,7 @@
 #include "bvh/embree.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
+#include "query/cluster.h"
 #include "query/filter.h"
 #include "query/packet.h"
 #include "sign/pseudonormal.h"
@@ -40,6 +41,9 @@
  * refined_elephant 40^3 0.39 Mq/s scanned vs 0.45 by packets, 64^3 1.08 vs 0.76; fandisk
  * 40^3 2.38 vs 1.42. */
 #define LATTICE_MIN_POINTS 32768
+/* Candidate triangles one cluster of seeded points may hold (query/cluster.h); a cluster
+ * that could be nearest to more takes the packets. */
+#define CLUSTER_CANDIDATES 256
 
 static const char *const sign_names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
 
@@ -200,16 +204,12 @@ static void packet_winding(const batch *b, const sdf__packet *pk, double *windin
     sdf__winding_packet(b->mesh->winding, qx, qy, qz, pk->n, winding);
 }
 
-/* Traverse one packet (its points and bounds filled in for lanes < n) and finish its points:
- * lane i is point order[i] or, without an order, point first + i. */
-static void answer_packet(const batch *b, sdf__packet *pk, const uint32_t *order, size_t first,
-                          sdf__hit *hits)
+/* Signs and outputs of a packet's points (coordinates filled in for lanes < n) whose
+ * closest points are known: lane i is point order[i] or, without an order, point first + i.
+ * A hit with dist2 == INFINITY (a bound rounding could not honour) is searched again. */
+static void finish_packet(const batch *b, const sdf__packet *pk, const uint32_t *order,
+                          size_t first, sdf__hit *hits)
 {
-    const sdf_mesh *m = b->mesh;
-    for (int i = pk->n; i < SDF__PACKET; i++) /* pad: the box tests run on whole groups */
-        pk->x[i] = pk->x[pk->n - 1], pk->y[i] = pk->y[pk->n - 1], pk->z[i] = pk->z[pk->n - 1];
-    sdf__closest_packet(&m->tree, m->positions, m->triangles, (float)m->report.diagonal, pk,
-                        hits);
     double winding[SDF__PACKET];
     int all_hinted = b->sign_hint != NULL;
     for (int i = 0; i < pk->n && all_hinted; i++)
@@ -221,10 +221,23 @@ static void answer_packet(const batch *b, sdf__packet *pk, const uint32_t *order
         packet_winding(b, pk, winding);
     for (int i = 0; i < pk->n; i++) {
         size_t idx = order ? order[i] : first + (size_t)i;
-        if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
-            sdf__bvh_closest(m->bvh, point_at(b, idx), &hits[i]);
+        if (!isfinite(hits[i].dist2))
+            sdf__bvh_closest(b->mesh->bvh, point_at(b, idx), &hits[i]);
         finish(b, idx, &hits[i], winding[i]);
     }
+}
+
+/* Traverse one packet (its points and bounds filled in for lanes < n) and finish its points
+ * (lanes as in finish_packet). */
+static void answer_packet(const batch *b, sdf__packet *pk, const uint32_t *order, size_t first,
+                          sdf__hit *hits)
+{
+    const sdf_mesh *m = b->mesh;
+    for (int i = pk->n; i < SDF__PACKET; i++) /* pad: the box tests run on whole groups */
+        pk->x[i] = pk->x[pk->n - 1], pk->y[i] = pk->y[pk->n - 1], pk->z[i] = pk->z[pk->n - 1];
+    sdf__closest_packet(&m->tree, m->positions, m->triangles, (float)m->report.diagonal, pk,
+                        hits);
+    finish_packet(b, pk, order, first, hits);
 }
 
 /* Positions [begin, end) of the Morton order, packet by packet. Each packet's bounds are
@@ -278,26 +291,59 @@ static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_opti
     return order;
 }
 
-/* Packets of up to SDF__PACKET consecutive points that never cross the start of a run,
- * bounded by b->bound (sdf__query_seeded). */
+/* Points [first, first + n) in packets of up to SDF__PACKET: their coordinates, and their
+ * bounds from b->bound when `bounded`. */
+static void fill_packet(const batch *b, size_t first, int n, int bounded, sdf__packet *pk)
+{
+    pk->n = n;
+    for (int i = 0; i < n; i++) {
+        const float *p = point_at(b, first + (size_t)i);
+        pk->x[i] = p[0], pk->y[i] = p[1], pk->z[i] = p[2];
+        if (bounded)
+            pk->bound2[i] = b->bound[first + (size_t)i] * b->bound[first + (size_t)i];
+    }
+}
+
+/* Runs of nearby points (sdf__query_seeded), up to SDF__CLUSTER_MAX at a time, each never
+ * crossing the start of a run: by one candidate list per cluster (query/cluster.h), or, where
+ * too many triangles could be closest, in bounded packets. */
 static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     const batch *b = ctx;
+    const sdf_mesh *m = b->mesh;
+    sdf__cluster *cluster = sdf__cluster_create(CLUSTER_CANDIDATES);
     sdf__packet pk;
-    sdf__hit hits[SDF__PACKET];
-    for (size_t k = begin; k < end; k += (size_t)pk.n) {
-        pk.n = 1;
-        while (pk.n < SDF__PACKET && k + (size_t)pk.n < end &&
-               !(b->run_start && b->run_start[k + (size_t)pk.n]))
-            pk.n++;
-        for (int i = 0; i < pk.n; i++) {
-            const float *p = point_at(b, k + (size_t)i);
-            pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
-            pk.bound2[i] = b->bound[k + (size_t)i] * b->bound[k + (size_t)i];
+    sdf__hit hits[SDF__CLUSTER_MAX];
+    /* A point whose sign is known takes the float distance (sdf__query_seeded), and needs its
+     * exact closest point only for outputs other than the distance. */
+    const sdf_query_result *o = b->out;
+    int distance_only = !o->gradient && !o->closest && !o->triangle && !o->barycentric;
+    uint8_t want[SDF__CLUSTER_MAX];
+    int n;
+    for (size_t k = begin; k < end; k += (size_t)n) {
+        n = 1;
+        while (n < SDF__CLUSTER_MAX && k + (size_t)n < end &&
+               !(b->run_start && b->run_start[k + (size_t)n]))
+            n++;
+        for (int i = 0; i < n; i++)
+            want[i] = !b->sign_hint || !b->sign_hint[k + (size_t)i] ? SDF__CLUSTER_EXACT
+                      : distance_only                              ? SDF__CLUSTER_FLOAT
+                                                                   : SDF__CLUSTER_FLOAT_POINT;
+        int clustered = cluster && sdf__cluster_closest(cluster, &m->tree, m->positions,
+                                                        m->triangles, (float)m->report.diagonal,
+                                                        b->points + k * b->stride, b->stride,
+                                                        b->bound + k, want, n, hits) == 0;
+        for (int s = 0; s < n; s += SDF__PACKET) {
+            fill_packet(b, k + (size_t)s, n - s < SDF__PACKET ? n - s : SDF__PACKET, !clustered,
+                        &pk);
+            if (clustered)
+                finish_packet(b, &pk, NULL, k + (size_t)s, hits + s);
+            else
+                answer_packet(b, &pk, NULL, k + (size_t)s, hits);
         }
-        answer_packet(b, &pk, NULL, k, hits);
     }
+    sdf__cluster_destroy(cluster);
 }
 
 int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
@@ -326,19 +372,11 @@ int sdf__query_finish(const sdf_mesh *mesh, const float *points, const sdf__hit 
     b.out = out;
     sdf__packet pk; /* only its coordinates: a packet's winding numbers come in one traversal */
     for (size_t first = 0; first < count; first += SDF__PACKET) {
-        pk.n = (int)(count - first < SDF__PACKET ? count - first : SDF__PACKET);
-        for (int i = 0; i < pk.n; i++) {
-            const float *p = point_at(&b, first + (size_t)i);
-            pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
-        }
-        double winding[SDF__PACKET];
-        packet_winding(&b, &pk, winding);
-        for (int i = 0; i < pk.n; i++) {
-            sdf__hit hit = hits[first + (size_t)i];
-            if (!isfinite(hit.dist2))
-                sdf__bvh_closest(mesh->bvh, point_at(&b, first + (size_t)i), &hit);
-            finish(&b, first + (size_t)i, &hit, winding[i]);
-        }
+        fill_packet(&b, first, count - first < SDF__PACKET ? (int)(count - first) : SDF__PACKET, 0,
+                    &pk);
+        sdf__hit part[SDF__PACKET];
+        memcpy(part, hits + first, (size_t)pk.n * sizeof *part);
+        finish_packet(&b, &pk, NULL, first, part);
     }
     return 0;
 }

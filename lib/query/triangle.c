@@ -1,6 +1,8 @@
 /* triangle.c - closest point on a triangle (see triangle.h). */
 #include "query/triangle.h"
 
+#include <string.h>
+
 static double dot(const double u[3], const double v[3])
 {
     return u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
@@ -117,4 +119,24 @@ double sdf__closest_on_triangle(const double p[3], const double a[3], const doub
     double v = vb * denom, w = vc * denom;
     *feature = SDF__FACE;
     return finish(p, a, b, c, 1 - v - w, v, w, closest, bary);
+}
+
+void sdf__triangle_offer(const float *positions, const uint32_t *triangles, uint32_t tri,
+                         const double p[3], sdf__hit *hit)
+{
+    const uint32_t *t = triangles + 3 * (size_t)tri;
+    double v[3][3], closest[3], bary[3];
+    for (int k = 0; k < 3; k++)
+        for (int a = 0; a < 3; a++)
+            v[k][a] = positions[3 * (size_t)t[k] + a];
+    int feature;
+    double d2 = sdf__closest_on_triangle(p, v[0], v[1], v[2], closest, bary, &feature);
+    if (d2 < hit->dist2 || (d2 == hit->dist2 && tri < hit->triangle)) {
+        hit->dist2 = d2;
+        sdf__triangle_normal(v[0], v[1], v[2], hit->face_normal);
+        hit->triangle = tri;
+        hit->feature = feature;
+        memcpy(hit->point, closest, sizeof closest);
+        memcpy(hit->bary, bary, sizeof bary);
+    }
 }

@@ -6,6 +6,10 @@
 #ifndef SDF_QUERY_TRIANGLE_H
 #define SDF_QUERY_TRIANGLE_H
 
+#include <stdint.h>
+
+#include "bvh/embree.h" /* sdf__hit */
+
 /* Features of triangle (v0, v1, v2). Edge k runs from corner k to corner (k+1) % 3. */
 enum sdf__feature {
     SDF__FACE = 0,
@@ -19,6 +23,12 @@ enum sdf__feature {
 double sdf__closest_on_triangle(const double p[3], const double a[3], const double b[3],
                                 const double c[3], double closest[3], double bary[3],
                                 int *feature);
+
+/* The exact test of triangle `tri` of a mesh (float `positions`, corner indices
+ * `triangles`) from p: *hit takes its closest point when nearer than hit->dist2, or as near
+ * with a lower triangle id (the searches' rule for ties). */
+void sdf__triangle_offer(const float *positions, const uint32_t *triangles, uint32_t tri,
+                         const double p[3], sdf__hit *hit);
 
 /* (b - a) x (c - a): the face normal times twice the area. */
 static inline void sdf__triangle_normal(const double a[3], const double b[3], const double c[3],

@@ -1,0 +1,215 @@
+/* test_cluster.c - clusters of nearby points answered from one candidate list
+ * (lib/query/cluster.c) and the filtered field that uses them, against slow, obvious
+ * computations:
+ *  - clusters of 1..64 points spread like filter samples (a Gaussian around a centre, each
+ *    bounded by |f(centre)| + |x - centre|) around band, box and on-surface centres: the
+ *    triangle named for every point is closest up to float rounding (brute force over all
+ *    triangles in double precision); an exact hit is that triangle's exact closest point and
+ *    distance, a float hit its distance to float rounding; a point never goes unanswered;
+ *  - a capacity smaller than the candidates is reported, never answered wrongly;
+ *  - sdf_query_filtered equals direct evaluation of eq. (10): the test draws the same samples
+ *    (sdf__samples_draw), displaces them by eq. (4)'s kernel size, asks sdf_query for each
+ *    and averages; and g's value is the same floats whether or not its gradient is asked. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../common/check.h"
+#include "../common/reference.h"
+#include "../common/workload.h"
+#include "mesh/mesh.h"
+#include "query/cluster.h"
+#include "query/filter.h"
+#include "query/triangle.h"
+
+static double diagonal_of(const sdf_mesh *m)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(m, &r);
+    return r.diagonal;
+}
+
+/* The exact distance from p to one triangle of the mesh, by the reference's own test. */
+static double triangle_distance(const sdf_mesh *m, uint32_t tri, const float *p)
+{
+    double q[3] = {p[0], p[1], p[2]}, v[3][3], closest[3];
+    for (int k = 0; k < 3; k++)
+        for (int a = 0; a < 3; a++)
+            v[k][a] = m->positions[3 * (size_t)m->triangles[3 * (size_t)tri + k] + a];
+    return ref_point_triangle(q, v[0], v[1], v[2], closest);
+}
+
+/* `clusters` clusters around centres of workload `kind` (or on the surface), their points
+ * spread N(0, (spread x diagonal)^2) per axis, each asking for a random `want`. */
+static void test_clusters(const char *file, const char *kind, double spread, int clusters)
+{
+    sdf_mesh *m = load_data_mesh(file);
+    if (!m)
+        return;
+    double diag = diagonal_of(m), tol = 1e-6 * diag;
+    size_t n = (size_t)clusters;
+    float *centre = malloc(3 * n * sizeof *centre), *fc = malloc(n * sizeof *fc);
+    float *on = malloc(3 * n * sizeof *on);
+    sdf_workload(m, !strcmp(kind, "surface") ? "band" : kind, &n, 17, centre);
+    sdf_query_result r = {.distance = fc, .closest = on};
+    CHECK(sdf_query(m, centre, n, NULL, &r) == 0, "sdf_query");
+    if (!strcmp(kind, "surface")) { /* centres on the surface: their own closest points */
+        memcpy(centre, on, 3 * n * sizeof *centre);
+        CHECK(sdf_query(m, centre, n, NULL, &r) == 0, "sdf_query");
+    }
+    sdf_mesh_report report;
+    sdf_mesh_get_report(m, &report);
+    sdf__cluster *cluster = sdf__cluster_create((int)report.triangles); /* room for all */
+    CHECK(cluster != NULL, "cluster scratch");
+    sdf_rng rng = {99};
+    size_t checked = 0, worst_at = 0;
+    double worst = 0;
+    for (size_t c = 0; cluster && c < n; c++) {
+        int count = 1 + (int)(sdf_rng_next(&rng) % SDF__CLUSTER_MAX);
+        float pts[3 * SDF__CLUSTER_MAX];
+        double bound[SDF__CLUSTER_MAX];
+        uint8_t want[SDF__CLUSTER_MAX];
+        for (int i = 0; i < count; i++) {
+            double gap2 = 0;
+            for (int a = 0; a < 3; a++) {
+                pts[3 * i + a] = (float)(centre[3 * c + a] + spread * diag * sdf_rng_normal(&rng));
+                double d = pts[3 * i + a] - centre[3 * c + a];
+                gap2 += d * d;
+            }
+            bound[i] = (fabs(fc[c]) + sqrt(gap2)) * (1 + 1e-6);
+            want[i] = (uint8_t)(sdf_rng_next(&rng) % 3);
+        }
+        sdf__hit hits[SDF__CLUSTER_MAX];
+        int rc = sdf__cluster_closest(cluster, &m->tree, m->positions, m->triangles, (float)diag,
+                                      (const char *)pts, 3 * sizeof(float), bound, want, count,
+                                      hits);
+        CHECK(rc == 0, "%s %s cluster %zu: refused with room for every triangle", file, kind, c);
+        for (int i = 0; rc == 0 && i < count; i++) {
+            const float *p = pts + 3 * i;
+            ref_hit ref;
+            ref_closest(m, p, &ref);
+            CHECK(isfinite(hits[i].dist2), "%s: a point went unanswered", file);
+            if (!isfinite(hits[i].dist2))
+                continue;
+            double named = triangle_distance(m, hits[i].triangle, p), d = sqrt(hits[i].dist2);
+            double off = fmax(fabs(named - ref.dist), fabs(d - ref.dist));
+            if (off > worst)
+                worst = off, worst_at = checked;
+            if (want[i] != SDF__CLUSTER_FLOAT) { /* the exact closest point of that triangle */
+                double e2 = 0;
+                for (int a = 0; a < 3; a++)
+                    e2 += (hits[i].point[a] - p[a]) * (hits[i].point[a] - p[a]);
+                CHECK(fabs(sqrt(e2) - named) <= 1e-9 * diag, "%s: closest point off by %g",
+                      file, fabs(sqrt(e2) - named));
+            }
+            if (want[i] == SDF__CLUSTER_EXACT)
+                CHECK(fabs(d - named) <= 1e-9 * diag, "%s: exact distance off by %g", file,
+                      fabs(d - named));
+            checked++;
+        }
+    }
+    CHECK(worst <= tol, "%s %s spread %g: point %zu is %g from the closest (tolerance %g)",
+          file, kind, spread, worst_at, worst, tol);
+    printf("clusters %s %s spread %g: %zu points, worst %.3g x diagonal from brute force\n",
+           file, kind, spread, checked, worst / diag);
+
+    /* A capacity of 2: clusters with more candidates are refused, never answered wrongly. */
+    sdf__cluster *tiny = sdf__cluster_create(2);
+    size_t refused = 0;
+    for (size_t c = 0; tiny && c < n; c++) {
+        float pts[3 * 8];
+        double bound[8];
+        for (int i = 0; i < 8; i++) {
+            for (int a = 0; a < 3; a++)
+                pts[3 * i + a] = centre[3 * c + a] + (float)(0.01 * diag * (i & (1 << a) ? 1 : -1));
+            bound[i] = fabs(fc[c]) + 0.02 * diag;
+        }
+        sdf__hit hits[8];
+        if (sdf__cluster_closest(tiny, &m->tree, m->positions, m->triangles, (float)diag,
+                                 (const char *)pts, 3 * sizeof(float), bound, NULL, 8, hits)) {
+            refused++;
+            continue;
+        }
+        for (int i = 0; i < 8; i++) {
+            ref_hit ref;
+            ref_closest(m, pts + 3 * i, &ref);
+            CHECK(fabs(sqrt(hits[i].dist2) - ref.dist) <= tol, "%s: capacity 2 answered wrongly",
+                  file);
+        }
+    }
+    CHECK(refused > n / 2, "%s: a capacity of 2 refused only %zu of %zu clusters", file, refused, n);
+    sdf__cluster_destroy(tiny);
+    sdf__cluster_destroy(cluster);
+    free(centre), free(fc), free(on);
+    sdf_mesh_release(m);
+}
+
+/* Eq. (4): the kernel size from f(p). */
+static double kernel_size(double f, double cap)
+{
+    double r = fmin(fabs(f) / cap, 1);
+    return r * r * (3 - 2 * r);
+}
+
+static void test_filtered_direct(const char *file, const char *kind, int samples)
+{
+    sdf_mesh *m = load_data_mesh(file);
+    if (!m)
+        return;
+    double diag = diagonal_of(m);
+    size_t n = 300;
+    float *p = malloc(3 * n * sizeof *p), *f = malloc(n * sizeof *f), *g = malloc(n * sizeof *g);
+    float *g2 = malloc(n * sizeof *g2), *grad = malloc(3 * n * sizeof *grad);
+    sdf_workload(m, kind, &n, 23, p);
+    sdf_query_result raw = {.distance = f};
+    CHECK(sdf_query(m, p, n, NULL, &raw) == 0, "sdf_query");
+    sdf_filter_options opt = {.samples = samples, .seed = 5}, resolved;
+    CHECK(sdf__filter_resolve(m, &opt, &resolved, NULL) == 0, "resolve");
+    sdf__samples s;
+    CHECK(sdf__samples_draw(&resolved, &s) == 0, "draw");
+    /* Direct: every displaced sample asked of sdf_query on its own batch. */
+    float *x = malloc(3 * (size_t)s.n * sizeof *x), *fx = malloc((size_t)s.n * sizeof *fx);
+    double worst = 0;
+    for (size_t i = 0; i < n; i++) {
+        double h = kernel_size(f[i], resolved.cap), expect = 0;
+        for (int k = 0; k < s.n; k++)
+            for (int a = 0; a < 3; a++)
+                x[3 * k + a] = (float)(p[3 * i + a] - s.offset[k][a] * h);
+        sdf_query_result rx = {.distance = fx};
+        CHECK(sdf_query(m, x, (size_t)s.n, &(sdf_query_options){.threads = 1}, &rx) == 0, "ask");
+        for (int k = 0; k < s.n; k++)
+            expect += s.weight[k] * fx[k];
+        if (h == 0)
+            expect = f[i];
+        g2[i] = (float)expect;
+    }
+    sdf_query_result rf = {.distance = g};
+    CHECK(sdf_query_filtered(m, p, n, NULL, &opt, &rf, NULL) == 0, "filtered");
+    for (size_t i = 0; i < n; i++)
+        worst = fmax(worst, fabs((double)g[i] - g2[i]));
+    CHECK(worst <= 1e-6 * diag, "%s %s: filtered differs from direct evaluation by %g", file,
+          kind, worst);
+    printf("filtered %s %s, %d samples: %zu points, worst %.3g x diagonal from direct\n", file,
+           kind, samples, n, worst / diag);
+    /* The value does not depend on whether the gradient is asked for. */
+    sdf_query_result rg = {.distance = g2, .gradient = grad};
+    CHECK(sdf_query_filtered(m, p, n, NULL, &opt, &rg, NULL) == 0, "filtered gradient");
+    CHECK(!memcmp(g, g2, n * sizeof *g), "%s %s: g's value changes when its gradient is asked",
+          file, kind);
+    sdf__samples_free(&s);
+    free(p), free(f), free(g), free(g2), free(grad), free(x), free(fx);
+    sdf_mesh_release(m);
+}
+
+int main(void)
+{
+    test_clusters("fandisk.off", "band", 0.005, 160);
+    test_clusters("fandisk.off", "box", 0.02, 60);
+    test_clusters("fandisk.off", "surface", 0.002, 100);
+    test_clusters("knot1.off", "band", 0.005, 100);
+    test_clusters("cow.off", "band", 0.01, 80);
+    test_filtered_direct("fandisk.off", "band", 64);
+    test_filtered_direct("fandisk.off", "box", 32);
+    test_filtered_direct("knot1.off", "band", 64);
+    return check_finish("cluster");
+}
