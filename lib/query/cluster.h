@@ -42,10 +42,11 @@ sdf__cluster *sdf__cluster_create(int capacity);
 void sdf__cluster_destroy(sdf__cluster *cluster);
 
 /* Closest points of `n` (1..SDF__CLUSTER_MAX) points (xyz floats `stride` bytes apart)
- * whose distances are at most bound[i], over the mesh's `tree`; `extent` is the mesh's bounding-box diagonal (the scale
- * of float rounding). Returns 0 with hits[i] filled (dist2 == INFINITY: no candidate held
- * point i after rounding; ask again), or -1 when more triangles than the capacity could be
- * closest: the caller then answers the points another way. */
+ * whose distances are at most bound[i], over the mesh's `tree`; `extent` is the mesh's
+ * bounding-box diagonal (the scale of float rounding). Returns 0 with hits[i] filled
+ * (dist2 == INFINITY: no candidate held point i after rounding; ask again), or -1 when more
+ * triangles than the capacity could be closest: the caller then answers the points another
+ * way. want[i] (NULL: all SDF__CLUSTER_EXACT) says what hits[i] must hold. */
 int sdf__cluster_closest(sdf__cluster *cluster, const sdf__tree *tree, const float *positions,
                          const uint32_t *triangles, float extent, const char *points,
                          size_t stride, const double *bound, const uint8_t *want, int n,

@@ -32,42 +32,6 @@ SDF__HOT_INLINE float sdf__box_dist2f(const float lo[3], const float hi[3], floa
     return dx * dx + dy * dy + dz * dz;
 }
 
-/* One triangle prepared for the float test: corners, edges k = v[k] -> v[k+1], their
- * inverse squared lengths (0 for a zero-length edge), the face normal n with 1/|n|^2, and
- * the in-plane inward edge normals m[k] = n x e[k]. */
-typedef struct sdf__float_triangle {
-    float v[3][3], e[3][3], inv_len2[3], n[3], inv_n2, m[3][3];
-    float face; /* 0, or -INFINITY for a zero-area (in float) triangle: only its edges count */
-} sdf__float_triangle;
-
-/* Fill the rest of `f` from its corners f->v. */
-SDF__HOT_INLINE void sdf__float_triangle_prepare(sdf__float_triangle *f)
-{
-    for (int k = 0; k < 3; k++) {
-        const float *a = f->v[k], *b = f->v[(k + 1) % 3];
-        float len2 = 0;
-        for (int i = 0; i < 3; i++) {
-            f->e[k][i] = b[i] - a[i];
-            len2 += f->e[k][i] * f->e[k][i];
-        }
-        f->inv_len2[k] = len2 > 0 ? 1.0f / len2 : 0.0f;
-    }
-    const float *e0 = f->e[0], *e2 = f->e[2]; /* n = e0 x (v2 - v0) = e0 x -e2 */
-    f->n[0] = e2[1] * e0[2] - e2[2] * e0[1];
-    f->n[1] = e2[2] * e0[0] - e2[0] * e0[2];
-    f->n[2] = e2[0] * e0[1] - e2[1] * e0[0];
-    float n2 = f->n[0] * f->n[0] + f->n[1] * f->n[1] + f->n[2] * f->n[2];
-    int has_face = n2 > 0 && isfinite(1.0f / n2);
-    f->face = has_face ? 0.0f : -INFINITY;
-    f->inv_n2 = has_face ? 1.0f / n2 : 0.0f;
-    for (int k = 0; k < 3; k++) {
-        const float *e = f->e[k];
-        f->m[k][0] = f->n[1] * e[2] - f->n[2] * e[1];
-        f->m[k][1] = f->n[2] * e[0] - f->n[0] * e[2];
-        f->m[k][2] = f->n[0] * e[1] - f->n[1] * e[0];
-    }
-}
-
 /* Eight lanes as one GCC/clang vector ("vector extensions": plain C operators, no
  * intrinsics); the compiler uses AVX for it in the x86-64-v3 clones and two SSE halves
  * elsewhere. Written as vectors rather than as lane loops because GCC hoisted the ~35
@@ -92,8 +56,15 @@ SDF__HOT_INLINE sdf__v8f sdf__v8f_select(sdf__v8i m, sdf__v8f a, sdf__v8f b)
     return (sdf__v8f)(((sdf__v8i)a & m) | ((sdf__v8i)b & ~m));
 }
 
-SDF__HOT_INLINE sdf__v8f sdf__v8f_min(sdf__v8f a, sdf__v8f b) { return sdf__v8f_select(a < b, a, b); }
-SDF__HOT_INLINE sdf__v8f sdf__v8f_max(sdf__v8f a, sdf__v8f b) { return sdf__v8f_select(a > b, a, b); }
+SDF__HOT_INLINE sdf__v8f sdf__v8f_min(sdf__v8f a, sdf__v8f b)
+{
+    return sdf__v8f_select(a < b, a, b);
+}
+
+SDF__HOT_INLINE sdf__v8f sdf__v8f_max(sdf__v8f a, sdf__v8f b)
+{
+    return sdf__v8f_select(a > b, a, b);
+}
 
 /* Is any lane of the mask set? */
 SDF__HOT_INLINE int sdf__v8i_any(sdf__v8i m)
@@ -114,25 +85,63 @@ SDF__HOT_INLINE sdf__v8f sdf__box_dist2_lanes(const float lo[3], const float hi[
     return dx * dx + dy * dy + dz * dz;
 }
 
-/* Squared distance from q (relative to edge k's start) to edge k's segment. */
-SDF__HOT_INLINE sdf__v8f sdf__edge_dist2_lanes(const sdf__float_triangle *f, int k, sdf__v8f qx,
-                                               sdf__v8f qy, sdf__v8f qz)
+/* Eight triangles prepared for the float test, lane t holding triangle t (or one triangle in
+ * every lane, to test it against eight points): corners, edges k = v[k] -> v[k+1], their
+ * inverse squared lengths (0 for a zero-length edge), the face normal n with 1/|n|^2, the
+ * in-plane inward edge normals m[k] = n x e[k], and face = 0, or -INFINITY for a zero-area
+ * (in float) triangle, of which only the edges count. */
+typedef struct sdf__triangle8 {
+    sdf__v8f v[3][3], e[3][3], inv_len2[3], n[3], inv_n2, m[3][3], face;
+} sdf__triangle8;
+
+/* Fill the rest of `f` from its corners f->v. */
+SDF__HOT_INLINE void sdf__triangle8_prepare(sdf__triangle8 *f)
 {
-    const float *e = f->e[k];
+    const sdf__v8f zero = sdf__v8f_splat(0);
+    for (int k = 0; k < 3; k++) {
+        sdf__v8f len2 = zero;
+        for (int i = 0; i < 3; i++) {
+            f->e[k][i] = f->v[(k + 1) % 3][i] - f->v[k][i];
+            len2 += f->e[k][i] * f->e[k][i];
+        }
+        f->inv_len2[k] = sdf__v8f_select(len2 > 0, 1.0f / len2, zero);
+    }
+    const sdf__v8f *e0 = f->e[0], *e2 = f->e[2]; /* n = e0 x (v2 - v0) = e0 x -e2 */
+    f->n[0] = e2[1] * e0[2] - e2[2] * e0[1];
+    f->n[1] = e2[2] * e0[0] - e2[0] * e0[2];
+    f->n[2] = e2[0] * e0[1] - e2[1] * e0[0];
+    sdf__v8f n2 = f->n[0] * f->n[0] + f->n[1] * f->n[1] + f->n[2] * f->n[2];
+    sdf__v8i has_face = (n2 > 0) & (1.0f / n2 < INFINITY);
+    f->face = sdf__v8f_select(has_face, zero, sdf__v8f_splat(-INFINITY));
+    f->inv_n2 = sdf__v8f_select(has_face, 1.0f / n2, zero);
+    for (int k = 0; k < 3; k++) {
+        const sdf__v8f *e = f->e[k];
+        f->m[k][0] = f->n[1] * e[2] - f->n[2] * e[1];
+        f->m[k][1] = f->n[2] * e[0] - f->n[0] * e[2];
+        f->m[k][2] = f->n[0] * e[1] - f->n[1] * e[0];
+    }
+}
+
+/* Squared distance from q (relative to edge k's start) to edge k's segment. */
+SDF__HOT_INLINE sdf__v8f sdf__edge8_dist2(const sdf__triangle8 *f, int k, sdf__v8f qx, sdf__v8f qy,
+                                          sdf__v8f qz)
+{
+    const sdf__v8f *e = f->e[k];
     sdf__v8f t = (qx * e[0] + qy * e[1] + qz * e[2]) * f->inv_len2[k];
     t = sdf__v8f_min(sdf__v8f_max(t, sdf__v8f_splat(0)), sdf__v8f_splat(1));
     sdf__v8f rx = qx - t * e[0], ry = qy - t * e[1], rz = qz - t * e[2];
     return rx * rx + ry * ry + rz * rz;
 }
 
-/* Squared distance from eight points to the triangle, in float, without branches: inside
- * the prism over the face it is the distance to the plane, outside it the nearest of the
- * three edge segments (the closest point of a triangle lies on its boundary when the
- * projection falls outside). Accurate to about 10 ulps of (distance + triangle size). */
-SDF__HOT_INLINE sdf__v8f sdf__triangle_lanes(const sdf__float_triangle *f, sdf__v8f x, sdf__v8f y,
-                                             sdf__v8f z)
+/* Squared distance from point (x, y, z) of each lane to the triangle of that lane, in float,
+ * without branches: inside the prism over the face it is the distance to the plane, outside
+ * it the nearest of the three edge segments (the closest point of a triangle lies on its
+ * boundary when the projection falls outside). Accurate to about 10 ulps of (distance +
+ * triangle size). */
+SDF__HOT_INLINE sdf__v8f sdf__triangle8_dist2(const sdf__triangle8 *f, sdf__v8f x, sdf__v8f y,
+                                              sdf__v8f z)
 {
-    const float *v0 = f->v[0], *v1 = f->v[1], *v2 = f->v[2];
+    const sdf__v8f *v0 = f->v[0], *v1 = f->v[1], *v2 = f->v[2];
     sdf__v8f ax = x - v0[0], ay = y - v0[1], az = z - v0[2];
     sdf__v8f bx = x - v1[0], by = y - v1[1], bz = z - v1[2];
     sdf__v8f cx = x - v2[0], cy = y - v2[1], cz = z - v2[2];
@@ -142,10 +151,48 @@ SDF__HOT_INLINE sdf__v8f sdf__triangle_lanes(const sdf__float_triangle *f, sdf__
     sdf__v8f side = sdf__v8f_min(sdf__v8f_min(side0, side1), side2) + f->face;
     sdf__v8f plane = ax * f->n[0] + ay * f->n[1] + az * f->n[2];
     sdf__v8f plane_d2 = plane * plane * f->inv_n2;
-    sdf__v8f edges = sdf__v8f_min(sdf__v8f_min(sdf__edge_dist2_lanes(f, 0, ax, ay, az),
-                                               sdf__edge_dist2_lanes(f, 1, bx, by, bz)),
-                                  sdf__edge_dist2_lanes(f, 2, cx, cy, cz));
+    sdf__v8f edges = sdf__v8f_min(sdf__v8f_min(sdf__edge8_dist2(f, 0, ax, ay, az),
+                                               sdf__edge8_dist2(f, 1, bx, by, bz)),
+                                  sdf__edge8_dist2(f, 2, cx, cy, cz));
     return sdf__v8f_select(side >= 0, plane_d2, edges);
+}
+
+/* One prepared triangle stored compactly (the cluster's candidates): the fields of
+ * sdf__triangle8 for a single triangle. */
+typedef struct sdf__float_triangle {
+    float v[3][3], e[3][3], inv_len2[3], n[3], inv_n2, m[3][3], face;
+} sdf__float_triangle;
+
+/* Fill the rest of `f` from its corners f->v (by sdf__triangle8_prepare on its lane 0). */
+SDF__HOT_INLINE void sdf__float_triangle_prepare(sdf__float_triangle *f)
+{
+    sdf__triangle8 t;
+    for (int k = 0; k < 3; k++)
+        for (int a = 0; a < 3; a++)
+            t.v[k][a] = sdf__v8f_splat(f->v[k][a]);
+    sdf__triangle8_prepare(&t);
+    for (int k = 0; k < 3; k++) {
+        for (int a = 0; a < 3; a++)
+            f->e[k][a] = t.e[k][a][0], f->m[k][a] = t.m[k][a][0];
+        f->inv_len2[k] = t.inv_len2[k][0], f->n[k] = t.n[k][0];
+    }
+    f->inv_n2 = t.inv_n2[0], f->face = t.face[0];
+}
+
+/* The triangle's squared float distance from eight points. */
+SDF__HOT_INLINE sdf__v8f sdf__triangle_lanes(const sdf__float_triangle *f, sdf__v8f x, sdf__v8f y,
+                                             sdf__v8f z)
+{
+    sdf__triangle8 t;
+    for (int k = 0; k < 3; k++) {
+        for (int a = 0; a < 3; a++) {
+            t.v[k][a] = sdf__v8f_splat(f->v[k][a]), t.e[k][a] = sdf__v8f_splat(f->e[k][a]);
+            t.m[k][a] = sdf__v8f_splat(f->m[k][a]);
+        }
+        t.inv_len2[k] = sdf__v8f_splat(f->inv_len2[k]), t.n[k] = sdf__v8f_splat(f->n[k]);
+    }
+    t.inv_n2 = sdf__v8f_splat(f->inv_n2), t.face = sdf__v8f_splat(f->face);
+    return sdf__triangle8_dist2(&t, x, y, z);
 }
 
 #endif

@@ -152,24 +152,29 @@ SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *nod
     for (uint32_t k = 0; k < node->count; k++) {
         uint32_t tri = tree->prims[node->first + k];
         const uint32_t *t = triangles + 3 * (size_t)tri;
-        sdf__float_triangle f; /* corners loaded once: for the box test, then for the lane test */
+        float v[3][3]; /* corners loaded once: for the box test, then for the lane test */
         for (int c = 0; c < 3; c++)
-            memcpy(f.v[c], positions + 3 * (size_t)t[c], 3 * sizeof(float));
+            memcpy(v[c], positions + 3 * (size_t)t[c], 3 * sizeof(float));
         float lo[3], hi[3];
         for (int a = 0; a < 3; a++) {
-            lo[a] = sdf__minf(sdf__minf(f.v[0][a], f.v[1][a]), f.v[2][a]);
-            hi[a] = sdf__maxf(sdf__maxf(f.v[0][a], f.v[1][a]), f.v[2][a]);
+            lo[a] = sdf__minf(sdf__minf(v[0][a], v[1][a]), v[2][a]);
+            hi[a] = sdf__maxf(sdf__maxf(v[0][a], v[1][a]), v[2][a]);
         }
         unsigned near = groups & groups_near_box(pk, limit2, lo, hi);
         if (!near)
             continue;
-        sdf__float_triangle_prepare(&f);
+        sdf__triangle8 f; /* the one triangle in every lane */
+        for (int c = 0; c < 3; c++)
+            for (int a = 0; a < 3; a++)
+                f.v[c][a] = sdf__v8f_splat(v[c][a]);
+        sdf__triangle8_prepare(&f);
         for (int g = 0; g < LANE_GROUPS; g++) {
             if (!(near >> g & 1))
                 continue;
             const int o = g * LANE_GROUP;
-            sdf__v8f dist2 = sdf__triangle_lanes(&f, sdf__v8f_load(pk->x + o),
-                                                 sdf__v8f_load(pk->y + o), sdf__v8f_load(pk->z + o));
+            sdf__v8f px = sdf__v8f_load(pk->x + o), py = sdf__v8f_load(pk->y + o),
+                     pz = sdf__v8f_load(pk->z + o);
+            sdf__v8f dist2 = sdf__triangle8_dist2(&f, px, py, pz);
             sdf__v8i within = dist2 <= sdf__v8f_load(limit2 + o); /* lanes that pass are rare */
             if (!sdf__v8i_any(within))
                 continue;
@@ -183,18 +188,39 @@ SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *nod
     }
 }
 
-/* The exact double test over a lane's candidates decides its closest point. */
-static void exact_lane(const float *positions, const uint32_t *triangles, const sdf__packet *pk,
-                       int i, const lane_state *s, float limit2, sdf__hit *hit)
+/* The exact double test over a lane's candidates within limit2 decides its closest point. */
+static void exact_lane(const float *positions, const uint32_t *triangles, const double p[3],
+                       const lane_state *s, float limit2, sdf__hit *hit)
 {
     hit->dist2 = INFINITY;
     hit->triangle = 0;
-    double p[3] = {pk->x[i], pk->y[i], pk->z[i]};
     for (int c = 0; c < s->count; c++) {
         if (s->dist2[c] > limit2)
             continue;
         sdf__triangle_offer(positions, triangles, s->tri[c], p, hit);
     }
+}
+
+/* The exact decision over a lane's candidates, or INFINITY when they overflowed. */
+static void decide_lane(const float *positions, const uint32_t *triangles, const double p[3],
+                        const lane_state *s, float tie_abs, sdf__hit *hit)
+{
+    if (s->count > MAX_CANDIDATES) { /* too many near ties to hold: ask again */
+        hit->dist2 = INFINITY;
+        return;
+    }
+    float lim = s->best * (1 + TIE_REL) + tie_abs;
+    exact_lane(positions, triangles, p, s, lim * lim, hit);
+}
+
+/* The limit a search bounded by bound2 starts from: the bound plus the tie margin (the true
+ * closest triangle's float distance is at most its true distance plus the float error). */
+static float start_limit2(double bound2, float tie_abs)
+{
+    if (!(bound2 < INFINITY))
+        return INFINITY;
+    float lim = (float)sqrt(bound2) * (1 + TIE_REL) + tie_abs;
+    return lim * lim * CULL_SLACK;
 }
 
 SDF__SIMD_CLONES
@@ -205,12 +231,7 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
     float limit2[SDF__PACKET], cx = 0, cy = 0, cz = 0;
     lane_state lanes[SDF__PACKET];
     for (int i = 0; i < SDF__PACKET; i++) {
-        /* The true closest triangle's float distance is at most its true distance plus the
-         * float error, so the seeded bound gets the tie margin too. Padding lanes never
-         * match (limit -1). */
-        float bound = (float)sqrt(pk->bound2[i]);
-        float lim = bound * (1 + TIE_REL) + tie_abs;
-        limit2[i] = i < pk->n ? lim * lim * CULL_SLACK : -1.0f;
+        limit2[i] = i < pk->n ? start_limit2(pk->bound2[i], tie_abs) : -1.0f; /* padding: never */
         lanes[i].best = INFINITY;
         lanes[i].count = 0;
     }
@@ -238,11 +259,61 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
         stack[top++] = near;
     }
     for (int i = 0; i < pk->n; i++) {
-        if (lanes[i].count > MAX_CANDIDATES) { /* too many near ties to hold: ask again */
-            hits[i].dist2 = INFINITY;
+        double p[3] = {pk->x[i], pk->y[i], pk->z[i]};
+        decide_lane(positions, triangles, p, &lanes[i], tie_abs, &hits[i]);
+    }
+}
+
+SDF__SIMD_CLONES
+void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                        float extent, const float p[3], double bound2, sdf__hit *hit)
+{
+    const float tie_abs = TIE_ABS_OF_EXTENT * extent;
+    const float x = p[0], y = p[1], z = p[2];
+    const sdf__v8f vx = sdf__v8f_splat(x), vy = sdf__v8f_splat(y), vz = sdf__v8f_splat(z);
+    float limit2 = start_limit2(bound2, tie_abs);
+    lane_state lane = {.best = INFINITY, .count = 0};
+    uint32_t stack[SDF__TREE_MAX_DEPTH + 2];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const sdf__tree_node *node = &tree->nodes[stack[--top]];
+        if (sdf__box_dist2f(node->lo, node->hi, x, y, z) > limit2)
+            continue;
+        if (!node->count) { /* near child last on the stack, so it is visited first */
+            const sdf__tree_node *a = &tree->nodes[node->first], *b = a + 1;
+            int a_near = sdf__box_dist2f(a->lo, a->hi, x, y, z) <=
+                         sdf__box_dist2f(b->lo, b->hi, x, y, z);
+            stack[top++] = node->first + (uint32_t)a_near;
+            stack[top++] = node->first + (uint32_t)!a_near;
             continue;
         }
-        float lim = lanes[i].best * (1 + TIE_REL) + tie_abs;
-        exact_lane(positions, triangles, pk, i, &lanes[i], lim * lim, &hits[i]);
+        /* The leaf's triangles eight at a time, one per lane; short chunks repeat their first
+         * triangle in the spare lanes, which are never offered. */
+        for (uint32_t k0 = 0; k0 < node->count; k0 += LANE_GROUP) {
+            int n = node->count - k0 < LANE_GROUP ? (int)(node->count - k0) : LANE_GROUP;
+            uint32_t ids[LANE_GROUP];
+            float corner[3][3][LANE_GROUP];
+            for (int t = 0; t < LANE_GROUP; t++) {
+                ids[t] = tree->prims[node->first + k0 + (uint32_t)(t < n ? t : 0)];
+                const uint32_t *tri = triangles + 3 * (size_t)ids[t];
+                for (int c = 0; c < 3; c++)
+                    for (int a = 0; a < 3; a++)
+                        corner[c][a][t] = positions[3 * (size_t)tri[c] + a];
+            }
+            sdf__triangle8 f;
+            for (int c = 0; c < 3; c++)
+                for (int a = 0; a < 3; a++)
+                    f.v[c][a] = sdf__v8f_load(corner[c][a]);
+            sdf__triangle8_prepare(&f);
+            sdf__v8f dist2 = sdf__triangle8_dist2(&f, vx, vy, vz);
+            if (!sdf__v8i_any(dist2 <= limit2))
+                continue;
+            for (int t = 0; t < n; t++)
+                if (dist2[t] <= limit2)
+                    lane_offer(&lane, &limit2, tie_abs, ids[t], dist2[t]);
+        }
     }
+    double q[3] = {x, y, z};
+    decide_lane(positions, triangles, q, &lane, tie_abs, hit);
 }

@@ -49,4 +49,12 @@ typedef struct sdf__packet {
 void sdf__closest_packet(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                          float extent, sdf__packet *pk, sdf__hit *hits);
 
+/* The closest point to p over `tree` by one walk of it, a leaf's triangles tested together in
+ * float (eight lanes, one triangle each; the same candidates rule and exact decision as
+ * packets), starting from bound2 (an upper bound of the squared distance, or INFINITY). Gives
+ * the same distance as a search by Embree (sdf__bvh_closest), or hit->dist2 == INFINITY when
+ * the point must be asked again unseeded (as sdf__closest_packet). */
+void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                        float extent, const float p[3], double bound2, sdf__hit *hit);
+
 #endif

@@ -179,11 +179,18 @@ static void answer_range(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
-/* Answer a run of points one query at a time (Embree), in visit order. */
-static void single_points(const batch *b, const uint32_t *order, int n, sdf__hit *hits)
+/* Answer a run of points one at a time by our BVH (packet.h: sdf__closest_point), in visit
+ * order, each search starting from bound2[i] (NULL: unbounded). */
+static void single_points(const batch *b, const uint32_t *order, int n, const double *bound2,
+                          sdf__hit *hits)
 {
+    const sdf_mesh *m = b->mesh;
     for (int i = 0; i < n; i++) {
-        sdf__bvh_closest(b->mesh->bvh, point_at(b, order[i]), &hits[i]);
+        const float *p = point_at(b, order[i]);
+        sdf__closest_point(&m->tree, m->positions, m->triangles, (float)m->report.diagonal, p,
+                           bound2 ? bound2[i] : INFINITY, &hits[i]);
+        if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
+            sdf__bvh_closest(m->bvh, p, &hits[i]);
         finish(b, order[i], &hits[i], NAN);
     }
 }
@@ -254,7 +261,7 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
     const sdf_mesh *m = b->mesh;
     sdf__packet pk;
     sdf__hit hits[SDF__PACKET];
-    single_points(b, b->order + begin, 1, hits);
+    single_points(b, b->order + begin, 1, NULL, hits);
     const float *first = point_at(b, b->order[begin]);
     double prev[3] = {first[0], first[1], first[2]}, prev_d = sqrt(hits[0].dist2);
     for (size_t k = begin + 1; k < end; k += SDF__PACKET) {
@@ -269,7 +276,7 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
             spread = gap > spread ? gap : spread;
         }
         if (spread > PACKET_SPREAD * (prev_d + m->tree.leaf_size)) {
-            single_points(b, b->order + k, pk.n, hits);
+            single_points(b, b->order + k, pk.n, pk.bound2, hits);
         } else {
             answer_packet(b, &pk, b->order + k, 0, hits);
         }

@@ -137,7 +137,8 @@ static void test_clusters(const char *file, const char *kind, double spread, int
                   file);
         }
     }
-    CHECK(refused > n / 2, "%s: a capacity of 2 refused only %zu of %zu clusters", file, refused, n);
+    CHECK(refused > n / 2, "%s: a capacity of 2 refused only %zu of %zu clusters", file, refused,
+          n);
     sdf__cluster_destroy(tiny);
     sdf__cluster_destroy(cluster);
     free(centre), free(fc), free(on);

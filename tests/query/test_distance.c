@@ -1,7 +1,8 @@
 /* test_distance.c - differential test of distance, closest point, triangle id and
  * barycentric coordinates against the brute-force double-precision reference, on real
- * meshes and near-surface, uniform-box and far points, for both traversals (packets and
- * one query at a time), which must also agree with each other bit for bit. Tolerance:
+ * meshes and near-surface, uniform-box and far points, for both traversals (packets, whose
+ * spread-out points go one at a time through our own BVH, and Embree's one query at a time),
+ * which must also agree with each other bit for bit. Tolerance:
  * 1e-5 x the bbox diagonal.
  * Also: results are identical for 1 and 2 threads, for a strided point layout, and for
  * several caller threads sharing one mesh; a NaN point is reported by index before any
