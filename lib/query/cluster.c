@@ -14,8 +14,6 @@
 #define SLACK_REL 1e-5f
 #define SLACK_ABS_OF_EXTENT 4e-6f
 
-#define GROUPS (SDF__CLUSTER_MAX / SDF__LANE_GROUP)
-
 #define BUCKETS 32 /* reach classes of the candidates' visit order */
 
 /* A candidate: its box (the walk's test, and the cheap per-lane test), and the full float

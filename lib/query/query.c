@@ -46,6 +46,7 @@
  * points, one thread: 256 sent 27 % of refined_elephant's clusters to the packets (0.0246
  * Mq/s), 1024 2 % (0.0270-0.0281), 4096 no faster; fandisk within noise. */
 #define CLUSTER_CANDIDATES 1024
+#define SEEDED_CHUNK 1024 /* seeded points per work item */
 
 static const char *const sign_names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
 
@@ -76,6 +77,7 @@ typedef struct batch {
     const double *bound;   /* sdf__query_seeded: each point's distance bound */
     const int8_t *sign_hint; /* sdf__query_seeded: a sign known in advance (+-1), or 0 */
     const uint8_t *run_start; /* sdf__query_seeded: 1 where a run of nearby points begins */
+    sdf__cluster **clusters;  /* sdf__query_seeded: each worker's scratch (NULL: packets) */
 } batch;
 
 static const float *point_at(const batch *b, size_t i)
@@ -99,7 +101,7 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
         return SDF_EINVAL;
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
-    *b = (batch){mesh, (const char *)points, stride, sign, NULL, NULL, NULL, NULL, NULL, NULL};
+    *b = (batch){.mesh = mesh, .points = (const char *)points, .stride = stride, .sign = sign};
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -300,7 +302,7 @@ static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_opti
     return order;
 }
 
-/* Points [first, first + n) in packets of up to SDF__PACKET: their coordinates, and their
+/* Points [first, first + n), n <= SDF__PACKET, as one packet: their coordinates, and their
  * bounds from b->bound when `bounded`. */
 static void fill_packet(const batch *b, size_t first, int n, int bounded, sdf__packet *pk)
 {
@@ -318,10 +320,9 @@ static void fill_packet(const batch *b, size_t first, int n, int bounded, sdf__p
  * too many triangles could be closest, in bounded packets. */
 static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
 {
-    (void)worker;
     const batch *b = ctx;
     const sdf_mesh *m = b->mesh;
-    sdf__cluster *cluster = sdf__cluster_create(CLUSTER_CANDIDATES);
+    sdf__cluster *cluster = b->clusters[worker];
     sdf__packet pk;
     sdf__hit hits[SDF__CLUSTER_MAX];
     /* A point whose sign is known takes the float distance (sdf__query_seeded), and needs its
@@ -352,7 +353,6 @@ static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
                 answer_packet(b, &pk, NULL, k + (size_t)s, hits);
         }
     }
-    sdf__cluster_destroy(cluster);
 }
 
 int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,
@@ -367,7 +367,16 @@ int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *b
     b.bound = bound;
     b.sign_hint = sign_hint;
     b.run_start = run_start;
-    sdf__parallel_for(count, 32 * SDF__PACKET, opts ? opts->threads : 0, seeded_range, &b);
+    /* One cluster scratch per worker (~190 KB each), made once for the call. */
+    int threads = opts ? opts->threads : 0;
+    int workers = sdf__effective_threads(threads, count, SEEDED_CHUNK);
+    sdf__cluster *clusters[SDF__MAX_THREADS];
+    for (int w = 0; w < workers; w++)
+        clusters[w] = sdf__cluster_create(CLUSTER_CANDIDATES);
+    b.clusters = clusters;
+    sdf__parallel_for(count, SEEDED_CHUNK, threads, seeded_range, &b);
+    for (int w = 0; w < workers; w++)
+        sdf__cluster_destroy(clusters[w]);
     return 0;
 }
 
