@@ -15,7 +15,8 @@
  * and that triangle is closest up to float rounding of the distances compared (~1e-6 of the
  * triangle's size): where two triangles tie that closely, the one named may differ from
  * sdf_query's. A caller may take the float distance instead, and skip the exact test where
- * it needs no closest point (the filtered field's samples whose sign is known). */
+ * it needs no closest point (the filtered field's samples whose sign is known), except very
+ * near the surface, where float rounding is large next to the distance. */
 #ifndef SDF_QUERY_CLUSTER_H
 #define SDF_QUERY_CLUSTER_H
 
@@ -32,6 +33,7 @@ enum sdf__cluster_want {
     SDF__CLUSTER_EXACT,       /* the exact test's closest point and distance */
     SDF__CLUSTER_FLOAT,       /* the float distance (squared) and the triangle; nothing else */
     SDF__CLUSTER_FLOAT_POINT, /* the float distance, and the exact test's closest point */
+    /* (both exact within 256e-6 x extent of the surface: cluster.c, FLOAT_DISTANCE_MIN) */
 };
 
 /* Scratch for clusters with up to `capacity` candidate triangles (one per thread). */
