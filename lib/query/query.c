@@ -270,6 +270,10 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
     double prev[3] = {first[0], first[1], first[2]}, prev_d = sqrt(hits[0].dist2);
     for (size_t k = begin + 1; k < end; k += SDF__PACKET) {
         pk.n = (int)(end - k < SDF__PACKET ? end - k : SDF__PACKET);
+        /* The next packet's points, scattered in memory by the Morton order, are fetched
+         * while this one is traversed. */
+        for (size_t i = k + SDF__PACKET; i < k + 2 * SDF__PACKET && i < end; i++)
+            __builtin_prefetch(point_at(b, b->order[i]));
         double spread = 0;
         for (int i = 0; i < pk.n; i++) {
             const float *p = point_at(b, b->order[k + (size_t)i]);
