@@ -1,10 +1,11 @@
 /* lanes.h - float point-to-triangle and point-to-box distances for many points at once.
  *
- * The packet traversal (packet.c) and the cluster evaluation (cluster.c) test one triangle
- * against eight points at a time, branchless, on eight-lane vectors (AVX2 in the functions
- * compiled twice, core/simd.h; they must be inlined into such a function to be). Float
- * distances only choose triangles: distances are computed by the exact double test
- * (triangle.h). */
+ * The packet traversal and the cluster evaluation (packet.c, cluster.c) test one triangle
+ * against eight points at a time, and the single-point walk (packet.c) eight triangles
+ * against one point, branchless, on eight-lane vectors (AVX2 in the functions compiled
+ * twice, core/simd.h; they must be inlined into such a function to be). Float distances
+ * choose triangles; wherever a distance must be exact, the double test (triangle.h)
+ * computes it. */
 #ifndef SDF_QUERY_LANES_H
 #define SDF_QUERY_LANES_H
 
