@@ -163,14 +163,15 @@ static void test_filtered_direct(const char *file, const char *kind, int samples
     float *p = malloc(3 * n * sizeof *p), *f = malloc(n * sizeof *f), *g = malloc(n * sizeof *g);
     float *g2 = malloc(n * sizeof *g2), *grad = malloc(3 * n * sizeof *grad);
     sdf_workload(m, !strcmp(kind, "near") ? "band" : kind, &n, 23, p);
-    sdf_query_result raw = {.distance = f, .closest = grad};
+    float *on = malloc(3 * n * sizeof *on);
+    sdf_query_result raw = {.distance = f, .closest = on};
     CHECK(sdf_query(m, p, n, NULL, &raw) == 0, "sdf_query");
     if (!strcmp(kind, "near")) { /* 1e-7 x diagonal off the surface, towards the point */
         for (size_t i = 0; i < n; i++) {
             double len = fmax(fabs(f[i]), 1e-30);
             for (int a = 0; a < 3; a++)
-                p[3 * i + a] = (float)(grad[3 * i + a] +
-                                       1e-7 * diag * (p[3 * i + a] - grad[3 * i + a]) / len);
+                p[3 * i + a] = (float)(on[3 * i + a] +
+                                       1e-7 * diag * (p[3 * i + a] - on[3 * i + a]) / len);
         }
         CHECK(sdf_query(m, p, n, NULL, &raw) == 0, "sdf_query");
     }
@@ -214,7 +215,7 @@ static void test_filtered_direct(const char *file, const char *kind, int samples
     CHECK(!memcmp(g, g2, n * sizeof *g), "%s %s: g's value changes when its gradient is asked",
           file, kind);
     sdf__samples_free(&s);
-    free(p), free(f), free(g), free(g2), free(grad), free(x), free(fx);
+    free(p), free(f), free(g), free(g2), free(grad), free(x), free(fx), free(on);
     sdf_mesh_release(m);
 }
 
