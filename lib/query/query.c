@@ -3,13 +3,15 @@
  * A batch is checked whole first (finite coordinates, valid arguments) so that a bad point
  * fails the call before any output is written, then cut into chunks that worker threads
  * take in turn. The closest points come from packets of Morton-ordered points traversing
- * our BVH together (query/packet.c), or with SDF_TRAVERSAL_SINGLE from one Embree
- * rtcPointQuery per point; both run the same exact double-precision triangle test. Then,
+ * our BVH together (query/packet.c; points too spread out for a packet walk it one at a
+ * time), or with SDF_TRAVERSAL_SINGLE from one Embree rtcPointQuery per point; all run the
+ * same exact double-precision triangle test. Then,
  * per point, the sign by the requested method and the outputs asked for. The distances do
  * not depend on the thread count or the traversal. A large batch laid out as a lattice on a
  * closed mesh is instead answered by closest-feature scan conversion (volume/scan.h), whose
  * winners get the same exact test and the same finish (sdf__query_finish), so the same
- * distances. */
+ * distances. The filtered field's samples (sdf__query_seeded) go by clusters
+ * (query/cluster.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
