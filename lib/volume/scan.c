@@ -432,25 +432,12 @@ static int ensure_zspans(sdf__scan *s, call_state *st)
 }
 
 /* The exact test of the triangles in `list`, kept in *hit where nearer (ties: the lower id,
- * the searches' rule). */
+ * the searches' rule: query/triangle.h). */
 static void exact_tests(const sdf__scan *s, const uint32_t *list, size_t count, const double p[3],
                         sdf__hit *hit)
 {
-    const sdf__features *f = &s->feat;
-    for (size_t c = 0; c < count; c++) {
-        const uint32_t *t = s->mesh->triangles + 3 * (size_t)list[c];
-        const double *v[3] = {f->pos + 3 * (size_t)t[0], f->pos + 3 * (size_t)t[1],
-                              f->pos + 3 * (size_t)t[2]};
-        double point[3], bary[3];
-        int feat;
-        double d2 = sdf__closest_on_triangle(p, v[0], v[1], v[2], point, bary, &feat);
-        if (d2 < hit->dist2 || (d2 == hit->dist2 && list[c] < hit->triangle)) {
-            hit->dist2 = d2, hit->triangle = list[c], hit->feature = feat;
-            memcpy(hit->point, point, sizeof point);
-            memcpy(hit->bary, bary, sizeof bary);
-            sdf__triangle_normal(v[0], v[1], v[2], hit->face_normal);
-        }
-    }
+    for (size_t c = 0; c < count; c++)
+        sdf__triangle_offer(s->mesh->positions, s->mesh->triangles, list[c], p, hit);
 }
 
 /* The exact closest point on a triangle of the winning feature: the face itself; of an
