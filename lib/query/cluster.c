@@ -8,11 +8,8 @@
 #include "query/lanes.h"
 #include "query/triangle.h"
 
-/* Float distances (lanes.h) are accurate to about 10 ulps of (distance + triangle size);
- * every float comparison that must not lose a triangle is widened by SLACK_REL of the
- * distance plus SLACK_ABS_OF_EXTENT of the mesh's extent (the margins of packet.c). */
-#define SLACK_REL 1e-5f
-#define SLACK_ABS_OF_EXTENT 4e-6f
+/* Every float comparison that must not lose a triangle is widened by lanes.h's slack. */
+#define SLACK_REL SDF__LANE_SLACK_REL
 
 /* A float distance is taken only above this many slack_abs (relative error <~ 1/64 at worst,
  * ~1e-5 measured); nearer points are rare (band samples: a few %) and get the exact test. */
@@ -154,7 +151,7 @@ int sdf__cluster_closest(sdf__cluster *c, const sdf__tree *tree, const float *po
                          size_t stride, const double *bound, const uint8_t *want, int n,
                          sdf__hit *hits)
 {
-    const float slack_abs = SLACK_ABS_OF_EXTENT * extent;
+    const float slack_abs = SDF__LANE_SLACK_ABS_OF_EXTENT * extent;
     const float exact_below2 = (FLOAT_DISTANCE_MIN * slack_abs) * (FLOAT_DISTANCE_MIN * slack_abs);
     /* SoA lanes, padded to whole groups with copies of the last point. */
     float x[SDF__CLUSTER_MAX], y[SDF__CLUSTER_MAX], z[SDF__CLUSTER_MAX], off[SDF__CLUSTER_MAX];

@@ -17,6 +17,13 @@
 
 #define SDF__LANE_GROUP 8 /* points tested together: one AVX vector of floats */
 
+/* The float triangle test below is accurate to about 10 ulps of (distance + triangle size).
+ * A float comparison that must not lose a triangle is widened by SDF__LANE_SLACK_REL of the
+ * distance plus SDF__LANE_SLACK_ABS_OF_EXTENT of the mesh's extent (its bounding-box
+ * diagonal, which bounds every triangle's size): ~16x and ~6x that error. */
+#define SDF__LANE_SLACK_REL 1e-5f
+#define SDF__LANE_SLACK_ABS_OF_EXTENT 4e-6f
+
 /* max/min of finite floats as plain comparisons, which compile to maxss/minss (and vector
  * max/min in loops): fminf's NaN rules stop the compiler from inlining it (it became a libm
  * call per box test). Our inputs are never NaN. */

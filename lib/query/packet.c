@@ -79,15 +79,12 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t 
  * point. */
 #define CULL_SLACK 1.00001f
 
-/* The float triangle test (lanes.h) is accurate to about 10 ulps of (d + triangle size): every
- * triangle whose float distance is within TIE_REL * d + TIE_ABS of a lane's best float
- * distance is a candidate, and the candidates get the exact double test. TIE_ABS is a
- * fraction of the mesh's extent (the bounding-box diagonal sdf__closest_packet is given,
- * which bounds every triangle's size). The margins are ~16x and ~6x
- * the error bound, and cost nothing measurable: near ties are rare except at shared vertices
- * and edges, which the exact test must see anyway. */
-#define TIE_REL 1e-5f
-#define TIE_ABS_OF_EXTENT 4e-6f
+/* Every triangle whose float distance is within TIE_REL * d + TIE_ABS of a lane's best float
+ * distance is a candidate, and the candidates get the exact double test. The margins are the
+ * float test's slack (lanes.h) and cost nothing measurable: near ties are rare except at
+ * shared vertices and edges, which the exact test must see anyway. */
+#define TIE_REL SDF__LANE_SLACK_REL
+#define TIE_ABS_OF_EXTENT SDF__LANE_SLACK_ABS_OF_EXTENT
 
 /* Lanes are handled in groups of LANE_GROUP (one AVX vector of floats): a triangle gets the
  * full float test only in the groups that have a lane near its box. */
