@@ -2,6 +2,7 @@
 #include "bvh/embree.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,9 +13,12 @@
 
 struct sdf__bvh {
     RTCDevice device;
-    RTCScene scene;
+    _Atomic(RTCScene) scene; /* committed on first use (sdf__bvh_ready), then never changed */
+    pthread_mutex_t commit;   /* held while the scene is built */
+    int commit_rc;            /* the first build's result, kept: a failed build is not retried */
     const float *positions;
     const uint32_t *triangles;
+    size_t vertex_count, triangle_count;
     atomic_llong memory;
     atomic_int failed;
     char error[160];
@@ -50,46 +54,81 @@ int sdf__bvh_create(const float *positions, size_t vertex_count, const uint32_t 
     sdf__bvh *bvh = calloc(1, sizeof *bvh);
     if (!bvh)
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory");
+    if (pthread_mutex_init(&bvh->commit, NULL)) {
+        free(bvh);
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of resources for a mutex");
+    }
     bvh->positions = positions;
     bvh->triangles = triangles;
+    bvh->vertex_count = vertex_count;
+    bvh->triangle_count = triangle_count;
     bvh->device = rtcNewDevice(NULL);
     if (!bvh->device) {
+        pthread_mutex_destroy(&bvh->commit);
         free(bvh);
         return sdf__diag_set(diag, SDF_EBVH, 0, -1, "Embree device creation failed (error %d)",
                              (int)rtcGetDeviceError(NULL));
     }
     rtcSetDeviceErrorFunction(bvh->device, on_error, bvh);
     rtcSetDeviceMemoryMonitorFunction(bvh->device, on_memory, bvh);
-
-    bvh->scene = rtcNewScene(bvh->device);
-    rtcSetSceneFlags(bvh->scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-    rtcSetSceneBuildQuality(bvh->scene, RTC_BUILD_QUALITY_MEDIUM);
-    RTCGeometry geom = rtcNewGeometry(bvh->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, positions, 0,
-                               3 * sizeof(float), vertex_count);
-    rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, triangles, 0,
-                               3 * sizeof(uint32_t), triangle_count);
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(bvh->scene, geom);
-    rtcReleaseGeometry(geom);
-    rtcCommitScene(bvh->scene);
-    int rc = sdf__bvh_check(bvh, diag);
-    if (rc) {
-        sdf__bvh_destroy(bvh);
-        return rc;
-    }
     *out = bvh;
     return 0;
+}
+
+/* The scene over the mesh's triangles, committed; NULL after an Embree error. */
+static RTCScene commit_scene(sdf__bvh *bvh)
+{
+    RTCScene scene = rtcNewScene(bvh->device);
+    if (!scene)
+        return NULL;
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
+    RTCGeometry geom = rtcNewGeometry(bvh->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (geom) {
+        rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                   bvh->positions, 0, 3 * sizeof(float), bvh->vertex_count);
+        rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                   bvh->triangles, 0, 3 * sizeof(uint32_t), bvh->triangle_count);
+        rtcCommitGeometry(geom);
+        rtcAttachGeometry(scene, geom);
+        rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(scene);
+    if (!geom || atomic_load(&bvh->failed)) {
+        rtcReleaseScene(scene);
+        return NULL;
+    }
+    return scene;
+}
+
+int sdf__bvh_ready(const sdf__bvh *cbvh)
+{
+    sdf__bvh *bvh = (sdf__bvh *)cbvh; /* the scene is a cache: building it is not a change */
+    if (atomic_load_explicit(&bvh->scene, memory_order_acquire))
+        return 0;
+    pthread_mutex_lock(&bvh->commit);
+    if (!atomic_load_explicit(&bvh->scene, memory_order_relaxed) && !bvh->commit_rc) {
+        RTCScene scene = commit_scene(bvh);
+        if (scene)
+            atomic_store_explicit(&bvh->scene, scene, memory_order_release);
+        else
+            bvh->commit_rc = SDF_EBVH;
+    }
+    int rc = bvh->commit_rc;
+    pthread_mutex_unlock(&bvh->commit);
+    return rc;
 }
 
 void sdf__bvh_destroy(sdf__bvh *bvh)
 {
     if (!bvh)
         return;
-    if (bvh->scene)
-        rtcReleaseScene(bvh->scene);
+    RTCScene scene = atomic_load(&bvh->scene);
+    if (scene)
+        rtcReleaseScene(scene);
     if (bvh->device)
         rtcReleaseDevice(bvh->device);
+    pthread_mutex_destroy(&bvh->commit);
     free(bvh);
 }
 
@@ -150,7 +189,8 @@ void sdf__bvh_closest(const sdf__bvh *bvh, const float p[3], sdf__hit *hit)
                                   .radius = INFINITY};
     struct RTCPointQueryContext context;
     rtcInitPointQueryContext(&context);
-    rtcPointQuery(bvh->scene, &query, &context, visit_triangle, &q);
+    RTCScene scene = atomic_load_explicit(&((sdf__bvh *)bvh)->scene, memory_order_acquire);
+    rtcPointQuery(scene, &query, &context, visit_triangle, &q);
 }
 
 /* ---- ray crossings -------------------------------------------------------------------- */
@@ -206,6 +246,7 @@ unsigned sdf__bvh_crossings(const sdf__bvh *bvh, const float origin[3], const fl
     rh.ray.tfar = INFINITY;
     rh.ray.mask = UINT32_MAX;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(bvh->scene, &ctx.base, &rh);
+    rtcIntersect1(atomic_load_explicit(&((sdf__bvh *)bvh)->scene, memory_order_acquire),
+                  &ctx.base, &rh);
     return ctx.crossings;
 }

@@ -1,7 +1,10 @@
-/* embree.h - the Embree 3 side of a mesh: one device and one committed triangle scene per
- * mesh (no global state), used for exact closest-point queries (rtcPointQuery with our own
- * double-precision triangle test) and for ray-crossing counts (raycast sign).
- * Embree errors are caught by the device's error callback and turned into SDF_EBVH. */
+/* embree.h - the Embree 3 side of a mesh: one device per mesh (no global state), which
+ * builds our own tree (bvh/tree.h), and a triangle scene for the two things only Embree's
+ * traversal does here: the one-rtcPointQuery-per-point path (SDF_TRAVERSAL_SINGLE, with our
+ * own double-precision triangle test) and ray-crossing counts (raycast sign). Neither is the
+ * default, so the scene is committed on first use (sdf__bvh_ready): it took ~25 % of a
+ * mesh's build time and half its index memory. Embree errors are caught by the device's
+ * error callback and turned into SDF_EBVH. */
 #ifndef SDF_BVH_EMBREE_H
 #define SDF_BVH_EMBREE_H
 
@@ -24,8 +27,8 @@ typedef struct sdf__hit {
     int feature; /* enum sdf__feature */
 } sdf__hit;
 
-/* Build the scene over `positions` (padded, see topology.h) and `triangles`; both must
- * outlive the bvh. */
+/* The device, for a scene over `positions` (padded, see topology.h) and `triangles`; both
+ * must outlive the bvh. */
 int sdf__bvh_create(const float *positions, size_t vertex_count, const uint32_t *triangles,
                     size_t triangle_count, sdf__bvh **out, sdf_diag *diag);
 void sdf__bvh_destroy(sdf__bvh *bvh);
@@ -37,10 +40,15 @@ size_t sdf__bvh_memory(const sdf__bvh *bvh);
 /* Did Embree report an error since creation? Returns SDF_EBVH with its message. */
 int sdf__bvh_check(const sdf__bvh *bvh, sdf_diag *diag);
 
-/* Exact closest point on the mesh to p. Thread-safe. */
+/* Commit the scene if no call has yet (thread-safe; concurrent callers wait for the one
+ * build). 0, or SDF_EBVH if Embree failed (then every later call fails too). */
+int sdf__bvh_ready(const sdf__bvh *bvh);
+
+/* Exact closest point on the mesh to p, by the scene (sdf__bvh_ready first). Thread-safe. */
 void sdf__bvh_closest(const sdf__bvh *bvh, const float p[3], sdf__hit *hit);
 
-/* Number of distinct triangles the ray origin + t * dir (t > 0) crosses. Thread-safe. */
+/* Number of distinct triangles the ray origin + t * dir (t > 0) crosses, by the scene
+ * (sdf__bvh_ready first). Thread-safe. */
 unsigned sdf__bvh_crossings(const sdf__bvh *bvh, const float origin[3], const float dir[3]);
 
 #endif

@@ -2,10 +2,12 @@
  * (retain/release) and reporting on it.
  *
  * The build is a fixed sequence of named steps: weld, analyse the edges, orient (flip a
- * closed inside-out mesh), build Embree's scene and our own tree, look for
+ * closed inside-out mesh), build our own tree (with Embree's builder), look for
  * self-intersections (they decide what `auto` signs with), then the pseudonormals and the
- * winding-number moments. Every step is always done, so any sign method can be asked for on any mesh and the
- * mesh is immutable (hence lock-free) once built. */
+ * winding-number moments. Every step is always done, so any sign method can be asked for on
+ * any mesh and the mesh is immutable (hence lock-free) once built. The one exception is
+ * Embree's own scene, a cache that only the raycast sign and SDF_TRAVERSAL_SINGLE use: it is
+ * committed on their first use (bvh/embree.h), and the report's index bytes do not count it. */
 #include "mesh/mesh.h"
 
 #include <float.h>

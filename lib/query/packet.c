@@ -314,3 +314,37 @@ void sdf__closest_point(const sdf__tree *tree, const float *positions, const uin
     double q[3] = {x, y, z};
     decide_lane(positions, triangles, q, &lane, tie_abs, hit);
 }
+
+/* Culling compares the double box distance against the best exact distance grown by this
+ * factor: both round by ~1e-16, and a node as near as the best may hold a lower-numbered
+ * tie, which the offer rule prefers. */
+#define EXACT_CULL_SLACK (1 + 1e-9)
+
+void sdf__closest_exact(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                        const float p[3], sdf__hit *hit)
+{
+    const double q[3] = {p[0], p[1], p[2]};
+    hit->dist2 = INFINITY;
+    hit->triangle = 0;
+    uint32_t stack[SDF__TREE_MAX_DEPTH + 2];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const sdf__tree_node *node = &tree->nodes[stack[--top]];
+        double box2 = 0;
+        for (int a = 0; a < 3; a++) {
+            double gap = q[a] < node->lo[a] ? node->lo[a] - q[a]
+                         : q[a] > node->hi[a] ? q[a] - node->hi[a] : 0;
+            box2 += gap * gap;
+        }
+        if (box2 > hit->dist2 * EXACT_CULL_SLACK)
+            continue;
+        if (node->count) {
+            for (uint32_t k = 0; k < node->count; k++)
+                sdf__triangle_offer(positions, triangles, tree->prims[node->first + k], q, hit);
+            continue;
+        }
+        stack[top++] = node->first + 1; /* children in order: no need to be clever here */
+        stack[top++] = node->first;
+    }
+}

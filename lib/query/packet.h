@@ -44,16 +44,22 @@ typedef struct sdf__packet {
  * diagonal (the scale of float rounding). Candidates are found with a float test on all
  * lanes at once and decided by the exact double test (query/triangle.c). A point the packet
  * could not decide (a bound rounding made too small, or more near-equal candidates than it
- * holds) comes back with hit.dist2 == INFINITY and must be asked again unseeded. */
+ * holds) comes back with hit.dist2 == INFINITY and must be asked again (sdf__closest_exact). */
 void sdf__closest_packet(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                          float extent, sdf__packet *pk, sdf__hit *hits);
 
 /* The closest point to p over `tree` by one walk of it, a leaf's triangles tested together in
  * float (eight lanes, one triangle each; the same candidates rule and exact decision as
  * packets), starting from bound2 (an upper bound of the squared distance, or INFINITY). Gives
- * the same distance as a search by Embree (sdf__bvh_closest), or hit->dist2 == INFINITY when
- * the point must be asked again unseeded (as sdf__closest_packet). */
+ * the same distance as sdf__closest_exact, or hit->dist2 == INFINITY when the point must be
+ * asked again (as sdf__closest_packet). */
 void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                         float extent, const float p[3], double bound2, sdf__hit *hit);
+
+/* The closest point to p over `tree` by the exact double test alone (query/triangle.c: every
+ * triangle whose box is as near as the best so far), with the searches' tie rule: slow and
+ * always decided. It answers the rare points the float searches hand back. */
+void sdf__closest_exact(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                        const float p[3], sdf__hit *hit);
 
 #endif

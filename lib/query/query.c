@@ -80,6 +80,7 @@ typedef struct batch {
     const int8_t *sign_hint; /* sdf__query_seeded: a sign known in advance (+-1), or 0 */
     const uint8_t *run_start; /* sdf__query_seeded: 1 where a run of nearby points begins */
     sdf__cluster **clusters;  /* sdf__query_seeded: each worker's scratch (NULL: packets) */
+    int by_embree;            /* SDF_TRAVERSAL_SINGLE: one rtcPointQuery per point */
 } batch;
 
 static const float *point_at(const batch *b, size_t i)
@@ -104,6 +105,11 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
     *b = (batch){.mesh = mesh, .points = (const char *)points, .stride = stride, .sign = sign};
+    if (sign == SDF_SIGN_RAYCAST) { /* rays need Embree's scene, built on first use */
+        int rc = sdf__bvh_ready(mesh->bvh);
+        if (rc)
+            return rc;
+    }
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -178,9 +184,18 @@ static void answer_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     const batch *b = ctx;
+    const sdf_mesh *m = b->mesh;
     for (size_t i = begin; i < end; i++) {
         sdf__hit hit;
-        sdf__bvh_closest(b->mesh->bvh, point_at(b, i), &hit);
+        const float *p = point_at(b, i);
+        if (b->by_embree) {
+            sdf__bvh_closest(m->bvh, p, &hit);
+        } else {
+            sdf__closest_point(&m->tree, m->positions, m->triangles, (float)m->report.diagonal,
+                               p, INFINITY, &hit);
+            if (!isfinite(hit.dist2)) /* more near ties than the float search holds */
+                sdf__closest_exact(&m->tree, m->positions, m->triangles, p, &hit);
+        }
         finish(b, i, &hit, NAN);
     }
 }
@@ -196,7 +211,7 @@ static void single_points(const batch *b, const uint32_t *order, int n, const do
         sdf__closest_point(&m->tree, m->positions, m->triangles, (float)m->report.diagonal, p,
                            bound2 ? bound2[i] : INFINITY, &hits[i]);
         if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
-            sdf__bvh_closest(m->bvh, p, &hits[i]);
+            sdf__closest_exact(&m->tree, m->positions, m->triangles, p, &hits[i]);
         finish(b, order[i], &hits[i], NAN);
     }
 }
@@ -237,7 +252,8 @@ static void finish_packet(const batch *b, const sdf__packet *pk, const uint32_t 
     for (int i = 0; i < pk->n; i++) {
         size_t idx = order ? order[i] : first + (size_t)i;
         if (!isfinite(hits[i].dist2))
-            sdf__bvh_closest(b->mesh->bvh, point_at(b, idx), &hits[i]);
+            sdf__closest_exact(&b->mesh->tree, b->mesh->positions, b->mesh->triangles,
+                               point_at(b, idx), &hits[i]);
         finish(b, idx, &hits[i], winding[i]);
     }
 }
@@ -523,6 +539,12 @@ static int query_points(const batch *b0, size_t count, const sdf_query_options *
         sdf__parallel_for(count, chunk, threads, packet_range, &b);
         free(order);
     } else { /* single traversal, or no memory for the order: same answers */
+        if (opts && opts->traversal == SDF_TRAVERSAL_SINGLE) {
+            int rc = sdf__bvh_ready(b.mesh->bvh); /* Embree's scene, built on first use */
+            if (rc)
+                return rc;
+            b.by_embree = 1;
+        }
         sdf__parallel_for(count, CHUNK, threads, answer_range, &b);
     }
     return 0;

@@ -2,12 +2,15 @@
  * barycentric coordinates against the brute-force double-precision reference, on real
  * meshes and near-surface, uniform-box and far points, for both traversals (packets, whose
  * spread-out points go one at a time through our own BVH, and Embree's one query at a time),
- * which must also agree with each other bit for bit. Tolerance:
- * 1e-5 x the bbox diagonal.
+ * which must also agree with each other bit for bit, and with the exact-only walk that
+ * answers the points the float searches hand back (sdf__closest_exact). Tolerance:
+ * 1e-5 x the bbox diagonal. At a vertex that walk names the lowest-numbered of the tied
+ * triangles (the searches' tie rule).
  * Also: results are identical for 1 and 2 threads, for a strided point layout, and for
  * several caller threads sharing one mesh; a NaN point is reported by index before any
  * output is written. A cone whose apex touches 48 triangles exercises the packets' path for
- * more near-equal candidates than a lane holds. */
+ * more near-equal candidates than a lane holds. Embree's scene, committed on first use, is
+ * first asked for by several threads at once. */
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -16,6 +19,8 @@
 #include "../common/check.h"
 #include "../common/reference.h"
 #include "../common/workload.h"
+#include "mesh/mesh.h"
+#include "query/packet.h"
 
 static double dist3(const double a[3], const float b[3])
 {
@@ -86,13 +91,43 @@ static void test_mesh(const char *name, sdf_mesh *mesh)
             if (v == 0)
                 memcpy(single, d, n * sizeof *d);
         }
-        size_t differ = 0;
-        for (size_t i = 0; i < n; i++)
+        size_t differ = 0, exact_differ = 0;
+        for (size_t i = 0; i < n; i++) {
             differ += memcmp(&single[i], &d[i], sizeof *d) != 0;
+            sdf__hit hit;
+            sdf__closest_exact(&mesh->tree, mesh->positions, mesh->triangles, p + 3 * i, &hit);
+            float exact = (float)sqrt(hit.dist2);
+            exact_differ += memcmp(&exact, &single[i], sizeof exact) != 0;
+        }
         CHECK(differ == 0, "%s %s: packets and single traversal differ on %zu points", name,
               kinds[k], differ);
+        CHECK(exact_differ == 0, "%s %s: the exact-only walk differs from packets on %zu points",
+              name, kinds[k], exact_differ);
         free(p), free(d), free(c), free(w), free(t), free(single);
     }
+}
+
+/* At a vertex every incident triangle is at distance 0: the exact-only walk names the
+ * lowest-numbered of them (ties go to the lower id, as in every search). */
+static void test_exact_ties(const char *name, const sdf_mesh *mesh)
+{
+    size_t vertices = mesh->report.vertices, tris = mesh->report.triangles;
+    size_t step = vertices / 200 + 1, wrong = 0, tested = 0;
+    for (size_t v = 0; v < vertices; v += step) {
+        uint32_t lowest = UINT32_MAX;
+        for (size_t t = 0; t < 3 * tris && lowest == UINT32_MAX; t++)
+            if (mesh->triangles[t] == v)
+                lowest = (uint32_t)(t / 3);
+        if (lowest == UINT32_MAX)
+            continue; /* a vertex no triangle uses */
+        sdf__hit hit;
+        sdf__closest_exact(&mesh->tree, mesh->positions, mesh->triangles,
+                           mesh->positions + 3 * v, &hit);
+        wrong += hit.dist2 != 0 || hit.triangle != lowest;
+        tested++;
+    }
+    CHECK(tested > 0 && wrong == 0, "%s: %zu of %zu vertices not named by their lowest triangle",
+          name, wrong, tested);
 }
 
 /* A closed cone of 48 slices: its apex and base centre each touch 48 triangles, more
@@ -187,7 +222,7 @@ static void run_all_signs(sdf_mesh *mesh, const float *p, size_t n, float *out)
     for (int s = 0; s < 4; s++) {
         sdf_query_options o = {.sign = signs[s], .threads = 1};
         sdf_query_result r = {.distance = out + s * n};
-        sdf_query(mesh, p, n, &o, &r);
+        CHECK(sdf_query(mesh, p, n, &o, &r) == 0, "query with sign %d", (int)signs[s]);
     }
 }
 
@@ -200,21 +235,24 @@ static void *concurrent_worker(void *arg)
     return NULL;
 }
 
+/* `mesh` fresh: the callers race to its first raycast (Embree's scene, built on first use);
+ * the answers they get are compared with one caller's afterwards. */
 static void test_concurrent_callers(sdf_mesh *mesh)
 {
     enum { THREADS = 4 };
     size_t n = 2000;
     float *p = malloc(3 * n * sizeof *p), *expect = malloc(4 * n * sizeof *expect);
     sdf_workload(mesh, "band", &n, 9, p);
-    run_all_signs(mesh, p, n, expect);
     pthread_t tid[THREADS];
     concurrent_job jobs[THREADS];
     for (int i = 0; i < THREADS; i++) {
         jobs[i] = (concurrent_job){mesh, p, n, malloc(4 * n * sizeof(float))};
         CHECK(pthread_create(&tid[i], NULL, concurrent_worker, &jobs[i]) == 0, "thread");
     }
-    for (int i = 0; i < THREADS; i++) {
+    for (int i = 0; i < THREADS; i++)
         pthread_join(tid[i], NULL);
+    run_all_signs(mesh, p, n, expect);
+    for (int i = 0; i < THREADS; i++) {
         CHECK(!memcmp(jobs[i].distance, expect, 4 * n * sizeof(float)),
               "caller thread %d got different answers", i);
         free(jobs[i].distance);
@@ -253,6 +291,7 @@ int main(void)
         if (!mesh)
             continue;
         test_mesh(files[i], mesh);
+        test_exact_ties(files[i], mesh);
         sdf_mesh_release(mesh);
     }
     sdf_mesh *demo;
@@ -260,8 +299,10 @@ int main(void)
     test_mesh("demo", demo);
     test_many_ties();
     test_threads_and_stride(demo);
-    test_concurrent_callers(demo);
     test_bad_points(demo);
+    sdf_mesh_release(demo);
+    CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
+    test_concurrent_callers(demo);
     sdf_mesh_release(demo);
     return check_finish("test_distance");
 }

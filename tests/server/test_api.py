@@ -71,6 +71,10 @@ class Exactness(unittest.TestCase):
     def test_signed_winding(self):
         self.check_mode("signed", "winding")
 
+    def test_signed_raycast(self):
+        """Rays need Embree's scene, which a mesh commits on its first raycast query."""
+        self.check_mode("signed", "raycast")
+
     def test_distance(self):
         self.check_mode("distance")
 

@@ -139,7 +139,9 @@ typedef struct sdf_mesh_report {
     size_t misoriented_edges;    /* two triangles traversing the edge in the same direction */
     double volume;               /* enclosed (signed) volume, after any flip */
     sdf_sign_method auto_sign;   /* what SDF_SIGN_AUTO resolves to for this mesh */
-    size_t index_bytes;          /* memory of the BVHs and sign data */
+    size_t index_bytes;          /* memory of our BVH and the sign data (Embree's scene,
+                                    made on the first raycast or single-traversal query,
+                                    is not counted) */
     double build_seconds;        /* welding, topology, BVHs and sign data */
 } sdf_mesh_report;
 
