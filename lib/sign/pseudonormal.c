@@ -45,22 +45,6 @@ static void load_corners(const float *positions, const uint32_t *tri, double p[3
         load(positions, tri[k], p[k]);
 }
 
-/* Interior angle at corner `a` of triangle (a, b, c). */
-static double corner_angle(const double a[3], const double b[3], const double c[3])
-{
-    double u[3], v[3];
-    for (int i = 0; i < 3; i++) {
-        u[i] = b[i] - a[i];
-        v[i] = c[i] - a[i];
-    }
-    if (normalize(u) == 0 || normalize(v) == 0)
-        return 0;
-    double cross[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                       u[0] * v[1] - u[1] * v[0]};
-    double s = sqrt(cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]);
-    return atan2(s, u[0] * v[0] + u[1] * v[1] + u[2] * v[2]); /* stable for all angles */
-}
-
 static void store_unit(float *dst, double v[3])
 {
     normalize(v);
@@ -80,6 +64,9 @@ typedef struct terms_job {
     face_terms *terms;
 } terms_job;
 
+/* The interior angle at corner k is atan2(|u x v|, u . v) for the corner's two edge vectors
+ * u, v: stable for all angles, needing no unit vectors, and |u x v| is the same at all three
+ * corners (twice the area). */
 static void compute_terms(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
@@ -88,9 +75,14 @@ static void compute_terms(void *ctx, size_t begin, size_t end, int worker)
         face_terms *f = &job->terms[t];
         double p[3][3];
         load_corners(job->positions, job->triangles + 3 * t, p);
-        f->has_normal = face_normal(p, f->normal) > 0;
-        for (int k = 0; k < 3 && f->has_normal; k++)
-            f->angle[k] = corner_angle(p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
+        double twice_area = face_normal(p, f->normal);
+        f->has_normal = twice_area > 0;
+        for (int k = 0; k < 3 && f->has_normal; k++) {
+            const double *a = p[k], *b = p[(k + 1) % 3], *c = p[(k + 2) % 3];
+            double dot = (b[0] - a[0]) * (c[0] - a[0]) + (b[1] - a[1]) * (c[1] - a[1]) +
+                         (b[2] - a[2]) * (c[2] - a[2]);
+            f->angle[k] = atan2(twice_area, dot);
+        }
     }
 }
 
