@@ -5,9 +5,11 @@
  * closed inside-out mesh), build our own tree (with Embree's builder), look for
  * self-intersections (they decide what `auto` signs with), then the pseudonormals and the
  * winding-number moments. Every step is always done, so any sign method can be asked for on
- * any mesh and the mesh is immutable (hence lock-free) once built. The one exception is
- * Embree's own scene, a cache that only the raycast sign and SDF_TRAVERSAL_SINGLE use: it is
- * committed on their first use (bvh/embree.h), and the report's index bytes do not count it. */
+ * any mesh and the mesh is immutable (hence lock-free) once built. Two caches are the
+ * exceptions, made on first use and not counted in the report's index bytes: Embree's own
+ * scene, which only the raycast sign and SDF_TRAVERSAL_SINGLE use (bvh/embree.h), and, on
+ * meshes that `auto` signs by pseudonormals, the winding-number moments (22 bytes per
+ * triangle, ~10 % of the build). */
 #include "mesh/mesh.h"
 
 #include <float.h>
@@ -31,7 +33,8 @@ static double now_seconds(void)
 
 static void mesh_free(sdf_mesh *m)
 {
-    sdf__winding_destroy(m->winding);
+    sdf__winding_destroy(atomic_load(&m->winding));
+    pthread_mutex_destroy(&m->lazy);
     sdf__pseudonormals_destroy(m->normals);
     sdf__tree_free(&m->tree);
     sdf__bvh_destroy(m->bvh);
@@ -103,15 +106,33 @@ static int step_sign_data(sdf_mesh *m, sdf_diag *diag)
     sdf_mesh_report *r = &m->report;
     int rc = sdf__pseudonormals_create(m->positions, r->vertices, m->triangles, m->edge_of,
                                        r->triangles, m->edge_count, &m->normals);
-    if (!rc)
-        rc = sdf__winding_create(&m->tree, m->positions, m->triangles, &m->winding);
+    if (!rc && r->auto_sign == SDF_SIGN_WINDING) /* what the default sign needs, now */
+        rc = sdf__mesh_need_winding(m);
     if (rc)
         return sdf__diag_set(diag, rc, 0, -1, "out of memory for the sign data");
     r->index_bytes = sdf__bvh_memory(m->bvh) + m->normals->bytes +
-                     sdf__winding_bytes(m->winding) + 3 * r->triangles * sizeof(uint32_t) +
+                     sdf__winding_bytes(sdf__mesh_winding(m)) +
+                     3 * r->triangles * sizeof(uint32_t) +
                      m->tree.node_count * sizeof(sdf__tree_node) +
                      m->tree.prim_count * sizeof(uint32_t);
     return 0;
+}
+
+int sdf__mesh_need_winding(const sdf_mesh *cm)
+{
+    sdf_mesh *m = (sdf_mesh *)cm; /* the moments are a cache: making them is not a change */
+    if (sdf__mesh_winding(m))
+        return 0;
+    pthread_mutex_lock(&m->lazy);
+    if (!atomic_load_explicit(&m->winding, memory_order_relaxed) && !m->lazy_rc) {
+        sdf__winding *w = NULL;
+        m->lazy_rc = sdf__winding_create(&m->tree, m->positions, m->triangles, &w);
+        if (!m->lazy_rc)
+            atomic_store_explicit(&m->winding, w, memory_order_release);
+    }
+    int rc = m->lazy_rc;
+    pthread_mutex_unlock(&m->lazy);
+    return rc;
 }
 
 int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
@@ -126,6 +147,12 @@ int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory");
     }
     atomic_init(&m->refs, 1);
+    if (pthread_mutex_init(&m->lazy, NULL)) {
+        free(m);
+        free(positions);
+        free(triangles);
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of resources for a mutex");
+    }
     m->triangles = triangles;
     m->report.triangles = triangle_count;
     m->report.format = format;

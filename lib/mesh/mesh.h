@@ -1,8 +1,12 @@
 /* mesh.h - the inside of an sdf_mesh, shared by the modules that build and query it.
- * Everything here is immutable once sdf__mesh_build returns, so queries need no locks. */
+ * Everything here is immutable once sdf__mesh_build returns, so queries need no locks,
+ * except two caches made on first use under the mesh's mutex and never changed after:
+ * Embree's scene (bvh/embree.h) and, on meshes that `auto` signs by pseudonormals, the
+ * winding-number moments (sdf__mesh_need_winding). */
 #ifndef SDF_MESH_MESH_H
 #define SDF_MESH_MESH_H
 
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -22,10 +26,12 @@ struct sdf_mesh {
     size_t edge_count;
     sdf_mesh_report report;
     float surface_epsilon; /* float resolution at the mesh's scale: "on the surface" */
-    struct sdf__bvh *bvh;  /* Embree's scene: closest points and rays */
+    struct sdf__bvh *bvh;  /* Embree's device, and its scene for rays and single queries */
     sdf__tree tree;        /* our own BVH: packets, winding numbers, self-intersection */
     struct sdf__pseudonormals *normals;
-    struct sdf__winding *winding;
+    _Atomic(struct sdf__winding *) winding; /* sdf__mesh_winding: NULL until needed */
+    pthread_mutex_t lazy;  /* held while the winding moments are made */
+    int lazy_rc;           /* their first build's error, kept: it is not retried */
 };
 
 /* Take ownership of a triangle soup (positions with 3 floats per vertex, 0-based triangle
@@ -33,5 +39,16 @@ struct sdf_mesh {
  * BVHs and sign data. Frees `positions` and `triangles` in all cases. */
 int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
                     size_t triangle_count, sdf_format format, sdf_mesh **out, sdf_diag *diag);
+
+/* Make the winding-number moments if no call has yet (thread-safe: concurrent callers wait
+ * for the one build). Every query that signs by winding numbers calls it first. Meshes that
+ * `auto` signs by winding numbers have them from the build. 0 or SDF_ENOMEM. */
+int sdf__mesh_need_winding(const sdf_mesh *mesh);
+
+/* The moments, after sdf__mesh_need_winding succeeded. */
+static inline const struct sdf__winding *sdf__mesh_winding(const sdf_mesh *mesh)
+{
+    return atomic_load_explicit(&((sdf_mesh *)mesh)->winding, memory_order_acquire);
+}
 
 #endif

@@ -105,11 +105,11 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
     *b = (batch){.mesh = mesh, .points = (const char *)points, .stride = stride, .sign = sign};
-    if (sign == SDF_SIGN_RAYCAST) { /* rays need Embree's scene, built on first use */
-        int rc = sdf__bvh_ready(mesh->bvh);
-        if (rc)
-            return rc;
-    }
+    /* Caches made on first use: rays need Embree's scene, winding numbers their moments. */
+    int rc = sign == SDF_SIGN_RAYCAST ? sdf__bvh_ready(mesh->bvh)
+             : sign == SDF_SIGN_WINDING ? sdf__mesh_need_winding(mesh) : 0;
+    if (rc)
+        return rc;
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -137,7 +137,7 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
     case SDF_SIGN_WINDING: {
         double q[3] = {p[0], p[1], p[2]};
         if (isnan(winding))
-            winding = sdf__winding_number(m->winding, q);
+            winding = sdf__winding_number(sdf__mesh_winding(m), q);
         return winding > 0.5 ? -1.0f : 1.0f;
     }
     case SDF_SIGN_RAYCAST:
@@ -231,7 +231,7 @@ static void packet_winding(const batch *b, const sdf__packet *pk, double *windin
         int j = i < pk->n ? i : pk->n - 1;
         qx[i] = pk->x[j], qy[i] = pk->y[j], qz[i] = pk->z[j];
     }
-    sdf__winding_packet(b->mesh->winding, qx, qy, qz, pk->n, winding);
+    sdf__winding_packet(sdf__mesh_winding(b->mesh), qx, qy, qz, pk->n, winding);
 }
 
 /* Signs and outputs of a packet's points (coordinates filled in for lanes < n) whose
@@ -557,7 +557,7 @@ static void winding_range(void *ctx, size_t begin, size_t end, int worker)
     for (size_t i = begin; i < end; i++) {
         const float *p = point_at(b, i);
         double q[3] = {p[0], p[1], p[2]};
-        b->winding[i] = (float)sdf__winding_number(b->mesh->winding, q);
+        b->winding[i] = (float)sdf__winding_number(sdf__mesh_winding(b->mesh), q);
     }
 }
 
@@ -574,7 +574,7 @@ static void winding_packet_range(void *ctx, size_t begin, size_t end, int worker
             const float *p = point_at(b, b->order[k + (size_t)(i < n ? i : n - 1)]);
             qx[i] = p[0], qy[i] = p[1], qz[i] = p[2];
         }
-        sdf__winding_packet(b->mesh->winding, qx, qy, qz, n, w);
+        sdf__winding_packet(sdf__mesh_winding(b->mesh), qx, qy, qz, n, w);
         for (int i = 0; i < n; i++)
             b->winding[b->order[k + (size_t)i]] = (float)w[i];
     }
@@ -587,6 +587,8 @@ int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
         return SDF_EINVAL;
     batch b;
     int rc = check_batch(mesh, points, count, opts, &b, bad_index);
+    if (!rc)
+        rc = sdf__mesh_need_winding(mesh);
     if (rc)
         return rc;
     b.winding = winding;

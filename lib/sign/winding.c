@@ -175,7 +175,7 @@ void sdf__winding_destroy(sdf__winding *w)
 
 size_t sdf__winding_bytes(const sdf__winding *w)
 {
-    return w->tree->node_count * sizeof(stored_moments);
+    return w ? w->tree->node_count * sizeof(stored_moments) : 0;
 }
 
 double sdf__solid_angle(const double q[3], const double a[3], const double b[3],

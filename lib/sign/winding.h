@@ -25,7 +25,7 @@ typedef struct sdf__winding sdf__winding;
 int sdf__winding_create(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                         sdf__winding **out);
 void sdf__winding_destroy(sdf__winding *w);
-size_t sdf__winding_bytes(const sdf__winding *w);
+size_t sdf__winding_bytes(const sdf__winding *w); /* 0 for NULL (none made yet) */
 
 /* The winding number at q. Thread-safe. */
 double sdf__winding_number(const sdf__winding *w, const double q[3]);
