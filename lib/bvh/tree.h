@@ -22,8 +22,23 @@ typedef struct sdf__tree_node {
     uint32_t count;
 } sdf__tree_node;
 
+/* A leaf's triangles lie in a flat cylinder: within `radius` of the axis through `centre`
+ * along `normal` (unit), and within `half_height` of the plane through `centre` across it,
+ * both widened past float rounding. The distance to the cylinder bounds the distance to
+ * every triangle of the leaf from below, and where a box is a poor fit it is a far better
+ * bound: the box of a surface patch tilted to the axes reaches out of the surface by about
+ * the patch's size, so a point at distance d above it finds the boxes of every leaf within
+ * ~sqrt(2 d s) (s: the leaves' size) as near as its closest triangle; the cylinders of all
+ * but the leaves under it are farther. A leaf whose triangles have no area keeps an infinite
+ * cylinder (it culls nothing). */
+typedef struct sdf__tree_disc {
+    float centre[3], radius;
+    float normal[3], half_height;
+} sdf__tree_disc;
+
 typedef struct sdf__tree {
     sdf__tree_node *nodes;
+    sdf__tree_disc *discs;  /* per node; meaningful at leaves */
     size_t node_count;
     uint32_t *prims;
     size_t prim_count;

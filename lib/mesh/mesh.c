@@ -113,7 +113,7 @@ static int step_sign_data(sdf_mesh *m, sdf_diag *diag)
     r->index_bytes = sdf__bvh_memory(m->bvh) + m->normals->bytes +
                      sdf__winding_bytes(sdf__mesh_winding(m)) +
                      3 * r->triangles * sizeof(uint32_t) +
-                     m->tree.node_count * sizeof(sdf__tree_node) +
+                     m->tree.node_count * (sizeof(sdf__tree_node) + sizeof(sdf__tree_disc)) +
                      m->tree.prim_count * sizeof(uint32_t);
     return 0;
 }

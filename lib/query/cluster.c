@@ -60,8 +60,8 @@ void sdf__cluster_destroy(sdf__cluster *c)
     free(c);
 }
 
-/* Every triangle whose box lies within `radius` of `centre`, in c's arrays with the box's
- * distance as its reach. Returns their count, or -1 when there are more than the capacity. */
+/* Every triangle whose box lies within `radius` of `centre` (in a leaf whose cylinder does),
+ * in c's arrays with the box's distance as its reach. Returns their count, or -1 when there are more than the capacity. */
 SDF__HOT_INLINE int gather(sdf__cluster *c, const sdf__tree *tree, const float *positions,
                            const uint32_t *triangles, const float centre[3], float radius)
 {
@@ -80,6 +80,8 @@ SDF__HOT_INLINE int gather(sdf__cluster *c, const sdf__tree *tree, const float *
             stack[top++] = node->first;
             continue;
         }
+        if (sdf__disc_dist2f(&tree->discs[node - tree->nodes], x, y, z) > r2)
+            continue; /* the leaf's cylinder (bvh/tree.h) is farther than its box */
         for (uint32_t k = 0; k < node->count; k++) {
             uint32_t tri = tree->prims[node->first + k];
             const float *v[3];

@@ -13,6 +13,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "bvh/tree.h" /* sdf__tree_disc */
 #include "core/simd.h"
 
 #define SDF__LANE_GROUP 8 /* points tested together: one AVX vector of floats */
@@ -38,6 +39,19 @@ SDF__HOT_INLINE float sdf__box_dist2f(const float lo[3], const float hi[3], floa
     float dy = sdf__maxf(sdf__maxf(lo[1] - y, y - hi[1]), 0.0f);
     float dz = sdf__maxf(sdf__maxf(lo[2] - z, z - hi[2]), 0.0f);
     return dx * dx + dy * dy + dz * dz;
+}
+
+/* Squared distance from (x, y, z) to a leaf's cylinder (bvh/tree.h); 0 inside. */
+SDF__HOT_INLINE float sdf__disc_dist2f(const sdf__tree_disc *c, float x, float y, float z)
+{
+    float vx = x - c->centre[0], vy = y - c->centre[1], vz = z - c->centre[2];
+    float h = vx * c->normal[0] + vy * c->normal[1] + vz * c->normal[2];
+    /* The offset across the axis as a vector: |v|^2 - h^2 would cancel for points far
+     * along the normal. */
+    float wx = vx - h * c->normal[0], wy = vy - h * c->normal[1], wz = vz - h * c->normal[2];
+    float a = sdf__maxf(sqrtf(wx * wx + wy * wy + wz * wz) - c->radius, 0.0f);
+    float b = sdf__maxf(sdf__maxf(h, -h) - c->half_height, 0.0f);
+    return a * a + b * b;
 }
 
 /* Eight lanes as one GCC/clang vector ("vector extensions": plain C operators, no
@@ -80,6 +94,28 @@ SDF__HOT_INLINE int sdf__v8i_any(sdf__v8i m)
     uint64_t w[4];
     memcpy(w, &m, sizeof w);
     return (w[0] | w[1] | w[2] | w[3]) != 0;
+}
+
+/* Lane-wise square root (vsqrtps where the vectorizer sees it: -fno-math-errno). */
+SDF__HOT_INLINE sdf__v8f sdf__v8f_sqrt(sdf__v8f a)
+{
+    sdf__v8f r;
+    for (int i = 0; i < 8; i++)
+        r[i] = sqrtf(a[i]);
+    return r;
+}
+
+/* Squared distance from eight points to a leaf's cylinder (bvh/tree.h); 0 inside. */
+SDF__HOT_INLINE sdf__v8f sdf__disc_dist2_lanes(const sdf__tree_disc *c, sdf__v8f x, sdf__v8f y,
+                                               sdf__v8f z)
+{
+    const sdf__v8f zero = sdf__v8f_splat(0);
+    sdf__v8f vx = x - c->centre[0], vy = y - c->centre[1], vz = z - c->centre[2];
+    sdf__v8f h = vx * c->normal[0] + vy * c->normal[1] + vz * c->normal[2];
+    sdf__v8f wx = vx - h * c->normal[0], wy = vy - h * c->normal[1], wz = vz - h * c->normal[2];
+    sdf__v8f a = sdf__v8f_max(sdf__v8f_sqrt(wx * wx + wy * wy + wz * wz) - c->radius, zero);
+    sdf__v8f b = sdf__v8f_max(sdf__v8f_max(h, -h) - c->half_height, zero);
+    return a * a + b * b;
 }
 
 /* Squared distance from eight points to the box [lo, hi]; 0 inside. */

@@ -92,6 +92,22 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t 
 #define LANE_GROUPS (SDF__PACKET / LANE_GROUP)
 _Static_assert(SDF__PACKET % LANE_GROUP == 0, "a packet is whole groups");
 
+/* Bit g set: some lane of group g lies within its limit of leaf cylinder c. */
+SDF__HOT_INLINE unsigned groups_near_disc(const sdf__packet *pk, const float *limit2,
+                                          const sdf__tree_disc *c, unsigned groups)
+{
+    unsigned mask = 0;
+    for (int g = 0; g < LANE_GROUPS; g++) {
+        if (!(groups >> g & 1))
+            continue;
+        const int o = g * LANE_GROUP;
+        sdf__v8f d2 = sdf__disc_dist2_lanes(c, sdf__v8f_load(pk->x + o), sdf__v8f_load(pk->y + o),
+                                            sdf__v8f_load(pk->z + o));
+        mask |= (unsigned)sdf__v8i_any(d2 <= sdf__v8f_load(limit2 + o)) << g;
+    }
+    return mask;
+}
+
 /* Bit g set: some lane of group g lies within its limit of the box [lo, hi]. */
 SDF__HOT_INLINE unsigned groups_near_box(const sdf__packet *pk, const float *limit2,
                                          const float lo[3], const float hi[3])
@@ -244,7 +260,9 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
         if (!groups)
             continue;
         if (node->count) {
-            visit_leaf(tree, node, positions, triangles, pk, groups, limit2, tie_abs, lanes);
+            groups = groups_near_disc(pk, limit2, &tree->discs[node - tree->nodes], groups);
+            if (groups)
+                visit_leaf(tree, node, positions, triangles, pk, groups, limit2, tie_abs, lanes);
             continue;
         }
         /* Near child last on the stack, so it is visited first and shrinks the bounds. */
@@ -285,6 +303,8 @@ void sdf__closest_point(const sdf__tree *tree, const float *positions, const uin
             stack[top++] = node->first + (uint32_t)!a_near;
             continue;
         }
+        if (sdf__disc_dist2f(&tree->discs[node - tree->nodes], x, y, z) > limit2)
+            continue;
         /* The leaf's triangles eight at a time, one per lane; short chunks repeat their first
          * triangle in the spare lanes, which are never offered. */
         for (uint32_t k0 = 0; k0 < node->count; k0 += LANE_GROUP) {
