@@ -4,9 +4,9 @@
  * branches of the tree, so they are grouped and the tree is traversed once for all of them.
  * Three levers, in order of payoff (DESIGN.md):
  *  1. bounds: no search starts at infinity. Points are visited in Morton order, and a
- *     point's squared search radius starts at (d_prev + |p - p_prev|)^2, an upper bound of
- *     its distance by the triangle inequality (p_prev: the last point answered before its
- *     packet, d_prev its distance);
+ *     point's search radius starts at min(d_prev + |p - p_prev|, |p - c_prev|), an upper
+ *     bound of its distance by the triangle inequality (p_prev: the last point answered
+ *     before its packet, d_prev its distance, c_prev its closest point, on the surface);
  *  2. packets: SDF__PACKET consecutive points traverse the mesh's BVH (bvh/tree.h) together;
  *     a node is skipped only when it is farther than every point's current bound;
  *  3. data layout: the packet's coordinates are SoA arrays, so the per-node box tests and

@@ -286,6 +286,12 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
     single_points(b, b->order + begin, 1, NULL, hits);
     const float *first = point_at(b, b->order[begin]);
     double prev[3] = {first[0], first[1], first[2]}, prev_d = sqrt(hits[0].dist2);
+    /* That point's closest point is on the surface, so its distance from any point bounds
+     * that point's distance as well; beside each other over the surface it is the tighter
+     * of the two bounds (refined_elephant, 2 threads: 64,000 band points and 1M box points
+     * +5 %, 1M band within noise; the nearest of the last packet's 32 closest points gained
+     * no more). */
+    double near[3] = {hits[0].point[0], hits[0].point[1], hits[0].point[2]};
     for (size_t k = begin + 1; k < end; k += SDF__PACKET) {
         pk.n = (int)(end - k < SDF__PACKET ? end - k : SDF__PACKET);
         /* The next packet's points, scattered in memory by the Morton order, are fetched
@@ -302,7 +308,9 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
             pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
             double dx = p[0] - prev[0], dy = p[1] - prev[1], dz = p[2] - prev[2];
             double gap = sqrt(dx * dx + dy * dy + dz * dz), bound = prev_d + gap;
-            pk.bound2[i] = bound * bound;
+            double ex = p[0] - near[0], ey = p[1] - near[1], ez = p[2] - near[2];
+            double via_near2 = ex * ex + ey * ey + ez * ez;
+            pk.bound2[i] = via_near2 < bound * bound ? via_near2 : bound * bound;
             spread = gap > spread ? gap : spread;
         }
         if (spread > PACKET_SPREAD * (prev_d + m->tree.leaf_size)) {
@@ -313,6 +321,8 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
         const float *last = point_at(b, b->order[k + (size_t)pk.n - 1]);
         prev[0] = last[0], prev[1] = last[1], prev[2] = last[2];
         prev_d = sqrt(hits[pk.n - 1].dist2);
+        for (int a = 0; a < 3; a++)
+            near[a] = hits[pk.n - 1].point[a];
     }
 }
 
