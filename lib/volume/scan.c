@@ -34,6 +34,15 @@
 #define MAX_W (2 * 4 + 1)  /* first order: the fine grid's width, H <= 4 */
 #define MAX_SAMPLES (MAX_W * MAX_W * MAX_W)
 #define POW3(w) ((size_t)(w) * (size_t)(w) * (size_t)(w))
+/* Zero order, distances only: a node that lies inside its winner's region by more than this
+ * much of the scene's size (beyond the planes' slack), and off the surface by more than
+ * SURE_SIGN_OF_EXTENT, is "sure" (see rows_range). Double rounding of the plane values is
+ * ~1e-16 of the scene's size; a float pseudonormal's rounding ~1e-7 of an edge's length. */
+#define SURE_INSIDE_OF_EXTENT 1e-9
+#define SURE_SIGN_OF_EXTENT 1e-6
+/* The region's estimate and the exact test's distance both lie within this much of the
+ * scene's size of the true distance. */
+#define SURE_DISTANCE_OF_EXTENT 1e-13
 
 struct sdf__scan {
     const sdf_mesh *mesh;
@@ -53,6 +62,7 @@ struct sdf__scan {
     double inv_spacing[3];
     double index_slack[3];     /* float rounding of node coordinates, in nodes */
     double scale2;             /* squared size of the scene: the floor of the exactness check */
+    double extent;             /* the scene's size (sqrt(scale2)) */
 };
 
 /* ---- scanning ---------------------------------------------------------------------------- */
@@ -65,9 +75,13 @@ typedef struct call_state {
     size_t nodes;      /* in the call */
     double *best;      /* per worker and node: smallest squared distance so far */
     uint32_t *winner;  /* its feature (ties: the lowest id, so the merge is deterministic) */
+    int8_t *sure;      /* per worker and node, or NULL: the winner's sign (+-1) when the node is
+                          sure in its region (rows_range), else 0 */
     sdf__region *regions; /* per worker: the region being scanned */
     float *points;     /* per worker: a row of nodes */
     sdf__hit *hits;    /* per worker: their closest points */
+    uint32_t *slow;    /* per worker: a row's nodes that take the exact test (with st->sure) */
+    float *slow_out;   /* per worker: their distances */
     int workers;
     sdf_query_result out;  /* zero order: the outputs, at the call's first node */
     /* First order (sdf__scan_samples): a node stands for its fine grid of W^3 samples. */
@@ -207,10 +221,13 @@ static void fat_node(const call_state *st, const sdf__region *r, fat_region *fr,
 /* Hand the region's feature to every node of the call it holds. Slices run across the
  * region's thinnest axis A, rows across the middle one B, and each row along its longest C. */
 static void scan_region(const call_state *st, const sdf__region *r, uint32_t feature, double *best,
-                        uint32_t *winner, float *best_samples, fat_region *fr)
+                        uint32_t *winner, int8_t *sure, float *best_samples, fat_region *fr)
 {
     const sdf__scan *s = st->scan;
     double pad = s->feat.row_pad;
+    /* How far inside every plane a sure node lies: past the slack, by the margin. */
+    double inside_by = s->feat.slack + SURE_INSIDE_OF_EXTENT * s->extent;
+    double sign_by = SURE_SIGN_OF_EXTENT * s->extent;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     const double *rho = st->rho;
     for (int c = 0; c < r->corners; c++)
@@ -307,17 +324,26 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
         d[A] = ca - o[A];
         for (size_t sb = b0; sb <= b1; sb++) {
             double cb = s->coord[B][sb], lo_c = -INFINITY, hi_c = INFINITY;
-            int inside = 1;
-            for (int p = 0; p < n_flat; p++)
+            double lo_sure = -INFINITY, hi_sure = INFINITY; /* the row's sure interval */
+            int inside = 1, row_sure = sure != NULL;
+            for (int p = 0; p < n_flat; p++) {
                 inside &= flat[p][1] * cb <= off_flat[p];
+                row_sure &= flat[p][1] * cb <= off_flat[p] - inside_by;
+            }
             if (!inside)
                 continue;
             size_t v0 = u0, v1 = u1;
             if (!few) { /* the row's interval along C */
-                for (int p = 0; p < n_up; p++)
-                    hi_c = sdf__min2(hi_c, (off_up[p] - up[p][1] * cb) * up[p][3]);
-                for (int p = 0; p < n_down; p++)
-                    lo_c = sdf__max2(lo_c, (off_down[p] - down[p][1] * cb) * down[p][3]);
+                for (int p = 0; p < n_up; p++) {
+                    double at = (off_up[p] - up[p][1] * cb) * up[p][3];
+                    hi_c = sdf__min2(hi_c, at);
+                    hi_sure = sdf__min2(hi_sure, at - inside_by * up[p][3]);
+                }
+                for (int p = 0; p < n_down; p++) {
+                    double at = (off_down[p] - down[p][1] * cb) * down[p][3];
+                    lo_c = sdf__max2(lo_c, at);
+                    lo_sure = sdf__max2(lo_sure, at - inside_by * down[p][3]);
+                }
                 if (!node_range(s, C, lo_c, hi_c, u0, u1, &v0, &v1))
                     continue;
             }
@@ -327,6 +353,8 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
              * face (h0 + h1 t)^2, edge |x0 + t x1|^2 (x = d x dir), vertex r0 + t^2. */
             double unit_c[3] = {0, 0, 0}, x0[3] = {0, 0, 0}, x1[3] = {0, 0, 0};
             double h0 = 0, h1 = 0, r0 = 0;
+            /* The sign side along the row, (p - origin) . sign_dir = s0 + s1 t. */
+            double s0 = sdf__dot3(d, r->sign_dir), s1 = r->sign_dir[C];
             unit_c[C] = 1;
             if (r->kind == SDF__REGION_FACE) {
                 h0 = sdf__dot3(d, r->dir), h1 = r->dir[C];
@@ -339,14 +367,20 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
             size_t row = sa * stride[A] + sb * stride[B] - base;
             for (size_t u = v0; u <= v1; u++) {
                 double cc = s->coord[C][u];
+                int node_sure = row_sure;
                 if (few) { /* the node against every plane */
                     int in = 1;
-                    for (int p = 0; p < n_up + n_down; p++)
-                        in &= up[p][1] * cb + up[p][2] * cc <= off_up[p];
+                    for (int p = 0; p < n_up + n_down; p++) {
+                        double v = up[p][1] * cb + up[p][2] * cc - off_up[p];
+                        in &= v <= 0;
+                        node_sure &= v <= -inside_by;
+                    }
                     if (!in)
                         continue;
                 } else if (cc < lo_c || cc > hi_c) {
                     continue; /* the node's own coordinate decides */
+                } else {
+                    node_sure &= cc >= lo_sure && cc <= hi_sure;
                 }
                 if (st->fine_w) {
                     size_t idx[3];
@@ -365,8 +399,14 @@ static void scan_region(const call_state *st, const sdf__region *r, uint32_t fea
                     d2 = r0 + t * t;
                 }
                 size_t n = row + u * stride[C];
-                if (d2 < best[n] || (d2 == best[n] && feature < winner[n]))
+                if (d2 < best[n] || (d2 == best[n] && feature < winner[n])) {
                     best[n] = d2, winner[n] = feature;
+                    if (sure) {
+                        double side = s0 + s1 * t;
+                        sure[n] = (int8_t)(!node_sure || fabs(side) <= sign_by ? 0
+                                           : side > 0 ? 1 : -1);
+                    }
+                }
             }
         }
     }
@@ -379,6 +419,7 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
     size_t mine = (size_t)worker * st->nodes;
     double *best = st->best ? st->best + mine : NULL;
     uint32_t *winner = st->winner ? st->winner + mine : NULL;
+    int8_t *sure = st->sure ? st->sure + mine : NULL;
     float *samples = st->sample_best ? st->sample_best + mine * POW3(st->fine_w) : NULL;
     const sdf__scan *s = st->scan;
     /* The call's z-span, widened by the dilation and padding: regions wholly outside it are
@@ -394,7 +435,7 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
         fat_region *fr = st->fine_w ? &st->fat[worker] : NULL;
         if (fr)
             fat_prepare(st, r, fr);
-        scan_region(st, r, f, best, winner, samples, fr);
+        scan_region(st, r, f, best, winner, sure, samples, fr);
     }
 }
 
@@ -459,8 +500,24 @@ static void exact_hit(const sdf__scan *s, uint32_t feature, const double p[3], s
     }
 }
 
+/* A sure node's float distance without the exact test: inside its winner's region (past the
+ * slack), the region's estimate is that feature's exact distance, and no region's estimate
+ * is below its own feature's distance, so the winner is a closest feature; off the surface,
+ * its pseudonormal's side is sdf_query's sign. The float is sdf_query's own when every
+ * distance within SURE_DISTANCE_OF_EXTENT of the estimate rounds to it (the exact test's
+ * lies there); else NAN, and the node takes the exact test. */
+static float sure_distance(const sdf__scan *s, double estimate, int8_t sign)
+{
+    double d = sqrt(estimate), slack = SURE_DISTANCE_OF_EXTENT * s->extent;
+    float lo = (float)(d - slack), hi = (float)(d + slack);
+    if (lo != hi)
+        return NAN;
+    return s->query.sign == SDF_SIGN_NONE || sign > 0 ? lo : -lo;
+}
+
 /* Rows of the call: the workers' winners merged, their exact distances, then sdf_query's own
- * sign and output. */
+ * sign and output. With distances alone asked for, sure nodes are answered from their
+ * estimates, and only the rest go through the exact test and sdf_query's finish. */
 static void rows_range(void *ctx, size_t begin, size_t end, int worker)
 {
     call_state *st = ctx;
@@ -468,37 +525,58 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
     size_t nx = s->dims[0], ny = s->dims[1];
     float *points = st->points + (size_t)worker * nx * 3;
     sdf__hit *hits = st->hits + (size_t)worker * nx;
+    uint32_t *slow = st->slow + (size_t)worker * nx;
+    float *slow_out = st->slow_out + (size_t)worker * nx;
     for (size_t row = begin; row < end; row++) {
-        size_t j = row % ny, k = st->k0 + row / ny, first = row * nx;
+        size_t j = row % ny, k = st->k0 + row / ny, first = row * nx, m = 0;
         for (size_t i = 0; i < nx; i++) {
-            double p[3] = {s->coord[0][i], s->coord[1][j], s->coord[2][k]};
-            for (int a = 0; a < 3; a++)
-                points[3 * i + a] = (float)p[a];
             double estimate = INFINITY;
             uint32_t w = UINT32_MAX;
+            int8_t sign = 0;
             for (int t = 0; t < st->workers; t++) {
                 size_t n = (size_t)t * st->nodes + first + i;
-                if (st->best[n] < estimate || (st->best[n] == estimate && st->winner[n] < w))
+                if (st->best[n] < estimate || (st->best[n] == estimate && st->winner[n] < w)) {
                     estimate = st->best[n], w = st->winner[n];
+                    sign = st->sure ? st->sure[n] : 0;
+                }
             }
-            hits[i].dist2 = INFINITY;
-            if (w == UINT32_MAX)
-                continue;
-            exact_hit(s, w, p, &hits[i]);
-            /* Inside its region a feature's estimate is its exact distance; more means the
-             * node was an extra candidate's (within the slack): search it instead. */
-            if (hits[i].dist2 - estimate > 1e-12 * hits[i].dist2 + 1e-24 * s->scale2)
-                hits[i].dist2 = INFINITY;
+            if (sign) {
+                float f = sure_distance(s, estimate, sign);
+                if (f == f) {
+                    st->out.distance[first + i] = f;
+                    continue;
+                }
+            }
+            double p[3] = {s->coord[0][i], s->coord[1][j], s->coord[2][k]};
+            for (int a = 0; a < 3; a++)
+                points[3 * m + a] = (float)p[a];
+            slow[m] = (uint32_t)i;
+            hits[m].dist2 = INFINITY;
+            if (w != UINT32_MAX) {
+                exact_hit(s, w, p, &hits[m]);
+                /* Inside its region a feature's estimate is its exact distance; more means
+                 * the node was an extra candidate's (within the slack): search it instead. */
+                if (hits[m].dist2 - estimate > 1e-12 * hits[m].dist2 + 1e-24 * s->scale2)
+                    hits[m].dist2 = INFINITY;
+            }
+            m++;
         }
-        sdf_query_result res = sdf__result_at(&st->out, first);
-        sdf__query_finish(s->mesh, points, hits, nx, &s->query, &res);
+        if (m == nx) { /* every node: straight into the outputs */
+            sdf_query_result res = sdf__result_at(&st->out, first);
+            sdf__query_finish(s->mesh, points, hits, nx, &s->query, &res);
+            continue;
+        }
+        sdf_query_result res = {.distance = slow_out};
+        sdf__query_finish(s->mesh, points, hits, m, &s->query, &res);
+        for (size_t q = 0; q < m; q++)
+            st->out.distance[first + slow[q]] = slow_out[q];
     }
 }
 
 int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads)
 {
     size_t node_bytes = fine_half ? POW3(2 * fine_half + 1) * sizeof(float)
-                                  : sizeof(double) + sizeof(uint32_t);
+                                  : sizeof(double) + sizeof(uint32_t) + sizeof(int8_t);
     size_t workers = (size_t)sdf__effective_threads(threads, SIZE_MAX, 1);
     return nx * ny * node_bytes * workers <= SCAN_SLICE_LIMIT;
 }
@@ -513,7 +591,7 @@ static size_t slices_within(const sdf__scan *s, size_t node_bytes, size_t budget
 
 size_t sdf__scan_slices_per_call(const sdf__scan *s)
 {
-    return slices_within(s, sizeof(double) + sizeof(uint32_t), SCAN_BUDGET_BYTES);
+    return slices_within(s, sizeof(double) + sizeof(uint32_t) + sizeof(int8_t), SCAN_BUDGET_BYTES);
 }
 
 /* Fresh per-node arrays, each part first touched by the thread that clears it. */
@@ -526,6 +604,8 @@ static void clear_range(void *ctx, size_t begin, size_t end, int worker)
             st->sample_best[n] = INFINITY;
         else
             st->best[n] = INFINITY, st->winner[n] = UINT32_MAX;
+        if (st->sure)
+            st->sure[n] = 0;
     }
 }
 
@@ -534,13 +614,21 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
     size_t nx = s->dims[0], rows = (k1 - k0) * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, nodes = rows * nx;
+    /* Sure nodes (rows_range) only where distances alone are asked for. */
+    int distances_only = out->distance && !out->gradient && !out->closest && !out->triangle &&
+                         !out->barycentric;
     call_state st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
                      .best = malloc(w * nodes * sizeof(double)),
                      .winner = malloc(w * nodes * sizeof(uint32_t)),
+                     .sure = distances_only ? malloc(w * nodes) : NULL,
                      .regions = malloc(w * sizeof(sdf__region)),
                      .points = malloc(w * nx * 3 * sizeof(float)),
-                     .hits = malloc(w * nx * sizeof(sdf__hit)), .workers = workers, .out = *out};
-    int rc = st.best && st.winner && st.regions && st.points && st.hits ? 0 : SDF_ENOMEM;
+                     .hits = malloc(w * nx * sizeof(sdf__hit)),
+                     .slow = malloc(w * nx * sizeof(uint32_t)),
+                     .slow_out = malloc(w * nx * sizeof(float)), .workers = workers, .out = *out};
+    int rc = st.best && st.winner && (st.sure || !distances_only) && st.regions && st.points &&
+                     st.hits && st.slow && st.slow_out
+                 ? 0 : SDF_ENOMEM;
     if (!rc)
         rc = ensure_zspans(s, &st);
     if (!rc) {
@@ -548,7 +636,8 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
         sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
         sdf__parallel_for(rows, 8, workers, rows_range, &st);
     }
-    free(st.best), free(st.winner), free(st.regions), free(st.points), free(st.hits);
+    free(st.best), free(st.winner), free(st.sure), free(st.regions), free(st.points);
+    free(st.hits), free(st.slow), free(st.slow_out);
     return rc;
 }
 
@@ -687,6 +776,7 @@ static int scan_new(const sdf_mesh *mesh, const size_t dims[3], const float *con
                                                             fabs(mesh->report.bbox_max[a]))));
     }
     s->scale2 = extent * extent;
+    s->extent = extent;
     if (!rc)
         rc = sdf__features_init(&s->feat, mesh);
     /* Double rounding of a plane's value is ~1e-16 of the coordinates; node coordinates are

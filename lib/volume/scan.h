@@ -14,7 +14,10 @@
  * query/triangle.c, and sign and float output are sdf_query's own (sdf__query_finish), so a
  * node gets the same float as sdf_query at the same point; a node whose winner was an extra
  * candidate (its exact distance exceeds the region's estimate) is asked again through
- * sdf_query's search. */
+ * sdf_query's search. When distances alone are asked for, a node well inside its winner's
+ * region and off the surface needs neither: its estimate is exact, its side of the winner's
+ * pseudonormal is the sign, and its float is taken when every value within the rounding of
+ * both computations rounds to the same float (the same bits; ~half the bake's time). */
 #ifndef SDF_VOLUME_SCAN_H
 #define SDF_VOLUME_SCAN_H
 
@@ -30,7 +33,7 @@ typedef struct sdf__scan sdf__scan;
  * as much per node either way, and sdf_query's Morton-ordered packets share more of it. */
 int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign);
 
-/* Does one z-slice of nx * ny nodes keep its scratch (12 bytes per node, or first order, with
+/* Does one z-slice of nx * ny nodes keep its scratch (13 bytes per node, or first order, with
  * fine_half = H > 0, 4 per fine sample; per worker of `threads`) under 256 MiB? Scans run in
  * whole slices: a bake or query whose slice does not fit takes the search path instead. */
 int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads);
@@ -41,7 +44,7 @@ int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads);
 int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
                      const sdf_query_options *opts, sdf__scan **out);
 
-/* How many z-slices one sdf__scan_slices call should take (its scratch is 12 bytes per node
+/* How many z-slices one sdf__scan_slices call should take (its scratch is 13 bytes per node
  * and worker, kept under 64 MiB). */
 size_t sdf__scan_slices_per_call(const sdf__scan *scan);
 
