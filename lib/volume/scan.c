@@ -70,18 +70,25 @@ struct sdf__scan {
 
 typedef struct fat_region fat_region;
 
+/* Zero order: a node's best so far, in one place (the scan is bound by these loads: apart,
+ * the three fields were three cache lines). */
+typedef struct node_best {
+    double d2;       /* smallest squared distance so far */
+    uint32_t winner; /* its feature (ties: the lowest id, so the merge is deterministic) */
+    int8_t sure;     /* with distances alone asked for: the winner's sign (+-1) when the node
+                        is sure in its region (rows_range), else 0 */
+} node_best;
+
 typedef struct call_state {
     sdf__scan *scan;
     size_t k0, k1;     /* the call's slices */
     size_t nodes;      /* in the call */
-    double *best;      /* per worker and node: smallest squared distance so far */
-    uint32_t *winner;  /* its feature (ties: the lowest id, so the merge is deterministic) */
-    int8_t *sure;      /* per worker and node, or NULL: the winner's sign (+-1) when the node is
-                          sure in its region (rows_range), else 0 */
+    node_best *best;   /* per worker and node */
+    int distances_only; /* sure nodes are marked (node_best.sure) */
     sdf__region *regions; /* per worker: the region being scanned */
     float *points;     /* per worker: a row of nodes */
     sdf__hit *hits;    /* per worker: their closest points */
-    uint32_t *slow;    /* per worker: a row's nodes that take the exact test (with st->sure) */
+    uint32_t *slow;    /* per worker: a row's nodes that take the exact test */
     float *slow_out;   /* per worker: their distances */
     int workers;
     sdf_query_result out;  /* zero order: the outputs, at the call's first node */
@@ -235,8 +242,8 @@ SDF__HOT_INLINE void fat_node(const call_state *st, const sdf__region *r, fat_re
  * contraction (ISO C), each lane rounds as the scalar code does, so the bits do not depend
  * on the CPU. */
 SDF__SIMD_CLONES static void scan_region(const call_state *st, const sdf__region *r,
-                                         uint32_t feature, double *best, uint32_t *winner,
-                                         int8_t *sure, float *best_samples, fat_region *fr)
+                                         uint32_t feature, node_best *best,
+                                         float *best_samples, fat_region *fr)
 {
     const sdf__scan *s = st->scan;
     double pad = s->feat.row_pad;
@@ -341,7 +348,7 @@ SDF__SIMD_CLONES static void scan_region(const call_state *st, const sdf__region
         for (size_t sb = b0; sb <= b1; sb++) {
             double cb = s->coord[B][sb], lo_c = -INFINITY, hi_c = INFINITY;
             double lo_sure = -INFINITY, hi_sure = INFINITY; /* the row's sure interval */
-            int inside = 1, row_sure = sure != NULL;
+            int inside = 1, row_sure = st->distances_only;
             for (int p = 0; p < n_flat; p++) {
                 inside &= flat[p][1] * cb <= off_flat[p];
                 row_sure &= flat[p][1] * cb <= off_flat[p] - inside_by;
@@ -421,13 +428,12 @@ SDF__SIMD_CLONES static void scan_region(const call_state *st, const sdf__region
                     d2 = r0 + t * t;
                 }
                 size_t n = row + u * stride[C];
-                if (d2 < best[n] || (d2 == best[n] && feature < winner[n])) {
-                    best[n] = d2, winner[n] = feature;
-                    if (sure) {
-                        double side = s0 + s1 * t;
-                        sure[n] = (int8_t)(!node_sure || fabs(side) <= sign_by ? 0
-                                           : side > 0 ? 1 : -1);
-                    }
+                node_best *nb = &best[n];
+                if (d2 < nb->d2 || (d2 == nb->d2 && feature < nb->winner)) {
+                    double side = s0 + s1 * t;
+                    nb->d2 = d2, nb->winner = feature;
+                    nb->sure = (int8_t)(!node_sure || fabs(side) <= sign_by ? 0
+                                        : side > 0 ? 1 : -1);
                 }
             }
         }
@@ -439,9 +445,7 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
     call_state *st = ctx;
     sdf__region *r = &st->regions[worker];
     size_t mine = (size_t)worker * st->nodes;
-    double *best = st->best ? st->best + mine : NULL;
-    uint32_t *winner = st->winner ? st->winner + mine : NULL;
-    int8_t *sure = st->sure ? st->sure + mine : NULL;
+    node_best *best = st->best ? st->best + mine : NULL;
     float *samples = st->sample_best ? st->sample_best + mine * POW3(st->fine_w) : NULL;
     const sdf__scan *s = st->scan;
     /* The call's z-span, widened by the dilation and padding: regions wholly outside it are
@@ -457,7 +461,7 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
         fat_region *fr = st->fine_w ? &st->fat[worker] : NULL;
         if (fr)
             fat_prepare(st, r, fr);
-        scan_region(st, r, f, best, winner, sure, samples, fr);
+        scan_region(st, r, f, best, samples, fr);
     }
 }
 
@@ -557,10 +561,9 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
             int8_t sign = 0;
             for (int t = 0; t < st->workers; t++) {
                 size_t n = (size_t)t * st->nodes + first + i;
-                if (st->best[n] < estimate || (st->best[n] == estimate && st->winner[n] < w)) {
-                    estimate = st->best[n], w = st->winner[n];
-                    sign = st->sure ? st->sure[n] : 0;
-                }
+                const node_best *nb = &st->best[n];
+                if (nb->d2 < estimate || (nb->d2 == estimate && nb->winner < w))
+                    estimate = nb->d2, w = nb->winner, sign = nb->sure;
             }
             if (sign) {
                 float f = sure_distance(s, estimate, sign);
@@ -598,7 +601,7 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
 int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads)
 {
     size_t node_bytes = fine_half ? POW3(2 * fine_half + 1) * sizeof(float)
-                                  : sizeof(double) + sizeof(uint32_t) + sizeof(int8_t);
+                                  : sizeof(node_best);
     size_t workers = (size_t)sdf__effective_threads(threads, SIZE_MAX, 1);
     return nx * ny * node_bytes * workers <= SCAN_SLICE_LIMIT;
 }
@@ -613,7 +616,7 @@ static size_t slices_within(const sdf__scan *s, size_t node_bytes, size_t budget
 
 size_t sdf__scan_slices_per_call(const sdf__scan *s)
 {
-    return slices_within(s, sizeof(double) + sizeof(uint32_t) + sizeof(int8_t), SCAN_BUDGET_BYTES);
+    return slices_within(s, sizeof(node_best), SCAN_BUDGET_BYTES);
 }
 
 /* Fresh per-node arrays, each part first touched by the thread that clears it. */
@@ -625,9 +628,7 @@ static void clear_range(void *ctx, size_t begin, size_t end, int worker)
         if (st->sample_best)
             st->sample_best[n] = INFINITY;
         else
-            st->best[n] = INFINITY, st->winner[n] = UINT32_MAX;
-        if (st->sure)
-            st->sure[n] = 0;
+            st->best[n] = (node_best){INFINITY, UINT32_MAX, 0};
     }
 }
 
@@ -640,15 +641,14 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
     int distances_only = out->distance && !out->gradient && !out->closest && !out->triangle &&
                          !out->barycentric;
     call_state st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
-                     .best = malloc(w * nodes * sizeof(double)),
-                     .winner = malloc(w * nodes * sizeof(uint32_t)),
-                     .sure = distances_only ? malloc(w * nodes) : NULL,
+                     .best = malloc(w * nodes * sizeof(node_best)),
+                     .distances_only = distances_only,
                      .regions = malloc(w * sizeof(sdf__region)),
                      .points = malloc(w * nx * 3 * sizeof(float)),
                      .hits = malloc(w * nx * sizeof(sdf__hit)),
                      .slow = malloc(w * nx * sizeof(uint32_t)),
                      .slow_out = malloc(w * nx * sizeof(float)), .workers = workers, .out = *out};
-    int rc = st.best && st.winner && (st.sure || !distances_only) && st.regions && st.points &&
+    int rc = st.best && st.regions && st.points &&
                      st.hits && st.slow && st.slow_out
                  ? 0 : SDF_ENOMEM;
     if (!rc)
@@ -658,7 +658,7 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
         sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
         sdf__parallel_for(rows, 8, workers, rows_range, &st);
     }
-    free(st.best), free(st.winner), free(st.sure), free(st.regions), free(st.points);
+    free(st.best), free(st.regions), free(st.points);
     free(st.hits), free(st.slow), free(st.slow_out);
     return rc;
 }

@@ -33,7 +33,7 @@ typedef struct sdf__scan sdf__scan;
  * as much per node either way, and sdf_query's Morton-ordered packets share more of it. */
 int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign);
 
-/* Does one z-slice of nx * ny nodes keep its scratch (13 bytes per node, or first order, with
+/* Does one z-slice of nx * ny nodes keep its scratch (16 bytes per node, or first order, with
  * fine_half = H > 0, 4 per fine sample; per worker of `threads`) under 256 MiB? Scans run in
  * whole slices: a bake or query whose slice does not fit takes the search path instead. */
 int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads);
@@ -44,7 +44,7 @@ int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads);
 int sdf__scan_create(const sdf_mesh *mesh, const sdf_volume_info *info,
                      const sdf_query_options *opts, sdf__scan **out);
 
-/* How many z-slices one sdf__scan_slices call should take (its scratch is 13 bytes per node
+/* How many z-slices one sdf__scan_slices call should take (its scratch is 16 bytes per node
  * and worker, kept under 64 MiB). */
 size_t sdf__scan_slices_per_call(const sdf__scan *scan);
 

@@ -11,7 +11,7 @@ set -eu
 cd "$(dirname "$0")/../.."
 build=${1:-build}
 dim=${2:-128}
-shift 2 2>/dev/null || shift $#
+if [ "$#" -ge 2 ]; then shift 2; else shift "$#"; fi # dash exits on a failed shift
 meshes=${*:-"../shared/meshes/fandisk.off ../shared/meshes/refined_elephant.off"}
 [ -f "$build/build.ninja" ] || meson setup "$build" --buildtype=release >/dev/null
 meson compile -C "$build" >/dev/null
