@@ -78,7 +78,7 @@ int sdf__scan_samples(sdf__scan *scan, size_t k0, size_t k1, int half, double fi
                       sdf__sample_fn consume, void *user);
 
 /* Slices per sdf__scan_samples call (its scratch: 4 bytes per sample and worker, kept
- * under 64 MiB). */
+ * under 128 MiB). */
 size_t sdf__scan_sample_slices_per_call(const sdf__scan *scan, int half);
 
 void sdf__scan_destroy(sdf__scan *scan);
