@@ -105,11 +105,6 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
     *b = (batch){.mesh = mesh, .points = (const char *)points, .stride = stride, .sign = sign};
-    /* Caches made on first use: rays need Embree's scene, winding numbers their moments. */
-    int rc = sign == SDF_SIGN_RAYCAST ? sdf__bvh_ready(mesh->bvh)
-             : sign == SDF_SIGN_WINDING ? sdf__mesh_need_winding(mesh) : 0;
-    if (rc)
-        return rc;
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
@@ -118,7 +113,9 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
             return SDF_ENONFINITE;
         }
     }
-    return 0;
+    /* Caches made on first use: rays need Embree's scene, winding numbers their moments. */
+    return sign == SDF_SIGN_RAYCAST ? sdf__bvh_ready(mesh->bvh)
+           : sign == SDF_SIGN_WINDING ? sdf__mesh_need_winding(mesh) : 0;
 }
 
 /* -1 inside, +1 outside (or unsigned). `winding`: the point's winding number when it was
