@@ -61,7 +61,8 @@ void sdf__cluster_destroy(sdf__cluster *c)
 }
 
 /* Every triangle whose box lies within `radius` of `centre` (in a leaf whose cylinder does),
- * in c's arrays with the box's distance as its reach. Returns their count, or -1 when there are more than the capacity. */
+ * in c's arrays with the box's distance as its reach. Returns their count, or -1 when there
+ * are more than the capacity. */
 SDF__HOT_INLINE int gather(sdf__cluster *c, const sdf__tree *tree, const float *positions,
                            const uint32_t *triangles, const float centre[3], float radius)
 {

@@ -8,9 +8,9 @@
  * MESH is loaded locally only to generate the workload (as sdf-bench does); the server must
  * serve it as NAME (default: demo). With --clients 1 (default) the whole point set goes in
  * one request, sent once untimed (a warm-up, as sdf-bench's: a fresh server's first large
- * buffers come from fresh pages), then timed R times (best reported). With C clients, each thread sends requests of
- * K points (default 1000) until all points are done; reported: aggregate throughput and
- * per-request latency percentiles. Request bodies are encoded before timing, and replies
+ * buffers come from fresh pages), then timed R times (best reported). With C clients, each
+ * thread sends requests of K points (default 1000) until all points are done; reported:
+ * aggregate throughput and per-request latency percentiles. Request bodies are encoded before timing, and replies
  * are received in full but not parsed: the numbers are the server's cost plus transport.
  * The last line is `throughput: X Mq/s`. */
 #define _GNU_SOURCE /* strcasestr */
