@@ -5,6 +5,7 @@
 
 #include <ctype.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -207,6 +208,104 @@ static int not_a_number(json *j, const char *what)
     return syntax(j, "expected a number");
 }
 
+/* One element of a "points" array: [x, y, z] when nested, else one number. */
+static int point_element(json *j, int nested)
+{
+    double v;
+    int rc;
+    if (!nested) {
+        const char *at = j->p;
+        if (number(j, &v)) {
+            j->p = at;
+            return not_a_number(j, "\"points\" must hold only numbers or only [x, y, z] arrays");
+        }
+        return push_coordinate(j, v);
+    }
+    ws(j);
+    if (j->p >= j->end || *j->p != '[')
+        return not_a_number(j, "\"points\" must hold only [x, y, z] arrays or only numbers");
+    j->p++;
+    for (int k = 0; k < 3; k++) {
+        char what[64];
+        snprintf(what, sizeof what, "point %zu is not an array of 3 numbers", j->count / 3);
+        if (k && expect(j, ','))
+            return j->p < j->end && *j->p == ']' ? fail(j->err, j->err_cap, SDF_EINVAL, "%s", what)
+                                                 : SDF_ESYNTAX;
+        const char *at = j->p;
+        if (number(j, &v)) {
+            j->p = at;
+            return not_a_number(j, what);
+        }
+        if ((rc = push_coordinate(j, v)))
+            return rc;
+    }
+    ws(j);
+    if (j->p < j->end && *j->p == ',')
+        return fail(j->err, j->err_cap, SDF_EINVAL, "point %zu has more than 3 numbers",
+                    j->count / 3 - 1);
+    return expect(j, ']') ? SDF_ESYNTAX : 0;
+}
+
+/* The elements from j->p up to and through the array's ']'; stops early, returning 0 with
+ * *stopped set, on landing exactly at `stop` after a comma (NULL: never). */
+static int point_elements(json *j, int nested, const char *stop, int *stopped)
+{
+    int rc, more;
+    do {
+        if ((rc = point_element(j, nested)))
+            return rc;
+        if ((more = list_next(j, ']')) == 1 && j->p == stop) {
+            *stopped = 1;
+            return 0;
+        }
+    } while (more == 1);
+    return more;
+}
+
+/* Large arrays are parsed in two halves on two threads: number parsing was the larger part of
+ * a JSON request's own cost, on one core while the query used both. The second half starts
+ * right after a comma near the middle of the body (for nested arrays, one between "]" and
+ * "["); it counts only if the first half, parsed here as always, lands exactly there after
+ * an element. Otherwise, or if the second half failed or the halves pass the point limit
+ * together, this thread just goes on from where it is, so results and error messages are
+ * those of one sequential parse. */
+#define PARALLEL_JSON_MIN_BYTES ((size_t)1 << 20)
+
+typedef struct half_parse {
+    json j;
+    int nested, rc;
+    char err[256]; /* its own: its messages are never shown (see above) */
+} half_parse;
+
+static void *parse_second_half(void *arg)
+{
+    half_parse *h = arg;
+    int stopped = 0;
+    h->rc = point_elements(&h->j, h->nested, NULL, &stopped);
+    return NULL;
+}
+
+/* Where the second half could start: just after a comma at or past the middle of the
+ * remaining text, between two points for nested arrays; NULL if none is found nearby. */
+static const char *second_half_start(const json *j, int nested)
+{
+    const char *q = j->p + (j->end - j->p) / 2, *limit = q + 4096 < j->end ? q + 4096 : j->end;
+    for (; q < limit; q++) {
+        if (*q != ',')
+            continue;
+        if (!nested)
+            return q + 1;
+        const char *before = q, *after = q + 1;
+        while (before > j->p && isspace((unsigned char)before[-1]))
+            before--;
+        while (after < j->end && isspace((unsigned char)*after))
+            after++;
+        if (before > j->p && before[-1] == ']' && after < j->end && *after == '[')
+            return q + 1;
+    }
+    return NULL;
+}
+
 /* "points": [x, y, z, ...] or [[x, y, z], ...] */
 static int points_array(json *j)
 {
@@ -217,47 +316,33 @@ static int points_array(json *j)
     if (list_empty(j, ']'))
         return 0;
     ws(j);
-    int nested = j->p < j->end && *j->p == '[', more;
-    do {
-        double v;
-        int rc;
-        if (nested) {
-            ws(j);
-            if (j->p >= j->end || *j->p != '[')
-                return not_a_number(j, "\"points\" must hold only [x, y, z] arrays or only numbers");
-            j->p++;
-            for (int k = 0; k < 3; k++) {
-                char what[64];
-                snprintf(what, sizeof what, "point %zu is not an array of 3 numbers", j->count / 3);
-                if (k && expect(j, ','))
-                    return j->p < j->end && *j->p == ']' ? fail(j->err, j->err_cap, SDF_EINVAL, "%s", what)
-                                                         : SDF_ESYNTAX;
-                const char *at = j->p;
-                if (number(j, &v)) {
-                    j->p = at;
-                    return not_a_number(j, what);
-                }
-                if ((rc = push_coordinate(j, v)))
-                    return rc;
+    int nested = j->p < j->end && *j->p == '[', rc, stopped = 0;
+    const char *split = (size_t)(j->end - j->p) >= PARALLEL_JSON_MIN_BYTES
+                            ? second_half_start(j, nested) : NULL;
+    half_parse second = {.j = *j, .nested = nested};
+    second.j.p = split, second.j.points = NULL, second.j.count = second.j.cap = 0;
+    second.j.err = second.err, second.j.err_cap = sizeof second.err;
+    pthread_t helper;
+    int apart = split && pthread_create(&helper, NULL, parse_second_half, &second) == 0;
+    rc = point_elements(j, nested, apart ? split : NULL, &stopped);
+    if (apart) {
+        pthread_join(helper, NULL);
+        if (!rc && stopped && !second.rc && j->count + second.j.count <= 3 * j->max_points) {
+            float *all = realloc(j->points, (j->count + second.j.count + 1) * sizeof *all);
+            if (all) { /* the halves joined: go on after the array */
+                memcpy(all + j->count, second.j.points, second.j.count * sizeof *all);
+                j->points = all, j->count += second.j.count, j->cap = j->count;
+                j->p = second.j.p;
+            } else {
+                rc = fail(j->err, j->err_cap, SDF_ENOMEM, "out of memory for points");
             }
-            ws(j);
-            if (j->p < j->end && *j->p == ',')
-                return fail(j->err, j->err_cap, SDF_EINVAL, "point %zu has more than 3 numbers",
-                            j->count / 3 - 1);
-            if (expect(j, ']'))
-                return SDF_ESYNTAX;
-        } else {
-            const char *at = j->p;
-            if (number(j, &v)) {
-                j->p = at;
-                return not_a_number(j, "\"points\" must hold only numbers or only [x, y, z] arrays");
-            }
-            if ((rc = push_coordinate(j, v)))
-                return rc;
+        } else if (!rc && stopped) { /* not joined: on from the split, alone */
+            rc = point_elements(j, nested, NULL, &stopped);
         }
-    } while ((more = list_next(j, ']')) == 1);
-    if (more)
-        return more;
+        free(second.j.points);
+    }
+    if (rc)
+        return rc;
     if (!nested && j->count % 3)
         return fail(j->err, j->err_cap, SDF_EINVAL,
                     "a flat \"points\" array needs a multiple of 3 numbers, got %zu", j->count);
