@@ -516,33 +516,73 @@ static int reserve(text *t, size_t more)
     return 0;
 }
 
+/* Entries [from, to) of a field, each after a ',' but the very first, into dst; returns
+ * the bytes written (at most (to - from) * (width * 17 + 4)). */
+typedef struct entries_job {
+    const sdfd_reply *r;
+    int word, width, is_uint;
+    size_t from, to;
+    char *dst;
+    size_t len;
+} entries_job;
+
+static void *format_entries(void *arg)
+{
+    entries_job *e = arg;
+    const sdfd_reply *r = e->r;
+    unsigned w = sdf_proto_words(r->mode);
+    char *o = e->dst;
+    for (size_t i = e->from; i < e->to; i++) {
+        const uint32_t *src = r->words + (size_t)w * i + e->word;
+        if (i)
+            *o++ = ',';
+        if (e->width > 1)
+            *o++ = '[';
+        for (int k = 0; k < e->width; k++) {
+            float f;
+            memcpy(&f, &src[k], 4);
+            if (k)
+                *o++ = ',';
+            if (e->is_uint)
+                o += sprintf(o, "%u", src[k]);
+            else
+                o += sdfd_format_float(f, o);
+        }
+        if (e->width > 1)
+            *o++ = ']';
+    }
+    e->len = (size_t)(o - e->dst);
+    return NULL;
+}
+
+/* Fields of this many entries or more are printed in two halves on two threads (as large
+ * bodies are parsed: body.c above); the text is the same. */
+#define PARALLEL_JSON_MIN_ENTRIES ((size_t)1 << 16)
+
 /* Append a float array field: "name":[v,...] or "name":[[x,y,z],...] */
 static int json_field(text *t, const char *name, const sdfd_reply *r, int word, int width,
                       int is_uint)
 {
-    unsigned w = sdf_proto_words(r->mode);
-    if (reserve(t, strlen(name) + 8 + r->count * (width * 17 + 4)))
+    size_t per_entry = (size_t)width * 17 + 4;
+    if (reserve(t, strlen(name) + 8 + r->count * per_entry))
         return -1;
     t->len += (size_t)sprintf(t->s + t->len, "%s\"%s\":[", t->len > 1 ? "," : "", name);
-    for (size_t i = 0; i < r->count; i++) {
-        const uint32_t *src = r->words + (size_t)w * i + word;
-        if (i)
-            t->s[t->len++] = ',';
-        if (width > 1)
-            t->s[t->len++] = '[';
-        for (int k = 0; k < width; k++) {
-            float f;
-            memcpy(&f, &src[k], 4);
-            if (k)
-                t->s[t->len++] = ',';
-            if (is_uint)
-                t->len += (size_t)sprintf(t->s + t->len, "%u", src[k]);
-            else
-                t->len += sdfd_format_float(f, t->s + t->len);
-        }
-        if (width > 1)
-            t->s[t->len++] = ']';
+    size_t half = r->count >= PARALLEL_JSON_MIN_ENTRIES ? r->count / 2 : r->count;
+    entries_job first = {r, word, width, is_uint, 0, half, t->s + t->len, 0};
+    entries_job second = {r, word, width, is_uint, half, r->count, NULL, 0};
+    pthread_t helper;
+    int apart = half < r->count && (second.dst = malloc((r->count - half) * per_entry + 1)) &&
+                pthread_create(&helper, NULL, format_entries, &second) == 0;
+    if (!apart) /* one thread for all of it */
+        first.to = r->count;
+    format_entries(&first);
+    t->len += first.len;
+    if (apart) {
+        pthread_join(helper, NULL);
+        memcpy(t->s + t->len, second.dst, second.len);
+        t->len += second.len;
     }
+    free(second.dst);
     t->s[t->len++] = ']';
     return 0;
 }

@@ -6,13 +6,17 @@
  *    sequential parse gives: the point's index counted from the start, the byte offset, the
  *    limit;
  *  - a short "points" array followed by a long string full of commas and "],[" (so the
- *    split lands outside the array) still parses, and the keys after it are read. */
+ *    split lands outside the array) still parses, and the keys after it are read;
+ *  - JSON replies of 200,000 points, which are printed in two halves on two threads, are
+ *    the text one loop over the entries prints (written here independently), for the
+ *    gradient and closest-point modes (floats, [x, y, z] arrays and triangle ids). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "../common/check.h"
 #include "../../server/body.h"
+#include "../../server/numtext.h"
 
 static unsigned long long rng = 0x2545f4914f6cdd1dull;
 static double next_value(void)
@@ -159,11 +163,67 @@ static void test_split_outside(void)
     free(t.s);
 }
 
+/* The reply's JSON against one plain loop: {"distance":[..],"gradient"|"closest":[[..]..]
+ * (,"triangle":[..])}. */
+static void test_reply(sdf_proto_mode mode)
+{
+    size_t n = 200000;
+    unsigned w = sdf_proto_words(mode);
+    sdfd_reply r;
+    CHECK(sdfd_reply_init(&r, SDFD_FORM_JSON, mode, n) == 0, "reply_init");
+    for (size_t i = 0; i < n * w; i++) {
+        float f = (float)next_value() * (i % 11 ? 1.0f : 1e-6f);
+        if (i % 1000 == 7)
+            f = i % 2000 == 7 ? 0.0f : -0.0f;
+        memcpy(&r.words[i], &f, 4);
+        if (mode == SDF_MODE_CLOSEST && i % w == 4)
+            r.words[i] = (uint32_t)(rng % 100000);
+    }
+    text want = {0};
+    char num[64];
+    put(&want, "{\"distance\":[");
+    for (size_t i = 0; i < n; i++) {
+        float f;
+        memcpy(&f, &r.words[w * i], 4);
+        num[sdfd_format_float(f, num)] = '\0';
+        put(&want, i ? "," : "");
+        put(&want, num);
+    }
+    put(&want, mode == SDF_MODE_CLOSEST ? "],\"closest\":[" : "],\"gradient\":[");
+    for (size_t i = 0; i < n; i++) {
+        put(&want, i ? ",[" : "[");
+        for (unsigned k = 1; k <= 3; k++) {
+            float f;
+            memcpy(&f, &r.words[w * i + k], 4);
+            num[sdfd_format_float(f, num)] = '\0';
+            put(&want, k > 1 ? "," : "");
+            put(&want, num);
+        }
+        put(&want, "]");
+    }
+    if (mode == SDF_MODE_CLOSEST) {
+        put(&want, "],\"triangle\":[");
+        for (size_t i = 0; i < n; i++) {
+            snprintf(num, sizeof num, "%s%u", i ? "," : "", r.words[w * i + 4]);
+            put(&want, num);
+        }
+    }
+    put(&want, "]}");
+    size_t len = 0;
+    char *got = sdfd_reply_render(&r, SDFD_FORM_JSON, &len);
+    CHECK(got && len == want.len && !memcmp(got, want.s, len),
+          "mode %d: the reply's JSON (%zu bytes) differs from one loop's (%zu bytes)", (int)mode,
+          len, want.len);
+    free(got), free(want.s), free(r.buffer);
+}
+
 int main(void)
 {
     test_valid(1);
     test_valid(0);
     test_errors();
     test_split_outside();
+    test_reply(SDF_MODE_GRADIENT);
+    test_reply(SDF_MODE_CLOSEST);
     return check_finish("body");
 }
