@@ -487,7 +487,11 @@ int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *co
     f->bound = d;
     for (int a = 0; a < 3; a++)
         f->bound_dims[a] = n[a], f->bound_coord[a] = bound_coord[a];
-    f->march = 0.5 * (double)step * finest;
+    /* Any step where the bound shows the feature has lost is a valid cut (a later one only
+     * scans more), so the march need not be fine: a whole coarse cell instead of half took
+     * fandisk's 1M-node grid from 11.8-13.8 to 15.0-17.0 Mq/s (refined_elephant within
+     * noise; two steps of a cell were no better). */
+    f->march = (double)step * finest;
     /* Widened past the float rounding of the coarse distances. */
     double widen = sqrt(half_diag2) * (1 + 1e-6) + f->slack;
     f->reach_front = (sided ? outside : sdf__max2(outside, inside)) * (1 + 1e-6) + widen;
