@@ -177,6 +177,17 @@ static void finish(const batch *b, size_t i, const sdf__hit *hit, double winding
             o->barycentric[3 * i + k] = (float)hit->bary[k];
 }
 
+/* The closest point to p by one walk of our BVH from bound2 (packet.h: sdf__closest_point);
+ * a point that walk hands back (a bound rounding made too small, more near-equal candidates
+ * than it holds) by the exact-only walk. */
+static void closest_by_tree(const sdf_mesh *m, const float *p, double bound2, sdf__hit *hit)
+{
+    sdf__closest_point(&m->tree, m->positions, m->triangles, (float)m->report.diagonal, p,
+                       bound2, hit);
+    if (!isfinite(hit->dist2))
+        sdf__closest_exact(&m->tree, m->positions, m->triangles, p, hit);
+}
+
 static void answer_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
@@ -185,14 +196,10 @@ static void answer_range(void *ctx, size_t begin, size_t end, int worker)
     for (size_t i = begin; i < end; i++) {
         sdf__hit hit;
         const float *p = point_at(b, i);
-        if (b->by_embree) {
+        if (b->by_embree)
             sdf__bvh_closest(m->bvh, p, &hit);
-        } else {
-            sdf__closest_point(&m->tree, m->positions, m->triangles, (float)m->report.diagonal,
-                               p, INFINITY, &hit);
-            if (!isfinite(hit.dist2)) /* more near ties than the float search holds */
-                sdf__closest_exact(&m->tree, m->positions, m->triangles, p, &hit);
-        }
+        else
+            closest_by_tree(m, p, INFINITY, &hit);
         finish(b, i, &hit, NAN);
     }
 }
@@ -204,11 +211,7 @@ static void single_points(const batch *b, const uint32_t *order, int n, const do
 {
     const sdf_mesh *m = b->mesh;
     for (int i = 0; i < n; i++) {
-        const float *p = point_at(b, order[i]);
-        sdf__closest_point(&m->tree, m->positions, m->triangles, (float)m->report.diagonal, p,
-                           bound2 ? bound2[i] : INFINITY, &hits[i]);
-        if (!isfinite(hits[i].dist2)) /* a bound rounding could not honour: ask again */
-            sdf__closest_exact(&m->tree, m->positions, m->triangles, p, &hits[i]);
+        closest_by_tree(m, point_at(b, order[i]), bound2 ? bound2[i] : INFINITY, &hits[i]);
         finish(b, order[i], &hits[i], NAN);
     }
 }
