@@ -64,8 +64,7 @@ struct sdf__scan {
     size_t sample_scratch_count;
     double inv_spacing[3];
     double index_slack[3];     /* float rounding of node coordinates, in nodes */
-    double scale2;             /* squared size of the scene: the floor of the exactness check */
-    double extent;             /* the scene's size (sqrt(scale2)) */
+    double extent;             /* the scene's size: the scale of every rounding margin */
 };
 
 /* ---- scanning ---------------------------------------------------------------------------- */
@@ -583,7 +582,8 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
                 exact_hit(s, w, p, &hits[m]);
                 /* Inside its region a feature's estimate is its exact distance; more means
                  * the node was an extra candidate's (within the slack): search it instead. */
-                if (hits[m].dist2 - estimate > 1e-12 * hits[m].dist2 + 1e-24 * s->scale2)
+                if (hits[m].dist2 - estimate >
+                    1e-12 * hits[m].dist2 + 1e-24 * (s->extent * s->extent))
                     hits[m].dist2 = INFINITY;
             }
             m++;
@@ -799,7 +799,6 @@ static int scan_new(const sdf_mesh *mesh, const size_t dims[3], const float *con
         extent = sdf__max2(extent, sdf__max2(far, sdf__max2(fabs(mesh->report.bbox_min[a]),
                                                             fabs(mesh->report.bbox_max[a]))));
     }
-    s->scale2 = extent * extent;
     s->extent = extent;
     if (!rc)
         rc = sdf__features_init(&s->feat, mesh);
