@@ -118,12 +118,16 @@ static void leaf_disc(const sdf__tree *t, uint32_t first, uint32_t count,
                       sdf__tree_disc *disc)
 {
     double sum[3] = {0, 0, 0};
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (uint32_t k = 0; k < count; k++) {
         const uint32_t *tri = triangles + 3 * (size_t)t->prims[first + k];
         double v[3][3];
         for (int c = 0; c < 3; c++)
-            for (int a = 0; a < 3; a++)
-                v[c][a] = positions[3 * (size_t)tri[c] + a];
+            for (int a = 0; a < 3; a++) {
+                float x = positions[3 * (size_t)tri[c] + a];
+                v[c][a] = x;
+                lo[a] = x < lo[a] ? x : lo[a], hi[a] = x > hi[a] ? x : hi[a];
+            }
         double e1[3], e2[3];
         for (int a = 0; a < 3; a++)
             e1[a] = v[1][a] - v[0][a], e2[a] = v[2][a] - v[0][a];
@@ -133,13 +137,7 @@ static void leaf_disc(const sdf__tree *t, uint32_t first, uint32_t count,
     }
     double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
     for (int a = 0; a < 3; a++) {
-        float lo = INFINITY, hi = -INFINITY;
-        for (uint32_t k = 0; k < count; k++)
-            for (int c = 0; c < 3; c++) {
-                float x = positions[3 * (size_t)triangles[3 * (size_t)t->prims[first + k] + c] + a];
-                lo = x < lo ? x : lo, hi = x > hi ? x : hi;
-            }
-        disc->centre[a] = 0.5f * (lo + hi);
+        disc->centre[a] = 0.5f * (lo[a] + hi[a]);
         disc->normal[a] = len > 0 ? (float)(sum[a] / len) : (float)(a == 2);
     }
     if (!(len > 0)) {
