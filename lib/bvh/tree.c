@@ -270,6 +270,8 @@ int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *tr
         out->discs = malloc((out->node_count + 1) * sizeof *out->discs);
         rc = out->discs ? 0 : SDF_ENOMEM;
     }
+    if (!rc)
+        rc = sdf__wide_build(out->nodes, out->node_count, &out->wide);
     if (!rc) {
         const sdf__tree_node *r = &out->nodes[0];
         double diagonal = 0;
@@ -290,5 +292,6 @@ void sdf__tree_free(sdf__tree *tree)
     free(tree->nodes);
     free(tree->discs);
     free(tree->prims);
+    sdf__wide_free(&tree->wide);
     memset(tree, 0, sizeof *tree);
 }

@@ -15,6 +15,8 @@
 
 #include <embree3/rtcore.h>
 
+#include "bvh/wide.h"
+
 typedef struct sdf__tree_node {
     float lo[3];
     uint32_t first;
@@ -44,6 +46,7 @@ typedef struct sdf__tree {
     size_t prim_count;
     int depth; /* the longest root-to-leaf path, in nodes */
     float leaf_size; /* mean diagonal of the leaves' boxes: the scale packets share work at */
+    sdf__wide wide;  /* the same tree eight-wide, for walks of one point (bvh/wide.h) */
 } sdf__tree;
 
 #define SDF__TREE_MAX_DEPTH 64

@@ -114,7 +114,8 @@ static int step_sign_data(sdf_mesh *m, sdf_diag *diag)
                      sdf__winding_bytes(sdf__mesh_winding(m)) +
                      3 * r->triangles * sizeof(uint32_t) +
                      m->tree.node_count * (sizeof(sdf__tree_node) + sizeof(sdf__tree_disc)) +
-                     m->tree.prim_count * sizeof(uint32_t);
+                     m->tree.prim_count * sizeof(uint32_t) +
+                     m->tree.wide.count * sizeof(sdf__wide_node);
     return 0;
 }
 

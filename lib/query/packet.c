@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bvh/wide.h"
 #include "core/simd.h"
 #include "query/lanes.h"
 #include "query/triangle.h"
@@ -279,6 +280,57 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
     }
 }
 
+/* Squared distances from (x, y, z) to the boxes of a wide node's eight children. */
+SDF__HOT_INLINE sdf__v8f wide_dist2(const sdf__wide_node *w, sdf__v8f x, sdf__v8f y, sdf__v8f z)
+{
+    const sdf__v8f zero = sdf__v8f_splat(0);
+    sdf__v8f dx = sdf__v8f_max(sdf__v8f_max(sdf__v8f_load(w->lo[0]) - x,
+                                            x - sdf__v8f_load(w->hi[0])), zero);
+    sdf__v8f dy = sdf__v8f_max(sdf__v8f_max(sdf__v8f_load(w->lo[1]) - y,
+                                            y - sdf__v8f_load(w->hi[1])), zero);
+    sdf__v8f dz = sdf__v8f_max(sdf__v8f_max(sdf__v8f_load(w->lo[2]) - z,
+                                            z - sdf__v8f_load(w->hi[2])), zero);
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/* The leaf's triangles eight at a time, one per lane, offered to the point's lane state;
+ * short chunks repeat their first triangle in the spare lanes, which are never offered. */
+SDF__HOT_INLINE void point_leaf(const sdf__tree *tree, const sdf__tree_node *node,
+                                const float *positions, const uint32_t *triangles, sdf__v8f vx,
+                                sdf__v8f vy, sdf__v8f vz, float *limit2, float tie_abs,
+                                lane_state *lane)
+{
+    for (uint32_t k0 = 0; k0 < node->count; k0 += LANE_GROUP) {
+        int n = node->count - k0 < LANE_GROUP ? (int)(node->count - k0) : LANE_GROUP;
+        uint32_t ids[LANE_GROUP];
+        float corner[3][3][LANE_GROUP];
+        for (int t = 0; t < LANE_GROUP; t++) {
+            ids[t] = tree->prims[node->first + k0 + (uint32_t)(t < n ? t : 0)];
+            const uint32_t *tri = triangles + 3 * (size_t)ids[t];
+            for (int c = 0; c < 3; c++)
+                for (int a = 0; a < 3; a++)
+                    corner[c][a][t] = positions[3 * (size_t)tri[c] + a];
+        }
+        sdf__triangle8 f;
+        for (int c = 0; c < 3; c++)
+            for (int a = 0; a < 3; a++)
+                f.v[c][a] = sdf__v8f_load(corner[c][a]);
+        sdf__triangle8_prepare(&f);
+        sdf__v8f dist2 = sdf__triangle8_dist2(&f, vx, vy, vz);
+        if (!sdf__v8i_any(dist2 <= *limit2))
+            continue;
+        for (int t = 0; t < n; t++)
+            if (dist2[t] <= *limit2)
+                lane_offer(lane, limit2, tie_abs, ids[t], dist2[t]);
+    }
+}
+
+/* A wide walk's pending child: its reference (bvh/wide.h) and box distance when pushed. */
+typedef struct wide_entry {
+    uint32_t ref;
+    float dist2;
+} wide_entry;
+
 SDF__SIMD_CLONES
 void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                         float extent, const float p[3], double bound2, sdf__hit *hit)
@@ -288,48 +340,36 @@ void sdf__closest_point(const sdf__tree *tree, const float *positions, const uin
     const sdf__v8f vx = sdf__v8f_splat(x), vy = sdf__v8f_splat(y), vz = sdf__v8f_splat(z);
     float limit2 = start_limit2(bound2, tie_abs);
     lane_state lane = {.best = INFINITY, .count = 0};
-    uint32_t stack[SDF__TREE_MAX_DEPTH + 2];
+    /* Each wide level pushes at most SDF__WIDE children and pops one. */
+    wide_entry stack[(SDF__WIDE - 1) * SDF__TREE_MAX_DEPTH + 2];
     int top = 0;
-    stack[top++] = 0;
+    stack[top++] = (wide_entry){0, 0.0f};
     while (top > 0) {
-        const sdf__tree_node *node = &tree->nodes[stack[--top]];
-        if (sdf__box_dist2f(node->lo, node->hi, x, y, z) > limit2)
+        const wide_entry e = stack[--top];
+        if (e.dist2 > limit2) /* the bound shrank since it was pushed */
             continue;
-        if (!node->count) { /* near child last on the stack, so it is visited first */
-            const sdf__tree_node *a = &tree->nodes[node->first], *b = a + 1;
-            int a_near = sdf__box_dist2f(a->lo, a->hi, x, y, z) <=
-                         sdf__box_dist2f(b->lo, b->hi, x, y, z);
-            stack[top++] = node->first + (uint32_t)a_near;
-            stack[top++] = node->first + (uint32_t)!a_near;
+        if (e.ref & SDF__WIDE_LEAF) {
+            const uint32_t leaf = e.ref & ~SDF__WIDE_LEAF;
+            if (sdf__disc_dist2f(&tree->discs[leaf], x, y, z) <= limit2)
+                point_leaf(tree, &tree->nodes[leaf], positions, triangles, vx, vy, vz, &limit2,
+                           tie_abs, &lane);
             continue;
         }
-        if (sdf__disc_dist2f(&tree->discs[node - tree->nodes], x, y, z) > limit2)
-            continue;
-        /* The leaf's triangles eight at a time, one per lane; short chunks repeat their first
-         * triangle in the spare lanes, which are never offered. */
-        for (uint32_t k0 = 0; k0 < node->count; k0 += LANE_GROUP) {
-            int n = node->count - k0 < LANE_GROUP ? (int)(node->count - k0) : LANE_GROUP;
-            uint32_t ids[LANE_GROUP];
-            float corner[3][3][LANE_GROUP];
-            for (int t = 0; t < LANE_GROUP; t++) {
-                ids[t] = tree->prims[node->first + k0 + (uint32_t)(t < n ? t : 0)];
-                const uint32_t *tri = triangles + 3 * (size_t)ids[t];
-                for (int c = 0; c < 3; c++)
-                    for (int a = 0; a < 3; a++)
-                        corner[c][a][t] = positions[3 * (size_t)tri[c] + a];
-            }
-            sdf__triangle8 f;
-            for (int c = 0; c < 3; c++)
-                for (int a = 0; a < 3; a++)
-                    f.v[c][a] = sdf__v8f_load(corner[c][a]);
-            sdf__triangle8_prepare(&f);
-            sdf__v8f dist2 = sdf__triangle8_dist2(&f, vx, vy, vz);
-            if (!sdf__v8i_any(dist2 <= limit2))
+        const sdf__wide_node *w = &tree->wide.nodes[e.ref];
+        const sdf__v8f d2 = wide_dist2(w, vx, vy, vz);
+        /* The children within the bound, farthest first, so the nearest is popped first. */
+        wide_entry near[SDF__WIDE];
+        int n = 0;
+        for (int i = 0; i < SDF__WIDE && w->child[i] != SDF__WIDE_EMPTY; i++) {
+            if (d2[i] > limit2)
                 continue;
-            for (int t = 0; t < n; t++)
-                if (dist2[t] <= limit2)
-                    lane_offer(&lane, &limit2, tie_abs, ids[t], dist2[t]);
+            int at = n++;
+            for (; at > 0 && near[at - 1].dist2 < d2[i]; at--)
+                near[at] = near[at - 1];
+            near[at] = (wide_entry){w->child[i], d2[i]};
         }
+        for (int i = 0; i < n; i++)
+            stack[top++] = near[i];
     }
     double q[3] = {x, y, z};
     decide_lane(positions, triangles, q, &lane, tie_abs, hit);
