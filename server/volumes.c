@@ -229,12 +229,11 @@ void sdfd_volumes_usage(sdfd_volumes *v, size_t *bytes, size_t *running, size_t 
 
 /* ---- jobs -------------------------------------------------------------------------------- */
 
-/* Bytes a bake needs at its peak: the volume plus the first-order planes being fitted. */
-static size_t bake_bytes(const sdf_volume_info *planned)
+/* Bytes of the volume a bake makes. */
+static size_t volume_bytes(const sdf_volume_info *planned)
 {
     size_t nodes = planned->dims[0] * planned->dims[1] * planned->dims[2];
-    size_t words = (size_t)sdf_volume_channels(planned);
-    return nodes * words * 4 + (planned->order == 1 ? nodes * 16 : 0);
+    return nodes * (size_t)sdf_volume_channels(planned) * 4;
 }
 
 static int on_progress(void *user, double fraction)
@@ -358,6 +357,7 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
     int rc = j ? 0 : SDF_ENOMEM;
     sdf_bake_options *o = j ? &j->req.options : NULL;
     sdf_volume_info planned = {0};
+    size_t working = 0; /* the bake's working memory besides the volume (sdf.h) */
     if (!rc) {
         j->req = *req;
         j->mesh = mesh;
@@ -370,19 +370,22 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         o->query.threads = v->threads;
         /* The library's own defaults say what the bake will make (the caller checked it). */
         sdf_diag diag = {0};
-        if ((rc = sdf_volume_plan(mesh, o, &planned, &diag)))
+        if ((rc = sdf_volume_plan(mesh, o, &planned, &diag)) ||
+            (rc = sdf_volume_bake_scratch(mesh, o, &working, &diag)))
             snprintf(err, err_cap, "%s", diag.message);
         snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
         snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
     }
-    size_t need = rc ? 0 : bake_bytes(&planned);
+    /* Held until the bake ends: then the volume alone, if it is kept. */
+    size_t volume = rc ? 0 : volume_bytes(&planned), need = volume + working;
     pthread_mutex_lock(&v->lock);
     if (!rc && v->closing)
         rc = SDF_EUNAVAILABLE, snprintf(err, err_cap, "the server is shutting down");
     if (!rc && v->bytes + v->reserved + need > v->max_bytes)
         rc = SDF_ELIMIT, snprintf(err, err_cap,
-                                  "the bake needs %zu bytes; %zu of --max-volume-bytes %zu are "
-                                  "held or promised", need, v->bytes + v->reserved, v->max_bytes);
+                                  "the bake needs %zu bytes (%zu for the volume, %zu to work in); "
+                                  "%zu of --max-volume-bytes %zu are held or promised",
+                                  need, volume, working, v->bytes + v->reserved, v->max_bytes);
     if (!rc && v->job_count >= v->max_jobs && !(pruned = unlink_oldest_finished(v)))
         rc = SDF_EBUSY, snprintf(err, err_cap, "%zu bake jobs are unfinished; retry later",
                                  v->job_count);

@@ -119,6 +119,11 @@ int sdf__bvh_ready(const sdf__bvh *cbvh)
     return rc;
 }
 
+int sdf__bvh_is_ready(const sdf__bvh *bvh)
+{
+    return atomic_load_explicit(&((sdf__bvh *)bvh)->scene, memory_order_acquire) != NULL;
+}
+
 void sdf__bvh_destroy(sdf__bvh *bvh)
 {
     if (!bvh)

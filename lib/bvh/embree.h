@@ -43,6 +43,8 @@ int sdf__bvh_check(const sdf__bvh *bvh, sdf_diag *diag);
 /* Commit the scene if no call has yet (thread-safe; concurrent callers wait for the one
  * build). 0, or SDF_EBVH if Embree failed (then every later call fails too). */
 int sdf__bvh_ready(const sdf__bvh *bvh);
+/* Has a call committed the scene? */
+int sdf__bvh_is_ready(const sdf__bvh *bvh);
 
 /* Exact closest point on the mesh to p, by the scene (sdf__bvh_ready first). Thread-safe. */
 void sdf__bvh_closest(const sdf__bvh *bvh, const float p[3], sdf__hit *hit);

@@ -119,6 +119,21 @@ static int step_sign_data(sdf_mesh *m, sdf_diag *diag)
     return 0;
 }
 
+/* Embree's scene holds ~67 bytes a triangle once built (docs/performance.md); its builder's
+ * peak is Embree's own and not counted by us, so three times that is allowed for. */
+#define EMBREE_SCENE_BYTES_PER_TRIANGLE 200
+
+size_t sdf__mesh_first_use_bound(const sdf_mesh *m, sdf_sign_method sign)
+{
+    if (sign == SDF_SIGN_AUTO)
+        sign = m->report.auto_sign;
+    if (sign == SDF_SIGN_WINDING && !sdf__mesh_winding(m))
+        return sdf__winding_build_bytes(m->tree.node_count);
+    if (sign == SDF_SIGN_RAYCAST && !sdf__bvh_is_ready(m->bvh))
+        return EMBREE_SCENE_BYTES_PER_TRIANGLE * m->report.triangles;
+    return 0;
+}
+
 int sdf__mesh_need_winding(const sdf_mesh *cm)
 {
     sdf_mesh *m = (sdf_mesh *)cm; /* the moments are a cache: making them is not a change */

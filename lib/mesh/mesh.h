@@ -45,6 +45,10 @@ int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
  * `auto` signs by winding numbers have them from the build. 0 or SDF_ENOMEM. */
 int sdf__mesh_need_winding(const sdf_mesh *mesh);
 
+/* An upper bound of the bytes the first query signed by `sign` adds to the mesh (what is
+ * made on first use and not made yet): the winding-number moments, or Embree's scene. */
+size_t sdf__mesh_first_use_bound(const sdf_mesh *mesh, sdf_sign_method sign);
+
 /* The moments, after sdf__mesh_need_winding succeeded. */
 static inline const struct sdf__winding *sdf__mesh_winding(const sdf_mesh *mesh)
 {

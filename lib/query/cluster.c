@@ -52,6 +52,13 @@ sdf__cluster *sdf__cluster_create(int capacity)
     return c;
 }
 
+size_t sdf__cluster_bytes(int capacity)
+{
+    size_t n = (size_t)capacity;
+    return sizeof(sdf__cluster) + (n + 1) * sizeof(candidate) +
+           n * (sizeof(sdf__float_triangle) + 2 * sizeof(float) + sizeof(int));
+}
+
 void sdf__cluster_destroy(sdf__cluster *c)
 {
     if (!c)

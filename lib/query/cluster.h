@@ -41,6 +41,8 @@ typedef struct sdf__cluster sdf__cluster;
 
 /* Returns NULL when out of memory. */
 sdf__cluster *sdf__cluster_create(int capacity);
+/* The bytes sdf__cluster_create(capacity) allocates. */
+size_t sdf__cluster_bytes(int capacity);
 void sdf__cluster_destroy(sdf__cluster *cluster);
 
 /* Closest points of `n` (1..SDF__CLUSTER_MAX) points (xyz floats `stride` bytes apart)

@@ -43,6 +43,17 @@ int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *b
 int sdf__find_lattice(const float *points, size_t stride, size_t count, size_t dims[3],
                       float *axis[3]);
 
+/* An upper bound of the bytes sdf_query, sdf__query_points or sdf__query_seeded allocate
+ * for a batch of `count` points on `threads` threads, the lattice path's scan aside (a batch
+ * it takes is a lattice of at least two whole z-slices). Defined in query.c. */
+size_t sdf__query_scratch_bound(size_t count, int threads);
+
+/* An upper bound of the bytes sdf_query_filtered allocates for `count` points with fully
+ * resolved options `f` (gradient: whether it is asked for), its inner queries' included.
+ * Defined in filter.c. */
+size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int gradient,
+                                 int threads);
+
 /* sdf_query without its lattice path (volume/scan.c queries its coarse lattice with it):
  * packets or single queries only. Defined in query.c. */
 int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,

@@ -173,6 +173,12 @@ void sdf__winding_destroy(sdf__winding *w)
     free(w);
 }
 
+size_t sdf__winding_build_bytes(size_t node_count)
+{
+    return sizeof(sdf__winding) + node_count * sizeof(stored_moments) +
+           (node_count + 1) * sizeof(moments);
+}
+
 size_t sdf__winding_bytes(const sdf__winding *w)
 {
     return w ? w->tree->node_count * sizeof(stored_moments) : 0;

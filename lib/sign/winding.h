@@ -20,6 +20,10 @@
 
 typedef struct sdf__winding sdf__winding;
 
+/* The most bytes sdf__winding_create allocates for a tree of node_count nodes (the kept
+ * moments and the build's double-precision ones). */
+size_t sdf__winding_build_bytes(size_t node_count);
+
 /* Compute the moments of every node of `tree`. The tree, `positions` and `triangles` must
  * outlive the result. Returns 0 or SDF_ENOMEM. */
 int sdf__winding_create(const sdf__tree *tree, const float *positions, const uint32_t *triangles,

@@ -16,6 +16,7 @@
 
 #include "core/diag.h"
 #include "core/parallel.h"
+#include "mesh/mesh.h"
 #include "query/filter.h"
 #include "volume/pack.h"
 #include "volume/scan.h"
@@ -33,6 +34,7 @@ typedef struct bake_plan {
     sdf_volume_info info;
     const sdf_mesh *mesh;
     const sdf_filter_options *filter;
+    sdf_filter_options resolved_filter; /* filter with its defaults filled in */
     sdf_query_options query;
     int closed;                   /* the mesh's sign flips only across its surface */
     size_t queries_per_point;     /* 1, or what one filtered value costs */
@@ -109,10 +111,10 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
         return rc;
     plan->queries_per_point = 1;
     if (o->filter) {
-        sdf_filter_options resolved;
-        if ((rc = sdf__filter_resolve(mesh, o->filter, &resolved, diag)))
+        sdf_filter_options *resolved = &plan->resolved_filter;
+        if ((rc = sdf__filter_resolve(mesh, o->filter, resolved, diag)))
             return rc;
-        plan->queries_per_point = (size_t)resolved.samples + 1 + (resolved.min_samples ? 26 : 0);
+        plan->queries_per_point = (size_t)resolved->samples + 1 + (resolved->min_samples ? 26 : 0);
     }
     plan->mesh = mesh;
     plan->filter = o->filter;
@@ -509,6 +511,54 @@ static int query_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options
             rc = progress(opts, (double)(done + s.count) / (double)v->nodes, diag);
     }
     free_slab(&s);
+    return rc;
+}
+
+/* An upper bound of what query_bake allocates: its slab arrays and the largest query it
+ * makes (a slab's nodes, then their fine samples). A slab never holds two whole z-slices
+ * when the scan does not take the bake, so no query of it takes sdf_query's lattice path. */
+static size_t query_bake_scratch(const bake_plan *plan)
+{
+    int first = plan->info.order == 1;
+    size_t m = first ? (size_t)plan->fine_count : 1;
+    size_t nodes = plan->info.dims[0] * plan->info.dims[1] * plan->info.dims[2];
+    size_t per_slab = SLAB_QUERIES / (m * plan->queries_per_point);
+    per_slab = per_slab < 1 ? 1 : per_slab > nodes ? nodes : per_slab;
+    size_t arrays = per_slab * 3 * sizeof(float);
+    if (first)
+        arrays += per_slab * sizeof(float) +
+                  per_slab * m * (3 * sizeof(float) + sizeof(float) + sizeof(double) + 2);
+    size_t largest = per_slab * m;
+    int threads = plan->query.threads;
+    size_t queries = plan->filter
+                         ? sdf__filter_scratch_bound(&plan->resolved_filter, largest, 0, threads)
+                         : sdf__query_scratch_bound(largest, threads);
+    return arrays + queries;
+}
+
+int sdf_volume_bake_scratch(const sdf_mesh *mesh, const sdf_bake_options *opts, size_t *bytes,
+                            sdf_diag *diag)
+{
+    if (!mesh || !bytes)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "no mesh");
+    sdf_bake_options defaults = {0};
+    bake_plan *plan = calloc(1, sizeof *plan);
+    if (!plan)
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory to plan the bake");
+    int rc = resolve(mesh, opts ? opts : &defaults, plan, diag);
+    if (!rc && plan->info.order == 1 && plan_fine_grid(plan))
+        rc = sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the fine grid's normal matrix is singular");
+    if (!rc) {
+        const sdf_volume_info *in = &plan->info;
+        size_t nodes = in->dims[0] * in->dims[1] * in->dims[2];
+        /* The plan, the first order's planes and fit state, the sign's data made on first
+         * use, and the way the bake goes. */
+        *bytes = 2 * sizeof(bake_plan) + sdf__mesh_first_use_bound(mesh, plan->query.sign) +
+                 (in->order == 1 ? nodes * 4 * sizeof(float) + sizeof(fit_state) : 0) +
+                 (scannable(plan) ? sdf__scan_scratch_bound(mesh, in, plan->query.threads)
+                                  : query_bake_scratch(plan));
+    }
+    free(plan);
     return rc;
 }
 

@@ -608,6 +608,48 @@ int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads)
     return nx * ny * node_bytes * workers <= SCAN_SLICE_LIMIT;
 }
 
+size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info, int threads)
+{
+    size_t faces = mesh->report.triangles, edges = mesh->edge_count;
+    size_t vertices = mesh->report.vertices, features = faces + edges + vertices;
+    size_t nx = info->dims[0], ny = info->dims[1], axes = 0, coarse = 1;
+    for (int a = 0; a < 3; a++) {
+        axes += info->dims[a];
+        coarse *= (info->dims[a] - 1 + COARSE_STEP - 1) / COARSE_STEP + 1;
+    }
+    /* sdf__features_init's arrays (positions in double, edge ends, three CSR lists) and its
+     * temporaries (sort keys and values, a fill cursor), counted all at once. */
+    size_t adjacency = 24 * vertices + 8 * edges + 4 * (edges + 1) + 12 * faces +
+                       2 * 4 * (vertices + 1) + 8 * edges + 12 * faces + 60 * faces +
+                       4 * (edges + vertices + 1);
+    /* The visit order with its positions and sort keys, the z-spans. */
+    size_t order = (4 + 12 + 16 + 8) * (features + 1);
+    /* The coarse lattice of exact distances: its points, values, axes and queries. */
+    size_t lattice = 16 * coarse + 8 * axes + sdf__query_scratch_bound(coarse, threads);
+    /* Node coordinates (double, float while made). */
+    size_t coords = 12 * axes;
+    /* One call's per-node arrays, each worker's (as slices_within and sdf__scan_fits size
+     * them: the budget, or one slice when that is larger, and no more slices than there
+     * are), and its per-row arrays. */
+    size_t workers = (size_t)sdf__effective_threads(threads, features, 1);
+    size_t slice = nx * ny, call;
+    if (info->order == 1) {
+        size_t w3 = POW3(2 * info->fine_half + 1), node_bytes = w3 * sizeof(float);
+        size_t slices = SCAN_SAMPLE_BUDGET_BYTES / (workers * node_bytes) / slice;
+        slices = slices < 1 ? 1 : slices > info->dims[2] ? info->dims[2] : slices;
+        call = workers * slices * slice * node_bytes +
+               workers * (MERGE_NODES * w3 * sizeof(float) + sizeof(fat_region));
+    } else {
+        size_t slices = SCAN_BUDGET_BYTES / (workers * sizeof(node_best)) / slice;
+        slices = slices < 1 ? 1 : slices > info->dims[2] ? info->dims[2] : slices;
+        call = workers * slices * slice * sizeof(node_best) +
+               workers * nx * (3 * sizeof(float) + sizeof(sdf__hit) + sizeof(uint32_t) +
+                               sizeof(float));
+    }
+    call += workers * sizeof(sdf__region) + sizeof(sdf__scan);
+    return adjacency + order + lattice + coords + call;
+}
+
 /* Slices per call: the workers' per-node scratch within `budget`, at least one slice. */
 static size_t slices_within(const sdf__scan *s, size_t node_bytes, size_t budget)
 {

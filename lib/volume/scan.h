@@ -38,6 +38,10 @@ int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign);
  * whole slices: a bake or query whose slice does not fit takes the search path instead. */
 int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads);
 
+/* An upper bound of the bytes a scan of `info`'s lattice allocates over its life (the
+ * mesh's adjacency, the coarse lattice, each call's per-node arrays), on `threads`. */
+size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info, int threads);
+
 /* Prepare the scan of `info`'s lattice (dims, origin, spacing): the mesh's adjacency and how
  * far from the surface any node lies (from a coarse lattice of exact queries). `opts` gives
  * the sign and threads. Returns 0 or SDF_ENOMEM. */

@@ -6,6 +6,7 @@ the documented error statuses."""
 import io
 import json
 import os
+import re
 import signal
 import struct
 import subprocess
@@ -262,20 +263,33 @@ class Limits(unittest.TestCase):
 
 
     def test_memory_limit_token_and_shutdown(self):
-        with Server("--token", "t", "--max-volume-bytes", "100000") as s:
+        with Server("--token", "t", "--max-volume-bytes", "8000000") as s:
             anon, admin = sdfclient.Client(s.url), sdfclient.Client(s.url, token="t")
             self.addCleanup(anon.close)
             self.addCleanup(admin.close)
             with self.assertRaises(sdfclient.SdfError) as e:
                 anon.bake("demo", resolution=8)
             self.assertEqual(e.exception.status, 401)
-            admin.wait(admin.bake("demo", resolution=16))  # 16 KiB
+            admin.wait(admin.bake("demo", resolution=16))  # 16 KiB, ~4 MB while baking
+            # 75^3 floats (1.7 MB) would fit; with what the bake works in, they do not.
             with self.assertRaises(sdfclient.SdfError) as e:
-                admin.bake("demo", volume="big", resolution=40)  # 256 KB
+                admin.bake("demo", volume="big", resolution=75)
             self.assertEqual(e.exception.status, 413)
             self.assertIn("--max-volume-bytes", e.exception.message)
+            m = re.search(r"needs (\d+) bytes \((\d+) for the volume, (\d+) to work in\)",
+                          e.exception.message)
+            self.assertIsNotNone(m, e.exception.message)
+            need, volume, working = map(int, m.groups())
+            self.assertEqual(volume, 75 ** 3 * 4)
+            self.assertEqual(need, volume + working)
+            self.assertLess(volume + 16 ** 3 * 4, 8000000)
+            self.assertGreater(need, 8000000 - 16 ** 3 * 4)
             self.assertEqual(anon.query_volume("demo", [[0, 0, 0]])["distance"].shape, (1,))
-            # SIGTERM during a long bake: it is canceled and the server exits promptly.
+        # SIGTERM during a long bake (the filtered field's ~60 MB of working memory: the
+        # default limit): it is canceled and the server exits promptly.
+        with Server("--token", "t") as s:
+            admin = sdfclient.Client(s.url, token="t")
+            self.addCleanup(admin.close)
             admin.bake("demo", volume="long", resolution=13, order=1, field="filtered",
                        filter={"samples": 64})
             time.sleep(0.3)

@@ -380,6 +380,13 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
 int sdf_volume_plan(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume_info *planned,
                     sdf_diag *diag);
 
+/* An upper bound of the bytes sdf_volume_bake(mesh, opts) allocates besides the volume it
+ * returns (sdf_volume_channels x 4 bytes a node): its working arrays, the first order's
+ * planes, and for the scan the mesh's adjacency and a coarse lattice (docs/volumes.md). For
+ * callers that budget memory; checks `opts` as sdf_volume_plan does. */
+int sdf_volume_bake_scratch(const sdf_mesh *mesh, const sdf_bake_options *opts, size_t *bytes,
+                            sdf_diag *diag);
+
 /* A volume from its description and node data (copied; sdf_volume_channels(info) 32-bit
  * words per node, float or uint32 by the encoding). Checks the description; non-finite
  * floats are SDF_ENONFINITE. */
