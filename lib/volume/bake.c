@@ -551,9 +551,10 @@ int sdf_volume_bake_scratch(const sdf_mesh *mesh, const sdf_bake_options *opts, 
     if (!rc) {
         const sdf_volume_info *in = &plan->info;
         size_t nodes = in->dims[0] * in->dims[1] * in->dims[2];
-        /* The plan, the first order's planes and fit state, the sign's data made on first
-         * use, and the way the bake goes. */
-        *bytes = 2 * sizeof(bake_plan) + sdf__mesh_first_use_bound(mesh, plan->query.sign) +
+        /* The plan, the volume's header, the first order's planes and fit state, the sign's
+         * data made on first use, and the way the bake goes. */
+        *bytes = sizeof(bake_plan) + sizeof(sdf_volume) +
+                 sdf__mesh_first_use_bound(mesh, plan->query.sign) +
                  (in->order == 1 ? nodes * 4 * sizeof(float) + sizeof(fit_state) : 0) +
                  (scannable(plan) ? sdf__scan_scratch_bound(mesh, in, plan->query.threads)
                                   : query_bake_scratch(plan));
