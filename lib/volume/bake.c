@@ -124,24 +124,6 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
     return 0;
 }
 
-int sdf_volume_plan(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume_info *planned,
-                    sdf_diag *diag)
-{
-    if (!mesh || !planned)
-        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "no mesh");
-    sdf_bake_options defaults = {0};
-    bake_plan *plan = calloc(1, sizeof *plan);
-    if (!plan)
-        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory to plan the bake");
-    int rc = resolve(mesh, opts ? opts : &defaults, plan, diag);
-    if (!rc) {
-        *planned = plan->info;
-        planned->packed_range = 0;
-    }
-    free(plan);
-    return rc;
-}
-
 /* ---- the least-squares plane (eq. 3) ------------------------------------------------------ */
 
 /* Invert the 4x4 matrix m by Gauss-Jordan elimination with partial pivoting. */
@@ -204,6 +186,42 @@ static int plan_fine_grid(bake_plan *plan)
             plan->pinv_t[s][r] = inv[r][0] * row[0] + inv[r][1] * row[1] + inv[r][2] * row[2] +
                                  inv[r][3] * row[3];
         }
+    return 0;
+}
+
+/* The plan of `opts` (NULL: the defaults) for `mesh`, checked as every entry point checks it:
+ * the options, then the first order's fine grid. On failure *out is NULL. */
+static int make_plan(const sdf_mesh *mesh, const sdf_bake_options *opts, bake_plan **out,
+                     sdf_diag *diag)
+{
+    *out = NULL;
+    sdf_bake_options defaults = {0};
+    bake_plan *plan = calloc(1, sizeof *plan);
+    if (!plan)
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory to plan the bake");
+    int rc = resolve(mesh, opts ? opts : &defaults, plan, diag);
+    if (!rc && plan->info.order == 1 && plan_fine_grid(plan))
+        rc = sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the fine grid's normal matrix is singular");
+    if (rc) {
+        free(plan);
+        return rc;
+    }
+    *out = plan;
+    return 0;
+}
+
+int sdf_volume_plan(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume_info *planned,
+                    sdf_diag *diag)
+{
+    if (!mesh || !planned)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "no mesh");
+    bake_plan *plan;
+    int rc = make_plan(mesh, opts, &plan, diag);
+    if (rc)
+        return rc;
+    *planned = plan->info;
+    planned->packed_range = 0;
+    free(plan);
     return 0;
 }
 
@@ -541,26 +559,21 @@ int sdf_volume_bake_scratch(const sdf_mesh *mesh, const sdf_bake_options *opts, 
 {
     if (!mesh || !bytes)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "no mesh");
-    sdf_bake_options defaults = {0};
-    bake_plan *plan = calloc(1, sizeof *plan);
-    if (!plan)
-        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory to plan the bake");
-    int rc = resolve(mesh, opts ? opts : &defaults, plan, diag);
-    if (!rc && plan->info.order == 1 && plan_fine_grid(plan))
-        rc = sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the fine grid's normal matrix is singular");
-    if (!rc) {
-        const sdf_volume_info *in = &plan->info;
-        size_t nodes = in->dims[0] * in->dims[1] * in->dims[2];
-        /* The plan, the volume's header, the first order's planes and fit state, the sign's
-         * data made on first use, and the way the bake goes. */
-        *bytes = sizeof(bake_plan) + sizeof(sdf_volume) +
-                 sdf__mesh_first_use_bound(mesh, plan->query.sign) +
-                 (in->order == 1 ? nodes * 4 * sizeof(float) + sizeof(fit_state) : 0) +
-                 (scannable(plan) ? sdf__scan_scratch_bound(mesh, in, plan->query.threads)
-                                  : query_bake_scratch(plan));
-    }
+    bake_plan *plan;
+    int rc = make_plan(mesh, opts, &plan, diag);
+    if (rc)
+        return rc;
+    const sdf_volume_info *in = &plan->info;
+    size_t nodes = in->dims[0] * in->dims[1] * in->dims[2];
+    /* The plan, the volume's header, the first order's planes and fit state, the sign's data
+     * made on first use, and the way the bake goes. */
+    *bytes = sizeof(bake_plan) + sizeof(sdf_volume) +
+             sdf__mesh_first_use_bound(mesh, plan->query.sign) +
+             (in->order == 1 ? nodes * 4 * sizeof(float) + sizeof(fit_state) : 0) +
+             (scannable(plan) ? sdf__scan_scratch_bound(mesh, in, plan->query.threads)
+                              : query_bake_scratch(plan));
     free(plan);
-    return rc;
+    return 0;
 }
 
 int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volume **out,
@@ -574,12 +587,10 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
     sdf_bake_options defaults = {0};
     if (!opts)
         opts = &defaults;
-    bake_plan *plan = calloc(1, sizeof *plan);
-    if (!plan)
-        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory to plan the bake");
-    int rc = resolve(mesh, opts, plan, diag);
-    if (!rc && plan->info.order == 1 && plan_fine_grid(plan))
-        rc = sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the fine grid's normal matrix is singular");
+    bake_plan *plan;
+    int rc = make_plan(mesh, opts, &plan, diag);
+    if (rc)
+        return rc;
     bake_out o = {.smallest_f = INFINITY, .largest_f = -INFINITY};
     if (!rc && (rc = sdf__volume_alloc(&plan->info, &o.v)))
         sdf__diag_set(diag, rc, 0, -1, "no memory for a volume of %zu x %zu x %zu nodes",
