@@ -5,8 +5,9 @@
 # clients x 1,000 points over binary and octet-stream), and prints a Markdown table with each
 # throughput as a ratio of the in-process one. The 64 clients' requests coalesce into batches
 # of up to 64,000 points, so the in-process library on 64,000 points is shown too, and the
-# last column compares the 64-client rows with it (what the server adds to a batch that size). Both generate the band workload from the same
-# seed, so the points are identical. Needs a release build in build/.
+# last column compares the 64-client rows with it (what the server adds to a batch that
+# size). Both generate the band workload from the same seed, so the points are identical.
+# Needs a release build in build/.
 #
 #   tests/bench/server-compare.sh [MESH...]     (default: fandisk, refined_elephant)
 set -eu
@@ -29,7 +30,8 @@ for mesh in "$@"; do
     base=$(build/tests/bench/sdf-bench "$mesh" --workload band --n "$n" --threads 2 | mqs)
     name=$(basename "$mesh")
     echo "| $name | in-process sdf-bench | 1 x $n | $base | 1.00 | | |"
-    small=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 64000 --threads 2 --repeat 20 | mqs)
+    small=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 64000 --threads 2 \
+        --repeat 20 | mqs)
     ratio() { awk -v a="$1" -v b="$2" 'BEGIN {printf "%.2f", a / b}'; }
     echo "| $name | in-process sdf-bench | 1 x 64000 | $small | $(ratio "$small" "$base") | | 1.00 |"
     run() { # form clients
