@@ -32,7 +32,6 @@ typedef struct sdf__wide_node {
 typedef struct sdf__wide {
     sdf__wide_node *nodes; /* nodes[0] is the root */
     size_t count;
-    int depth;             /* the longest root-to-leaf path, in wide nodes */
 } sdf__wide;
 
 struct sdf__tree_node;
