@@ -118,15 +118,26 @@ SDF__HOT_INLINE sdf__v8f sdf__disc_dist2_lanes(const sdf__tree_disc *c, sdf__v8f
     return a * a + b * b;
 }
 
-/* Squared distance from eight points to the box [lo, hi]; 0 inside. */
-SDF__HOT_INLINE sdf__v8f sdf__box_dist2_lanes(const float lo[3], const float hi[3], sdf__v8f x,
-                                              sdf__v8f y, sdf__v8f z)
+/* Squared distance from each lane's point (x, y, z) to that lane's box [lo, hi]; 0 inside.
+ * Eight points and one box (sdf__box_dist2_lanes), or one point and a wide node's eight
+ * boxes (bvh/wide.h), are the two uses. */
+SDF__HOT_INLINE sdf__v8f sdf__box_dist2_v8(const sdf__v8f lo[3], const sdf__v8f hi[3],
+                                           sdf__v8f x, sdf__v8f y, sdf__v8f z)
 {
     const sdf__v8f zero = sdf__v8f_splat(0);
     sdf__v8f dx = sdf__v8f_max(sdf__v8f_max(lo[0] - x, x - hi[0]), zero);
     sdf__v8f dy = sdf__v8f_max(sdf__v8f_max(lo[1] - y, y - hi[1]), zero);
     sdf__v8f dz = sdf__v8f_max(sdf__v8f_max(lo[2] - z, z - hi[2]), zero);
     return dx * dx + dy * dy + dz * dz;
+}
+
+/* Squared distance from eight points to the box [lo, hi]; 0 inside. */
+SDF__HOT_INLINE sdf__v8f sdf__box_dist2_lanes(const float lo[3], const float hi[3], sdf__v8f x,
+                                              sdf__v8f y, sdf__v8f z)
+{
+    const sdf__v8f l[3] = {sdf__v8f_splat(lo[0]), sdf__v8f_splat(lo[1]), sdf__v8f_splat(lo[2])};
+    const sdf__v8f h[3] = {sdf__v8f_splat(hi[0]), sdf__v8f_splat(hi[1]), sdf__v8f_splat(hi[2])};
+    return sdf__box_dist2_v8(l, h, x, y, z);
 }
 
 /* Eight triangles prepared for the float test, lane t holding triangle t (or one triangle in

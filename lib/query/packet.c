@@ -283,14 +283,11 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
 /* Squared distances from (x, y, z) to the boxes of a wide node's eight children. */
 SDF__HOT_INLINE sdf__v8f wide_dist2(const sdf__wide_node *w, sdf__v8f x, sdf__v8f y, sdf__v8f z)
 {
-    const sdf__v8f zero = sdf__v8f_splat(0);
-    sdf__v8f dx = sdf__v8f_max(sdf__v8f_max(sdf__v8f_load(w->lo[0]) - x,
-                                            x - sdf__v8f_load(w->hi[0])), zero);
-    sdf__v8f dy = sdf__v8f_max(sdf__v8f_max(sdf__v8f_load(w->lo[1]) - y,
-                                            y - sdf__v8f_load(w->hi[1])), zero);
-    sdf__v8f dz = sdf__v8f_max(sdf__v8f_max(sdf__v8f_load(w->lo[2]) - z,
-                                            z - sdf__v8f_load(w->hi[2])), zero);
-    return dx * dx + dy * dy + dz * dz;
+    const sdf__v8f lo[3] = {sdf__v8f_load(w->lo[0]), sdf__v8f_load(w->lo[1]),
+                            sdf__v8f_load(w->lo[2])};
+    const sdf__v8f hi[3] = {sdf__v8f_load(w->hi[0]), sdf__v8f_load(w->hi[1]),
+                            sdf__v8f_load(w->hi[2])};
+    return sdf__box_dist2_v8(lo, hi, x, y, z);
 }
 
 /* The leaf's triangles eight at a time, one per lane, offered to the point's lane state;
