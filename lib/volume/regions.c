@@ -444,7 +444,7 @@ int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *co
     size_t n[3], count = 1;
     double half_diag2 = 0, finest = INFINITY;
     for (int a = 0; a < 3; a++) {
-        n[a] = (dims[a] - 1 + step - 1) / step + 1;
+        n[a] = sdf__features_bound_nodes(dims[a], step);
         count *= n[a];
     }
     float *pts = calloc(count * 3, sizeof *pts), *d = malloc(count * sizeof *d);

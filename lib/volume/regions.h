@@ -88,6 +88,13 @@ int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *co
                         const size_t dims[3], size_t step, int threads, float **bound,
                         double *bound_coord[3]);
 
+/* Nodes of sdf__features_bound's coarse lattice along an axis of `dim` nodes: every step-th,
+ * and the last. */
+static inline size_t sdf__features_bound_nodes(size_t dim, size_t step)
+{
+    return (dim - 1 + step - 1) / step + 1;
+}
+
 /* The region of `feature`; 0 when it has none worth scanning (a face or edge without
  * extent, a vertex whose cone is only itself). */
 int sdf__region_build(const sdf__features *f, size_t feature, sdf__region *r);

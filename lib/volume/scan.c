@@ -608,6 +608,20 @@ int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads)
     return nx * ny * node_bytes * workers <= SCAN_SLICE_LIMIT;
 }
 
+/* Slices of `slice_nodes` nodes per call: `workers` copies of the per-node scratch within
+ * `budget`, at least one slice. */
+static size_t slices_for(size_t slice_nodes, size_t workers, size_t node_bytes, size_t budget)
+{
+    size_t slices = budget / (workers * node_bytes) / slice_nodes;
+    return slices ? slices : 1;
+}
+
+static size_t slices_within(const sdf__scan *s, size_t node_bytes, size_t budget)
+{
+    size_t workers = (size_t)sdf__effective_threads(s->query.threads, s->feat.count, 1);
+    return slices_for(s->dims[0] * s->dims[1], workers, node_bytes, budget);
+}
+
 size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info, int threads)
 {
     size_t faces = mesh->report.triangles, edges = mesh->edge_count;
@@ -615,7 +629,7 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
     size_t nx = info->dims[0], ny = info->dims[1], axes = 0, coarse = 1;
     for (int a = 0; a < 3; a++) {
         axes += info->dims[a];
-        coarse *= (info->dims[a] - 1 + COARSE_STEP - 1) / COARSE_STEP + 1;
+        coarse *= sdf__features_bound_nodes(info->dims[a], COARSE_STEP);
     }
     /* sdf__features_init's arrays (positions in double, edge ends, three CSR lists) and its
      * temporaries (sort keys and values, a fill cursor), counted all at once. */
@@ -635,27 +649,19 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
     size_t slice = nx * ny, call;
     if (info->order == 1) {
         size_t w3 = POW3(2 * info->fine_half + 1), node_bytes = w3 * sizeof(float);
-        size_t slices = SCAN_SAMPLE_BUDGET_BYTES / (workers * node_bytes) / slice;
-        slices = slices < 1 ? 1 : slices > info->dims[2] ? info->dims[2] : slices;
+        size_t slices = slices_for(slice, workers, node_bytes, SCAN_SAMPLE_BUDGET_BYTES);
+        slices = slices > info->dims[2] ? info->dims[2] : slices;
         call = workers * slices * slice * node_bytes +
                workers * (MERGE_NODES * w3 * sizeof(float) + sizeof(fat_region));
     } else {
-        size_t slices = SCAN_BUDGET_BYTES / (workers * sizeof(node_best)) / slice;
-        slices = slices < 1 ? 1 : slices > info->dims[2] ? info->dims[2] : slices;
+        size_t slices = slices_for(slice, workers, sizeof(node_best), SCAN_BUDGET_BYTES);
+        slices = slices > info->dims[2] ? info->dims[2] : slices;
         call = workers * slices * slice * sizeof(node_best) +
                workers * nx * (3 * sizeof(float) + sizeof(sdf__hit) + sizeof(uint32_t) +
                                sizeof(float));
     }
     call += workers * sizeof(sdf__region) + sizeof(sdf__scan);
     return adjacency + order + lattice + coords + call;
-}
-
-/* Slices per call: the workers' per-node scratch within `budget`, at least one slice. */
-static size_t slices_within(const sdf__scan *s, size_t node_bytes, size_t budget)
-{
-    size_t workers = (size_t)sdf__effective_threads(s->query.threads, s->feat.count, 1);
-    size_t slices = budget / (workers * node_bytes) / (s->dims[0] * s->dims[1]);
-    return slices ? slices : 1;
 }
 
 size_t sdf__scan_slices_per_call(const sdf__scan *s)
