@@ -1,5 +1,5 @@
 /* regions.h - where each feature of a closed mesh is the closest: the convex regions that
- * closest-feature scan conversion rasterises (volume/scan.c).
+ * closest-feature scan conversion rasterises (volume/scan.c, volume/raster.c).
  *
  * A point's closest surface point lies inside a face, on an edge or at a vertex, and then
  * the point lies in that feature's region: the prism over the face, the wedge between the

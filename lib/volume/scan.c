@@ -6,7 +6,8 @@
  * crossings with a slice give the range of rows to visit. Regions reach only as far as any
  * node can be from the surface (`reach_front` on the outward side, `reach_back` inside),
  * which a coarse lattice of exact queries bounds. Worker threads take runs of features in
- * Morton order, each into its own per-node "best so far" arrays (no locks); the rows are
+ * Morton order, each into its own per-node "best so far" arrays (no locks; the loop over one
+ * region's nodes is volume/raster.c); the rows are
  * then finished in parallel, the workers' bests merged by (distance, feature id) so the
  * result does not depend on how the features were shared out. */
 #include <float.h>
@@ -17,13 +18,13 @@
 
 #include "bvh/embree.h"
 #include "core/parallel.h"
-#include "core/simd.h"
 #include "mesh/mesh.h"
 #include "mesh/topology.h"
 #include "volume/regions.h"
 #include "query/filter.h"
 #include "query/packet.h"
 #include "query/triangle.h"
+#include "volume/raster.h"
 #include "volume/scan.h"
 
 #define COARSE_STEP 8      /* nodes between the coarse lattice's nodes */
@@ -34,420 +35,19 @@
 /* The same, first order: fewer calls rebuild fewer regions that span several (refined_elephant
  * 128^3: 64 MiB 1.57-1.63 s, 128 MiB 1.46-1.49, 256 MiB 1.42-1.48). */
 #define SCAN_SAMPLE_BUDGET_BYTES ((size_t)128 << 20)
-#define MAX_W (2 * 4 + 1)  /* first order: the fine grid's width, H <= 4 */
-#define MAX_SAMPLES (MAX_W * MAX_W * MAX_W)
-#define POW3(w) ((size_t)(w) * (size_t)(w) * (size_t)(w))
-/* Zero order, distances only: a node that lies inside its winner's region by more than this
- * much of the scene's size (beyond the planes' slack), and off the surface by more than
- * SURE_SIGN_OF_EXTENT, is "sure" (see rows_range). Double rounding of the plane values is
- * ~1e-16 of the scene's size; a float pseudonormal's rounding ~1e-7 of an edge's length. */
-#define SURE_INSIDE_OF_EXTENT 1e-9
-#define SURE_SIGN_OF_EXTENT 1e-6
 /* The region's estimate and the exact test's distance both lie within this much of the
  * scene's size of the true distance. */
 #define SURE_DISTANCE_OF_EXTENT 1e-13
 
-struct sdf__scan {
-    const sdf_mesh *mesh;
-    sdf_query_options query;
-    size_t dims[3];
-    double origin[3], spacing[3];
-    double *coord[3];          /* node coordinates per axis, as the float points sdf_query gets */
-    sdf__features feat;
-    double *coarse_coord[3];   /* the coarse lattice's node coordinates (feat.bound_coord) */
-    uint32_t *order;           /* features in Morton order of their positions: neighbours in
-                                  this order write to nearby nodes, so the per-node arrays stay
-                                  in cache */
-    float *coarse;             /* |f| on every COARSE_STEP-th node (feat.bound) */
-    float *sample_scratch;     /* sdf__scan_samples' per-worker bests, kept between calls */
-    float *zspan;              /* per feature its region's z-span (NAN: none), or NULL */
-    size_t sample_scratch_count;
-    double inv_spacing[3];
-    double index_slack[3];     /* float rounding of node coordinates, in nodes */
-    double extent;             /* the scene's size: the scale of every rounding margin */
-};
-
-/* ---- scanning ---------------------------------------------------------------------------- */
-
-typedef struct fat_region fat_region;
-
-/* Zero order: a node's best so far, in one place (the scan is bound by these loads: apart,
- * the three fields were three cache lines). */
-typedef struct node_best {
-    double d2;       /* smallest squared distance so far */
-    uint32_t winner; /* its feature (ties: the lowest id, so the merge is deterministic) */
-    int8_t sure;     /* with distances alone asked for: the winner's sign (+-1) when the node
-                        is sure in its region (rows_range), else 0 */
-} node_best;
-
-typedef struct call_state {
-    sdf__scan *scan;
-    size_t k0, k1;     /* the call's slices */
-    size_t nodes;      /* in the call */
-    node_best *best;   /* per worker and node */
-    int distances_only; /* sure nodes are marked (node_best.sure) */
-    sdf__region *regions; /* per worker: the region being scanned */
-    float *points;     /* per worker: a row of nodes */
-    sdf__hit *hits;    /* per worker: their closest points */
-    uint32_t *slow;    /* per worker: a row's nodes that take the exact test */
-    float *slow_out;   /* per worker: their distances */
-    int workers;
-    sdf_query_result out;  /* zero order: the outputs, at the call's first node */
-    /* First order (sdf__scan_samples): a node stands for its fine grid of W^3 samples. */
-    int fine_w;            /* W = 2H + 1; 0 for zero order */
-    double rho[3];         /* the fine grid's half-extent per axis: regions are dilated by it */
-    double fine_offset[3][MAX_W]; /* per axis, the W offsets of the fine grid */
-    fat_region *fat;       /* per worker */
-    float *sample_best;    /* per worker, node and sample: the smallest squared distance so
-                              far, negative where its feature's pseudonormal says inside */
-    float *merged;         /* per worker: MERGE_NODES nodes' signed distances */
-    sdf__sample_fn consume;
-    void *user;
-    int consume_rc[SDF__MAX_THREADS];
-} call_state;
-
-/* Node index range [lo, hi] of coordinates [from, to] on axis a, widened by the float
- * rounding of the node coordinates (callers compare a node's own coordinate); 0 when empty. */
-static int node_range(const sdf__scan *s, int a, double from, double to, size_t first,
-                      size_t last, size_t *lo, size_t *hi)
-{
-    double l = ceil((from - s->origin[a]) * s->inv_spacing[a] - s->index_slack[a]);
-    double h = floor((to - s->origin[a]) * s->inv_spacing[a] + s->index_slack[a]);
-    if (!(l <= h) || h < (double)first || l > (double)last)
-        return 0;
-    *lo = l < (double)first ? first : (size_t)l;
-    *hi = h > (double)last ? last : (size_t)h;
-    return 1;
-}
-
-/* First order: what a region needs at every fine offset delta_j, once per region (the fine
- * grid is the same around every node). Samples sit at the float node plus delta_j, in
- * double: their distances are exact there, and within float rounding of the points a query
- * would be asked at. */
-struct fat_region {
-    double height[MAX_SAMPLES]; /* face: dir . delta */
-    double side[MAX_SAMPLES];   /* sign_dir . delta */
-    double delta[3][MAX_SAMPLES];
-    double delta2[MAX_SAMPLES]; /* vertex: |delta|^2 */
-    double cross[3][MAX_SAMPLES]; /* edge: delta x dir */
-    double plane_c[SDF__REGION_PLANES]; /* planes n . (p - origin) <= c */
-    double plane_lo[SDF__REGION_PLANES], plane_hi[SDF__REGION_PLANES]; /* n . delta's range */
-    /* n . delta_j of plane p, made the first time p straddles a node's fine grid. */
-    uint8_t plane_ready[SDF__REGION_PLANES];
-    double plane_delta[SDF__REGION_PLANES][MAX_SAMPLES];
-    float cand[MAX_SAMPLES];
-};
-
-static void fat_prepare(const call_state *st, const sdf__region *r, fat_region *fr)
-{
-    int w = st->fine_w;
-    size_t m = POW3(w);
-    for (size_t j = 0; j < m; j++) {
-        size_t o[3] = {j % (size_t)w, j / (size_t)w % (size_t)w, j / (size_t)w / (size_t)w};
-        double dl[3], c[3];
-        for (int a = 0; a < 3; a++)
-            dl[a] = fr->delta[a][j] = st->fine_offset[a][o[a]];
-        fr->height[j] = sdf__dot3(r->dir, dl);
-        fr->side[j] = sdf__dot3(r->sign_dir, dl);
-        fr->delta2[j] = sdf__dot3(dl, dl);
-        sdf__cross3(c, dl, r->dir);
-        fr->cross[0][j] = c[0], fr->cross[1][j] = c[1], fr->cross[2][j] = c[2];
-    }
-    for (int p = 0; p < r->planes; p++) {
-        const double *pl = r->plane[p];
-        fr->plane_ready[p] = 0;
-        fr->plane_c[p] = pl[3] - sdf__dot3(pl, r->origin);
-        fr->plane_lo[p] = fr->plane_hi[p] = 0;
-        for (int a = 0; a < 3; a++) { /* separable: the extremes per axis */
-            double lo = INFINITY, hi = -INFINITY;
-            for (int o = 0; o < w; o++) {
-                double v = pl[a] * st->fine_offset[a][o];
-                lo = sdf__min2(lo, v), hi = sdf__max2(hi, v);
-            }
-            fr->plane_lo[p] += lo, fr->plane_hi[p] += hi;
-        }
-    }
-}
-
-/* First order: the region's feature at each fine sample of node idx that the region holds,
- * kept where nearer than the sample's best so far (signed by the pseudonormal). A plane that
- * holds every sample is not tested per sample. */
-SDF__HOT_INLINE void fat_node(const call_state *st, const sdf__region *r, fat_region *fr,
-                              float *best, size_t n, const size_t idx[3])
-{
-    size_t m = POW3(st->fine_w);
-    double d[3];
-    for (int a = 0; a < 3; a++)
-        d[a] = st->scan->coord[a][idx[a]] - r->origin[a];
-    int straddling[SDF__REGION_PLANES], count = 0;
-    double value[SDF__REGION_PLANES];
-    for (int p = 0; p < r->planes; p++) {
-        value[p] = sdf__dot3(r->plane[p], d) - fr->plane_c[p];
-        if (value[p] + fr->plane_lo[p] > 0)
-            return; /* no sample in the region */
-        if (value[p] + fr->plane_hi[p] > 0)
-            straddling[count++] = p;
-    }
-    double side = sdf__dot3(r->sign_dir, d);
-    float *cand = fr->cand;
-    if (r->kind == SDF__REGION_FACE) {
-        double h0 = sdf__dot3(r->dir, d);
-        for (size_t j = 0; j < m; j++) {
-            double h = h0 + fr->height[j];
-            float d2 = (float)(h * h);
-            cand[j] = side + fr->side[j] < 0 ? -d2 : d2;
-        }
-    } else if (r->kind == SDF__REGION_VERTEX) {
-        double dd = sdf__dot3(d, d);
-        for (size_t j = 0; j < m; j++) {
-            double t = d[0] * fr->delta[0][j] + d[1] * fr->delta[1][j] + d[2] * fr->delta[2][j];
-            float d2 = (float)(dd + 2 * t + fr->delta2[j]);
-            cand[j] = side + fr->side[j] < 0 ? -d2 : d2;
-        }
-    } else {
-        double x0[3];
-        sdf__cross3(x0, d, r->dir);
-        for (size_t j = 0; j < m; j++) {
-            double x = x0[0] + fr->cross[0][j], y = x0[1] + fr->cross[1][j];
-            double z = x0[2] + fr->cross[2][j];
-            float d2 = (float)(x * x + y * y + z * z);
-            cand[j] = side + fr->side[j] < 0 ? -d2 : d2;
-        }
-    }
-    for (int k = 0; k < count; k++) {
-        int p = straddling[k];
-        double v = value[p], *along = fr->plane_delta[p];
-        if (!fr->plane_ready[p]) {
-            const double *pl = r->plane[p];
-            for (size_t j = 0; j < m; j++)
-                along[j] = pl[0] * fr->delta[0][j] + pl[1] * fr->delta[1][j] +
-                           pl[2] * fr->delta[2][j];
-            fr->plane_ready[p] = 1;
-        }
-        for (size_t j = 0; j < m; j++) /* branchless, vectorised */
-            cand[j] = v + along[j] > 0 ? INFINITY : cand[j];
-    }
-    float *out = best + n * m;
-    for (size_t j = 0; j < m; j++) /* branchless, vectorised */
-        out[j] = fabsf(cand[j]) < fabsf(out[j]) ? cand[j] : out[j];
-}
-
-/* A slice's cross-section fits this many lattice points or fewer: test each one against the
- * planes instead of computing row intervals (thin prisms cross a slice in a point or two). */
-#define FEW_POINTS 12
-
-/* Hand the region's feature to every node of the call it holds. Slices run across the
- * region's thinnest axis A, rows across the middle one B, and each row along its longest C.
- * Compiled for AVX2 as well (core/simd.h): the first order's per-sample loops run 4 doubles
- * or 8 floats to a vector there (refined_elephant 128^3 first order -15 %); without FMA
- * contraction (ISO C), each lane rounds as the scalar code does, so the bits do not depend
- * on the CPU. */
-SDF__SIMD_CLONES static void scan_region(const call_state *st, const sdf__region *r,
-                                         uint32_t feature, node_best *best,
-                                         float *best_samples, fat_region *fr)
-{
-    const sdf__scan *s = st->scan;
-    double pad = s->feat.row_pad;
-    /* How far inside every plane a sure node lies: past the slack, by the margin. */
-    double inside_by = s->feat.slack + SURE_INSIDE_OF_EXTENT * s->extent;
-    double sign_by = SURE_SIGN_OF_EXTENT * s->extent;
-    size_t fr_samples = POW3(st->fine_w);
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    const double *rho = st->rho;
-    for (int c = 0; c < r->corners; c++)
-        for (int a = 0; a < 3; a++)
-            lo[a] = sdf__min2(lo[a], r->corner[c][a]), hi[a] = sdf__max2(hi[a], r->corner[c][a]);
-    size_t first[3] = {0, 0, st->k0}, last[3] = {s->dims[0] - 1, s->dims[1] - 1, st->k1 - 1};
-    size_t from[3], to[3];
-    for (int a = 0; a < 3; a++)
-        if (!node_range(s, a, lo[a] - pad - rho[a], hi[a] + pad + rho[a], first[a], last[a],
-                        &from[a], &to[a]))
-            return;
-    int A = 0, C = 0;
-    for (int a = 1; a < 3; a++) {
-        if (to[a] - from[a] < to[A] - from[A])
-            A = a;
-        if (to[a] - from[a] >= to[C] - from[C])
-            C = a;
-    }
-    if (A == C)
-        C = (A + 1) % 3;
-    int B = 3 - A - C;
-    /* Planes by the sign of their C component: upper bounds on C, lower bounds, neither;
-     * each as (n_A, n_B, n_C, 1 / n_C, c). */
-    double pl_sorted[SDF__REGION_PLANES][5], off[SDF__REGION_PLANES];
-    int n_up = 0, n_down = 0, n_flat = 0;
-    for (int pass = 0; pass < 3; pass++)
-        for (int p = 0; p < r->planes; p++) {
-            const double *pl = r->plane[p];
-            int kind = pl[C] > 1e-12 ? 0 : pl[C] < -1e-12 ? 1 : 2;
-            if (kind != pass)
-                continue;
-            double *o5 = pl_sorted[n_up + n_down + n_flat];
-            o5[0] = pl[A], o5[1] = pl[B], o5[2] = pl[C], o5[3] = kind < 2 ? 1 / pl[C] : 0;
-            o5[4] = pl[3] + fabs(pl[0]) * rho[0] + fabs(pl[1]) * rho[1] + fabs(pl[2]) * rho[2];
-            *(kind == 0 ? &n_up : kind == 1 ? &n_down : &n_flat) += 1;
-        }
-    const double (*up)[5] = pl_sorted, (*down)[5] = pl_sorted + n_up;
-    const double (*flat)[5] = pl_sorted + n_up + n_down;
-    /* The region's edges as lines over A: B and C at A = 0 and their slopes (edges lying
-     * across A, in one slice, keep both ends). */
-    double line[SDF__REGION_EDGES][6];
-    for (int e = 0; e < r->edges; e++) {
-        const double *c0 = r->corner[r->edge[e][0]], *c1 = r->corner[r->edge[e][1]];
-        double *l = line[e];
-        l[0] = sdf__min2(c0[A], c1[A]), l[1] = sdf__max2(c0[A], c1[A]);
-        if (c0[A] != c1[A]) {
-            double sb = (c1[B] - c0[B]) / (c1[A] - c0[A]), sc = (c1[C] - c0[C]) / (c1[A] - c0[A]);
-            l[2] = c0[B] - sb * c0[A], l[3] = sb, l[4] = c0[C] - sc * c0[A], l[5] = sc;
-        } else {
-            l[2] = c0[B], l[3] = c1[B], l[4] = c0[C], l[5] = c1[C];
-        }
-    }
-    size_t stride[3] = {1, s->dims[0], s->dims[0] * s->dims[1]};
-    size_t base = st->k0 * stride[2];
-    const double *o = r->origin;
-    for (size_t sa = from[A]; sa <= to[A]; sa++) {
-        double ca = s->coord[A][sa];
-        /* The slice's cross-section: where it crosses the region's edges (the slice clamped
-         * into the region's span, whose planes already carry the slack), padded. */
-        double blo = INFINITY, bhi = -INFINITY, clo = INFINITY, chi = -INFINITY;
-        for (int end = rho[A] > 0 ? -1 : 1; end <= 1; end += 2) {
-            double cq = sdf__min2(sdf__max2(ca + end * rho[A], lo[A]), hi[A]);
-            for (int e = 0; e < r->edges; e++) {
-                const double *l = line[e];
-                if (cq < l[0] || cq > l[1])
-                    continue;
-                if (l[0] != l[1]) {
-                    double b = l[2] + l[3] * cq, c = l[4] + l[5] * cq;
-                    blo = sdf__min2(blo, b), bhi = sdf__max2(bhi, b);
-                    clo = sdf__min2(clo, c), chi = sdf__max2(chi, c);
-                } else {
-                    blo = sdf__min2(blo, sdf__min2(l[2], l[3]));
-                    bhi = sdf__max2(bhi, sdf__max2(l[2], l[3]));
-                    clo = sdf__min2(clo, sdf__min2(l[4], l[5]));
-                    chi = sdf__max2(chi, sdf__max2(l[4], l[5]));
-                }
-            }
-        }
-        for (int c = 0; rho[A] > 0 && c < r->corners; c++) /* corners between the two ends */
-            if (fabs(r->corner[c][A] - ca) <= rho[A]) {
-                blo = sdf__min2(blo, r->corner[c][B]), bhi = sdf__max2(bhi, r->corner[c][B]);
-                clo = sdf__min2(clo, r->corner[c][C]), chi = sdf__max2(chi, r->corner[c][C]);
-            }
-        size_t b0, b1, u0, u1;
-        if (blo > bhi ||
-            !node_range(s, B, blo - pad - rho[B], bhi + pad + rho[B], from[B], to[B], &b0, &b1) ||
-            !node_range(s, C, clo - pad - rho[C], chi + pad + rho[C], from[C], to[C], &u0, &u1))
-            continue;
-        for (int p = 0; p < r->planes; p++) /* the planes' offsets on this slice */
-            off[p] = pl_sorted[p][4] - pl_sorted[p][0] * ca;
-        const double *off_up = off, *off_down = off + n_up, *off_flat = off + n_up + n_down;
-        int few = (b1 - b0 + 1) * (u1 - u0 + 1) <= FEW_POINTS;
-        double d[3];
-        d[A] = ca - o[A];
-        for (size_t sb = b0; sb <= b1; sb++) {
-            double cb = s->coord[B][sb], lo_c = -INFINITY, hi_c = INFINITY;
-            double lo_sure = -INFINITY, hi_sure = INFINITY; /* the row's sure interval */
-            int inside = 1, row_sure = st->distances_only;
-            for (int p = 0; p < n_flat; p++) {
-                inside &= flat[p][1] * cb <= off_flat[p];
-                row_sure &= flat[p][1] * cb <= off_flat[p] - inside_by;
-            }
-            if (!inside)
-                continue;
-            size_t v0 = u0, v1 = u1;
-            if (!few) { /* the row's interval along C */
-                for (int p = 0; p < n_up; p++) {
-                    double at = (off_up[p] - up[p][1] * cb) * up[p][3];
-                    hi_c = sdf__min2(hi_c, at);
-                    hi_sure = sdf__min2(hi_sure, at - inside_by * up[p][3]);
-                }
-                for (int p = 0; p < n_down; p++) {
-                    double at = (off_down[p] - down[p][1] * cb) * down[p][3];
-                    lo_c = sdf__max2(lo_c, at);
-                    lo_sure = sdf__max2(lo_sure, at - inside_by * down[p][3]);
-                }
-                if (!node_range(s, C, lo_c, hi_c, u0, u1, &v0, &v1))
-                    continue;
-            }
-            d[B] = cb - o[B];
-            d[C] = 0;
-            /* The feature's squared distance along the row, a quadratic in the node's C:
-             * face (h0 + h1 t)^2, edge |x0 + t x1|^2 (x = d x dir), vertex r0 + t^2. */
-            double unit_c[3] = {0, 0, 0}, x0[3] = {0, 0, 0}, x1[3] = {0, 0, 0};
-            double h0 = 0, h1 = 0, r0 = 0;
-            /* The sign side along the row, (p - origin) . sign_dir = s0 + s1 t. */
-            double s0 = sdf__dot3(d, r->sign_dir), s1 = r->sign_dir[C];
-            unit_c[C] = 1;
-            if (r->kind == SDF__REGION_FACE) {
-                h0 = sdf__dot3(d, r->dir), h1 = r->dir[C];
-            } else if (r->kind == SDF__REGION_EDGE) {
-                sdf__cross3(x0, d, r->dir);
-                sdf__cross3(x1, unit_c, r->dir);
-            } else {
-                r0 = sdf__dot3(d, d);
-            }
-            size_t row = sa * stride[A] + sb * stride[B] - base;
-            for (size_t u = v0; u <= v1; u++) {
-                double cc = s->coord[C][u];
-                int node_sure = row_sure;
-                if (few) { /* the node against every plane */
-                    int in = 1;
-                    for (int p = 0; p < n_up + n_down; p++) {
-                        double v = up[p][1] * cb + up[p][2] * cc - off_up[p];
-                        in &= v <= 0;
-                        node_sure &= v <= -inside_by;
-                    }
-                    if (!in)
-                        continue;
-                } else if (cc < lo_c || cc > hi_c) {
-                    continue; /* the node's own coordinate decides */
-                } else {
-                    node_sure &= cc >= lo_sure && cc <= hi_sure;
-                }
-                if (st->fine_w) {
-                    size_t idx[3];
-                    idx[A] = sa, idx[B] = sb, idx[C] = u;
-                    if (u < v1) { /* the next node's bests: rows run along any axis, at
-                                   * a stride the hardware's prefetcher does not follow */
-                        const float *next = best_samples + (row + (u + 1) * stride[C]) * fr_samples;
-                        __builtin_prefetch(next);
-                        __builtin_prefetch(next + 16);
-                    }
-                    fat_node(st, r, fr, best_samples, row + u * stride[C], idx);
-                    continue;
-                }
-                double t = cc - o[C], d2;
-                if (r->kind == SDF__REGION_FACE) {
-                    double h = h0 + h1 * t;
-                    d2 = h * h;
-                } else if (r->kind == SDF__REGION_EDGE) {
-                    double x = x0[0] + t * x1[0], y = x0[1] + t * x1[1], z = x0[2] + t * x1[2];
-                    d2 = x * x + y * y + z * z;
-                } else {
-                    d2 = r0 + t * t;
-                }
-                size_t n = row + u * stride[C];
-                node_best *nb = &best[n];
-                if (d2 < nb->d2 || (d2 == nb->d2 && feature < nb->winner)) {
-                    double side = s0 + s1 * t;
-                    nb->d2 = d2, nb->winner = feature;
-                    nb->sure = (int8_t)(!node_sure || fabs(side) <= sign_by ? 0
-                                        : side > 0 ? 1 : -1);
-                }
-            }
-        }
-    }
-}
+/* ---- calls ------------------------------------------------------------------------------- */
 
 static void features_range(void *ctx, size_t begin, size_t end, int worker)
 {
-    call_state *st = ctx;
+    sdf__scan_call *st = ctx;
     sdf__region *r = &st->regions[worker];
     size_t mine = (size_t)worker * st->nodes;
-    node_best *best = st->best ? st->best + mine : NULL;
-    float *samples = st->sample_best ? st->sample_best + mine * POW3(st->fine_w) : NULL;
+    sdf__node_best *best = st->best ? st->best + mine : NULL;
+    float *samples = st->sample_best ? st->sample_best + mine * SDF__POW3(st->fine_w) : NULL;
     const sdf__scan *s = st->scan;
     /* The call's z-span, widened by the dilation and padding: regions wholly outside it are
      * not built (when their spans are known). */
@@ -459,10 +59,10 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
             continue;
         if (!sdf__region_build(&s->feat, f, r))
             continue;
-        fat_region *fr = st->fine_w ? &st->fat[worker] : NULL;
+        sdf__fat_region *fr = st->fine_w ? &st->fat[worker] : NULL;
         if (fr)
-            fat_prepare(st, r, fr);
-        scan_region(st, r, f, best, samples, fr);
+            sdf__fat_prepare(st, r, fr);
+        sdf__scan_region(st, r, f, best, samples, fr);
     }
 }
 
@@ -470,7 +70,7 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
  * calls. */
 static void zspan_range(void *ctx, size_t begin, size_t end, int worker)
 {
-    call_state *st = ctx;
+    sdf__scan_call *st = ctx;
     sdf__region *r = &st->regions[worker];
     float *span = st->scan->zspan;
     for (size_t f = begin; f < end; f++) {
@@ -487,7 +87,7 @@ static void zspan_range(void *ctx, size_t begin, size_t end, int worker)
 }
 
 /* Known spans let the calls of a bake in several calls skip the regions outside them. */
-static int ensure_zspans(sdf__scan *s, call_state *st)
+static int ensure_zspans(sdf__scan *s, sdf__scan_call *st)
 {
     if (s->zspan || (st->k0 == 0 && st->k1 == s->dims[2]))
         return 0;
@@ -547,7 +147,7 @@ static float sure_distance(const sdf__scan *s, double estimate, int8_t sign)
  * estimates, and only the rest go through the exact test and sdf_query's finish. */
 static void rows_range(void *ctx, size_t begin, size_t end, int worker)
 {
-    call_state *st = ctx;
+    sdf__scan_call *st = ctx;
     const sdf__scan *s = st->scan;
     size_t nx = s->dims[0], ny = s->dims[1];
     float *points = st->points + (size_t)worker * nx * 3;
@@ -562,7 +162,7 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
             int8_t sign = 0;
             for (int t = 0; t < st->workers; t++) {
                 size_t n = (size_t)t * st->nodes + first + i;
-                const node_best *nb = &st->best[n];
+                const sdf__node_best *nb = &st->best[n];
                 if (nb->d2 < estimate || (nb->d2 == estimate && nb->winner < w))
                     estimate = nb->d2, w = nb->winner, sign = nb->sure;
             }
@@ -602,8 +202,8 @@ static void rows_range(void *ctx, size_t begin, size_t end, int worker)
 
 int sdf__scan_fits(size_t nx, size_t ny, int fine_half, int threads)
 {
-    size_t node_bytes = fine_half ? POW3(2 * fine_half + 1) * sizeof(float)
-                                  : sizeof(node_best);
+    size_t node_bytes = fine_half ? SDF__POW3(2 * fine_half + 1) * sizeof(float)
+                                  : sizeof(sdf__node_best);
     size_t workers = (size_t)sdf__effective_threads(threads, SIZE_MAX, 1);
     return nx * ny * node_bytes * workers <= SCAN_SLICE_LIMIT;
 }
@@ -648,15 +248,15 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
     size_t workers = (size_t)sdf__effective_threads(threads, features, 1);
     size_t slice = nx * ny, call;
     if (info->order == 1) {
-        size_t w3 = POW3(2 * info->fine_half + 1), node_bytes = w3 * sizeof(float);
+        size_t w3 = SDF__POW3(2 * info->fine_half + 1), node_bytes = w3 * sizeof(float);
         size_t slices = slices_for(slice, workers, node_bytes, SCAN_SAMPLE_BUDGET_BYTES);
         slices = slices > info->dims[2] ? info->dims[2] : slices;
         call = workers * slices * slice * node_bytes +
-               workers * (MERGE_NODES * w3 * sizeof(float) + sizeof(fat_region));
+               workers * (MERGE_NODES * w3 * sizeof(float) + sizeof(sdf__fat_region));
     } else {
-        size_t slices = slices_for(slice, workers, sizeof(node_best), SCAN_BUDGET_BYTES);
+        size_t slices = slices_for(slice, workers, sizeof(sdf__node_best), SCAN_BUDGET_BYTES);
         slices = slices > info->dims[2] ? info->dims[2] : slices;
-        call = workers * slices * slice * sizeof(node_best) +
+        call = workers * slices * slice * sizeof(sdf__node_best) +
                workers * nx * (3 * sizeof(float) + sizeof(sdf__hit) + sizeof(uint32_t) +
                                sizeof(float));
     }
@@ -666,19 +266,19 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
 
 size_t sdf__scan_slices_per_call(const sdf__scan *s)
 {
-    return slices_within(s, sizeof(node_best), SCAN_BUDGET_BYTES);
+    return slices_within(s, sizeof(sdf__node_best), SCAN_BUDGET_BYTES);
 }
 
 /* Fresh per-node arrays, each part first touched by the thread that clears it. */
 static void clear_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
-    call_state *st = ctx;
+    sdf__scan_call *st = ctx;
     for (size_t n = begin; n < end; n++) {
         if (st->sample_best)
             st->sample_best[n] = INFINITY;
         else
-            st->best[n] = (node_best){INFINITY, UINT32_MAX, 0};
+            st->best[n] = (sdf__node_best){INFINITY, UINT32_MAX, 0};
     }
 }
 
@@ -690,8 +290,8 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
     /* Sure nodes (rows_range) only where distances alone are asked for. */
     int distances_only = out->distance && !out->gradient && !out->closest && !out->triangle &&
                          !out->barycentric;
-    call_state st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
-                     .best = malloc(w * nodes * sizeof(node_best)),
+    sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
+                     .best = malloc(w * nodes * sizeof(sdf__node_best)),
                      .distances_only = distances_only,
                      .regions = malloc(w * sizeof(sdf__region)),
                      .points = malloc(w * nx * 3 * sizeof(float)),
@@ -717,15 +317,15 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
 
 size_t sdf__scan_sample_slices_per_call(const sdf__scan *s, int half)
 {
-    return slices_within(s, POW3(2 * half + 1) * sizeof(float), SCAN_SAMPLE_BUDGET_BYTES);
+    return slices_within(s, SDF__POW3(2 * half + 1) * sizeof(float), SCAN_SAMPLE_BUDGET_BYTES);
 }
 
 /* Runs of nodes: the workers' bests merged into signed distances (NAN for a sample no
  * region held; none should be), handed to the consumer. */
 static void merge_samples(void *ctx, size_t begin, size_t end, int worker)
 {
-    call_state *st = ctx;
-    size_t m = POW3(st->fine_w), all = st->nodes * m, count = (end - begin) * m;
+    sdf__scan_call *st = ctx;
+    size_t m = SDF__POW3(st->fine_w), all = st->nodes * m, count = (end - begin) * m;
     int sign = st->scan->query.sign != SDF_SIGN_NONE;
     float *f = st->merged + (size_t)worker * MERGE_NODES * m;
     memcpy(f, st->sample_best + begin * m, count * sizeof *f);
@@ -747,7 +347,7 @@ static void merge_samples(void *ctx, size_t begin, size_t end, int worker)
 int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_spacing,
                       sdf__sample_fn consume, void *user)
 {
-    size_t w3 = POW3(2 * half + 1), nodes = (k1 - k0) * s->dims[0] * s->dims[1];
+    size_t w3 = SDF__POW3(2 * half + 1), nodes = (k1 - k0) * s->dims[0] * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, scratch = w * nodes * w3;
     if (scratch > s->sample_scratch_count) { /* kept between calls: fresh pages cost */
@@ -755,11 +355,11 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
         s->sample_scratch = malloc(scratch * sizeof(float));
         s->sample_scratch_count = s->sample_scratch ? scratch : 0;
     }
-    call_state st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
+    sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
                      .regions = malloc(w * sizeof(sdf__region)), .workers = workers,
                      .fine_w = 2 * half + 1, .sample_best = s->sample_scratch,
                      .merged = malloc(w * MERGE_NODES * w3 * sizeof(float)),
-                     .fat = malloc(w * sizeof(fat_region)), .consume = consume, .user = user};
+                     .fat = malloc(w * sizeof(sdf__fat_region)), .consume = consume, .user = user};
     int rc = st.regions && st.sample_best && st.merged && st.fat ? 0 : SDF_ENOMEM;
     if (half < 1 || half > 4)
         rc = SDF_EINVAL;
