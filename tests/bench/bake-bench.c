@@ -1,7 +1,9 @@
 /* bake-bench - time volume bakes of a mesh: bake-bench MESH DIM [THREADS (0 = all)]
- * [normalize]. Bakes DIM^3 zero-order, then first-order (float32), over the default bounds
- * (or [-1, 1]^3 around the mesh normalised to it), and prints seconds, nodes per second and
- * the first/zero time ratio, one JSON object per line (tests/bench/bake-compare.sh). */
+ * [normalize] [fine=H,DELTA]. Bakes DIM^3 zero-order, then first-order (float32; fitting
+ * grids of (2H + 1)^3 samples DELTA cells apart, default 1,0.1), over the default bounds
+ * (or [-1, 1]^3 around the mesh normalised to it), and prints seconds, nodes per second
+ * (first order: also fine samples per second) and the first/zero time ratio, one JSON object
+ * per line (tests/bench/bake-compare.sh). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,12 +21,21 @@ static double now(void)
 int main(int argc, char **argv)
 {
     if (argc < 3) {
-        fprintf(stderr, "usage: bake-bench MESH DIM [THREADS] [normalize]\n");
+        fprintf(stderr, "usage: bake-bench MESH DIM [THREADS] [normalize] [fine=H,DELTA]\n");
         return 2;
     }
     size_t dim = strtoul(argv[2], NULL, 10);
     int threads = argc > 3 ? atoi(argv[3]) : 0;
-    int normalize = argc > 4 && !strcmp(argv[4], "normalize");
+    int normalize = 0, fine_half = 1;
+    double fine_spacing = 0.1;
+    for (int i = 4; i < argc; i++) {
+        if (!strcmp(argv[i], "normalize")) {
+            normalize = 1;
+        } else if (sscanf(argv[i], "fine=%d,%lf", &fine_half, &fine_spacing) != 2) {
+            fprintf(stderr, "bake-bench: unknown argument %s\n", argv[i]);
+            return 2;
+        }
+    }
     sdf_mesh *mesh = NULL;
     sdf_diag diag;
     if (sdf_mesh_load_file(argv[1], NULL, &mesh, &diag)) {
@@ -36,7 +47,8 @@ int main(int argc, char **argv)
         sdf_mesh_release(mesh);
         mesh = n;
     }
-    sdf_bake_options o = {.dims = {dim, dim, dim}, .query.threads = threads};
+    sdf_bake_options o = {.dims = {dim, dim, dim}, .query.threads = threads,
+                          .fine_half = fine_half, .fine_spacing = fine_spacing};
     if (normalize)
         for (int a = 0; a < 3; a++)
             o.lo[a] = -1, o.hi[a] = 1;
@@ -52,8 +64,10 @@ int main(int argc, char **argv)
         seconds[order] = now() - t0;
         sdf_volume_destroy(v);
         double nodes = (double)dim * (double)dim * (double)dim;
-        printf("{\"order\": %d, \"dim\": %zu, \"seconds\": %.4f, \"nodes_per_second\": %.0f}\n",
-               order, dim, seconds[order], nodes / seconds[order]);
+        double side = order ? 2.0 * fine_half + 1 : 1;
+        printf("{\"order\": %d, \"dim\": %zu, \"seconds\": %.4f, \"nodes_per_second\": %.0f, "
+               "\"samples_per_second\": %.0f}\n", order, dim, seconds[order],
+               nodes / seconds[order], nodes * side * side * side / seconds[order]);
     }
     printf("{\"first_over_zero\": %.2f}\n", seconds[1] / seconds[0]);
     sdf_mesh_release(mesh);
