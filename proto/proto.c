@@ -127,7 +127,7 @@ size_t sdf_proto_query_size(const sdf_proto_query *q)
 }
 
 /* The FILTER block (PROTOCOL.md): kernel, flags, reserved, samples, cap, a, b, seed. */
-enum { FILTER_GRID = 1, FILTER_UNSIGNED = 2, FILTER_WIDE_BUMP = 4 };
+enum { FILTER_GRID = 1, FILTER_UNSIGNED = 2, FILTER_WIDE_BUMP = 4, FILTER_SAMPLE_GRADIENT = 8 };
 
 static double get_f64(const unsigned char *p)
 {
@@ -153,6 +153,7 @@ static void decode_filter(const unsigned char *p, sdf_proto_query *q)
     f->grid = (p[1] & FILTER_GRID) != 0;
     f->unsigned_integrand = (p[1] & FILTER_UNSIGNED) != 0;
     f->allow_wide_bump = (p[1] & FILTER_WIDE_BUMP) != 0;
+    f->sample_gradient = (p[1] & FILTER_SAMPLE_GRADIENT) != 0;
     f->smooth.shape = (sdf_volume_shape)p[2];
     q->volume_name_len = f->smooth.shape == SDF_VOLUME_MESH ? p[3] : 0;
     uint32_t samples = get32(p + 4);
@@ -184,8 +185,10 @@ static void encode_filter(unsigned char *p, const sdf_proto_query *q)
     int mesh = f->smooth.shape == SDF_VOLUME_MESH;
     memset(p, 0, SDF_PROTO_FILTER_SIZE);
     p[0] = (unsigned char)f->kernel;
-    p[1] = (unsigned char)((f->grid ? FILTER_GRID : 0) | (f->unsigned_integrand ? FILTER_UNSIGNED : 0) |
-                           (f->allow_wide_bump ? FILTER_WIDE_BUMP : 0));
+    p[1] = (unsigned char)((f->grid ? FILTER_GRID : 0) |
+                           (f->unsigned_integrand ? FILTER_UNSIGNED : 0) |
+                           (f->allow_wide_bump ? FILTER_WIDE_BUMP : 0) |
+                           (f->sample_gradient ? FILTER_SAMPLE_GRADIENT : 0));
     p[2] = (unsigned char)f->smooth.shape;
     p[3] = (unsigned char)(mesh ? q->volume_name_len : 0);
     put32(p + 4, f->samples < 0 ? 0 : (uint32_t)f->samples);

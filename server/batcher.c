@@ -55,6 +55,7 @@ static int same_filter(const sdf_filter_options *a, const sdf_filter_options *b)
            a->medial == b->medial && a->grid == b->grid &&
            a->unsigned_integrand == b->unsigned_integrand &&
            a->allow_wide_bump == b->allow_wide_bump && a->seed == b->seed &&
+           !a->sample_gradient == !b->sample_gradient &&
            same_volume(&a->smooth, &b->smooth);
 }
 

@@ -26,6 +26,7 @@ static const struct field {
     {"medial", NUMBER, AT(medial)},      {"grid", FLAG, AT(grid)},
     {"unsigned", FLAG, AT(unsigned_integrand)},
     {"allow_wide_bump", FLAG, AT(allow_wide_bump)},
+    {"sample_gradient", FLAG, AT(sample_gradient)},
     {"seed", SEED, AT(seed)},
 };
 #define FIELDS (sizeof fields / sizeof fields[0])

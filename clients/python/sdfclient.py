@@ -41,7 +41,7 @@ MODES = {"signed": 0, "distance": 1, "gradient": 2, "closest": 3, "filtered": 4,
 SIGNS = {"auto": 0, "pseudonormal": 1, "winding": 2, "raycast": 3, "none": 4}
 WORDS = {0: 1, 1: 1, 2: 4, 3: 5, 4: 1, 5: 4}
 FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "min_samples", "medial", "grid", "unsigned",
-               "allow_wide_bump", "seed", "smooth")
+               "allow_wide_bump", "sample_gradient", "seed", "smooth")
 KERNELS = {"gaussian": 0, "bump": 1}
 VOLUMES = {"sphere": 1, "box": 2, "mesh": 3}
 
@@ -169,8 +169,8 @@ class Client:
 
     def query(self, name, points, mode="signed", sign="auto", form="npy", filter=None):
         """Query points ((N, 3) array-like) in body form "npy", "octet" or "json"; `filter`
-        holds the filtered modes' parameters (kernel, cap, a, b, samples, grid, unsigned,
-        allow_wide_bump, seed)."""
+        holds the filtered modes' parameters (kernel, cap, a, b, samples, min_samples, medial,
+        grid, unsigned, allow_wide_bump, sample_gradient, seed, smooth)."""
         p = _points(points)
         f = _filter(filter)
         path = f"/v1/meshes/{name}/query"
@@ -375,7 +375,7 @@ class BinaryClient:
         mesh's name padded to 4."""
         f = _filter(filter)
         flags = (1 if f.get("grid") else 0) | (2 if f.get("unsigned") else 0) \
-            | (4 if f.get("allow_wide_bump") else 0)
+            | (4 if f.get("allow_wide_bump") else 0) | (8 if f.get("sample_gradient") else 0)
         smooth = f.get("smooth") or {}
         volume, numbers, name = 0, [0.0] * 6, b""
         if smooth:

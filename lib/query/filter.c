@@ -596,10 +596,11 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                           samples.offset[i][2] * gs[2]);
             }
             /* grad g = sum w_i (I - grad h s_i^T) grad f(x_i), x_i = p - s_i h(p), plus, when
-             * n_a varies, dg/dn_a grad n_a with dg/dn_a = (v_last - g) / n_a. */
-            for (int c = 0; c < 3; c++)
+             * n_a varies, dg/dn_a grad n_a with dg/dn_a = (v_last - g) / n_a. The samples'
+             * mean gradient, when asked for, is the first term alone. */
+            for (int c = 0; c < 3 && !f.sample_gradient; c++)
                 grad[c] -= pl->grad_h[c] * along;
-            if (adaptive && pl->frac > 0)
+            if (adaptive && pl->frac > 0 && !f.sample_gradient)
                 for (int c = 0; c < 3; c++)
                     grad[c] += (last - value) / total * pl->grad_n[c];
             double outer = f.unsigned_integrand ? (fp < 0 ? -1 : 1) : 1;

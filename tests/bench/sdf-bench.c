@@ -2,7 +2,9 @@
  * peer (../shared/tools/peer_bench.py) on the same points. Not a test: it asserts nothing.
  *
  *   sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid --n N --seed S]
- *             [--mode distance|signed|gradient|closest] [--sign auto|pseudonormal|winding|raycast|none]
+ *             [--mode distance|signed|gradient|closest|filtered|filtered-gradient]
+ *             [--samples N] [--min-samples N] [--sample-gradient 0|1]
+ *             [--sign auto|pseudonormal|winding|raycast|none]
  *             [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]
  *
  * Points come from POINTS.npy (float32 or float64, shape (N, 3)) or are generated
@@ -27,7 +29,7 @@ typedef struct args {
     uint64_t seed;
     sdf_sign_method sign;
     sdf_traversal traversal;
-    int threads, repeat, samples, min_samples;
+    int threads, repeat, samples, min_samples, sample_gradient;
 } args;
 
 static void usage(void)
@@ -36,6 +38,7 @@ static void usage(void)
             "usage: sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid] [--n N] [--seed S]\n"
             "                 [--mode distance|signed|gradient|closest|filtered|filtered-gradient]\n"
             "                 [--samples N (filtered: n, default 64)] [--min-samples N (adaptive)]\n"
+            "                 [--sample-gradient 0|1 (filtered-gradient: the samples' mean)]\n"
             "                 [--sign auto|pseudonormal|winding|raycast|none]\n"
             "                 [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]\n");
     exit(2);
@@ -83,6 +86,7 @@ static args parse_args(int argc, char **argv)
         else if (!strcmp(s, "--mode")) a.mode = v;
         else if (!strcmp(s, "--samples")) a.samples = (int)parse_long(v, s);
         else if (!strcmp(s, "--min-samples")) a.min_samples = (int)parse_long(v, s);
+        else if (!strcmp(s, "--sample-gradient")) a.sample_gradient = parse_long(v, s) != 0;
         else if (!strcmp(s, "--threads")) a.threads = (int)parse_long(v, s);
         else if (!strcmp(s, "--repeat")) a.repeat = (int)parse_long(v, s);
         else if (!strcmp(s, "--out")) a.out = v;
@@ -155,7 +159,8 @@ int main(int argc, char **argv)
            a.points ? a.points : a.workload, a.mode,
            sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads,
            a.traversal == SDF_TRAVERSAL_SINGLE ? "single" : "packets");
-    sdf_filter_options filter = {.samples = a.samples, .min_samples = a.min_samples};
+    sdf_filter_options filter = {.samples = a.samples, .min_samples = a.min_samples,
+                                 .sample_gradient = a.sample_gradient};
     /* The mode's query: raw, or filtered (sdf_query_filtered, docs/filtered.md). */
 #define RUN(count) (filtered ? sdf_query_filtered(mesh, points, (count), &opts, &filter, &out, &diag) \
                              : sdf_query(mesh, points, (count), &opts, &out))

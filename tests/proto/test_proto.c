@@ -86,7 +86,8 @@ static void test_filtered_query(void)
                          .name_len = 1, .count = 1, .points = pts,
                          .filter = {.kernel = SDF_KERNEL_BUMP, .cap = 0.125, .a = 3e5, .b = 0.1,
                                     .samples = 96, .unsigned_integrand = 1, .allow_wide_bump = 1,
-                                    .seed = 0x0123456789abcdefu, .min_samples = 12,
+                                    .sample_gradient = 1, .seed = 0x0123456789abcdefu,
+                                    .min_samples = 12,
                                     .medial = 0.375}},
                     back;
     size_t n = sdf_proto_encode_query(frame, sizeof frame, 5, &q);
@@ -96,6 +97,7 @@ static void test_filtered_query(void)
     const sdf_filter_options *f = &back.filter;
     CHECK(f->kernel == SDF_KERNEL_BUMP && f->cap == 0.125 && f->a == 3e5 && f->b == 0.1 &&
               f->samples == 96 && f->unsigned_integrand && f->allow_wide_bump && !f->grid &&
+              f->sample_gradient &&
               f->seed == 0x0123456789abcdefu && f->min_samples == 12 && f->medial == 0.375 &&
               !memcmp(back.points, pts, sizeof pts),
           "filter round trip");

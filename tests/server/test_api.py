@@ -20,13 +20,14 @@ import harness  # noqa: E402
 from harness import DATA, SDF_BENCH, Server, same_bits, wait_until  # noqa: E402
 
 
-def library_results(mesh, points, mode, sign="auto", samples=None):
+def library_results(mesh, points, mode, sign="auto", samples=None, sample_gradient=False):
     """sdf-bench --out: (N,) or (N, 4) float32 straight from sdf_query (or, for the filtered
-    modes, sdf_query_filtered with `samples` and the default seed)."""
+    modes, sdf_query_filtered with `samples`, the default seed and `sample_gradient`)."""
     with tempfile.TemporaryDirectory() as d:
         np.save(os.path.join(d, "p.npy"), points)
         out = os.path.join(d, "out.npy")
         extra = ["--samples", str(samples)] if samples else []
+        extra += ["--sample-gradient", "1"] if sample_gradient else []
         subprocess.run([SDF_BENCH, mesh, os.path.join(d, "p.npy"), "--mode", mode, "--sign", sign,
                         "--repeat", "1", "--out", out] + extra, check=True,
                        stdout=subprocess.DEVNULL)
@@ -89,6 +90,23 @@ class Exactness(unittest.TestCase):
 
     def test_filtered_gradient(self):
         self.check_mode("filtered-gradient", samples=8)
+
+    def test_sample_gradient(self):
+        """sample_gradient travels in every form: the library's floats for it, g's value
+        unchanged, and a gradient that is not g's own near the surface."""
+        p = self.points[:800]
+        ref = library_results(self.mesh, p, "filtered-gradient", samples=8, sample_gradient=True)
+        f = {"samples": 8, "sample_gradient": True}
+        answers = {form: self.http.query("fandisk", p, mode="filtered-gradient", form=form,
+                                         filter=f)
+                   for form in ("json", "octet", "npy")}
+        answers["binary"] = self.bin.query("fandisk", p, mode="filtered-gradient", filter=f)
+        analytic = self.bin.query("fandisk", p, mode="filtered-gradient", filter={"samples": 8})
+        for form, r in answers.items():
+            self.assertTrue(same_bits(r["distance"], ref[:, 0]), f"{form}: distance")
+            self.assertTrue(same_bits(r["gradient"], ref[:, 1:4]), f"{form}: gradient")
+            self.assertTrue(same_bits(r["distance"], analytic["distance"]), f"{form}: g")
+            self.assertFalse(same_bits(r["gradient"], analytic["gradient"]), form)
 
     def test_localized_smoothing(self):
         """A smoothing sphere travels in every form: outside it the answer is the raw signed

@@ -277,6 +277,10 @@ typedef struct sdf_filter_options {
                                samples at 0, +-s per axis, s = sigma or b/2, weights w(s_i)) */
     int unsigned_integrand; /* 1: g = sign(f(p)) (1/n) sum |f(p - s_i h)|: no extra zero sets */
     int allow_wide_bump;    /* 1: accept b > 8 f_c / 9 (may create extra zero level sets) */
+    int sample_gradient;    /* 1: the gradient output is the raw field's gradient averaged over
+                               the samples, sum w_i grad f(x_i) (the unsigned integrand: of
+                               |f|, times sign f(p)), without the terms for how h and n_a vary
+                               with p; 0: the analytic gradient of g. The value is the same */
     uint64_t seed;          /* the sample set is drawn once from this seed */
     sdf_smoothing_volume smooth; /* localized smoothing; shape NONE (default) = everywhere */
 } sdf_filter_options;
@@ -284,8 +288,9 @@ typedef struct sdf_filter_options {
 #define SDF_FILTER_MAX_SAMPLES 4096
 #define SDF_FILTER_DEFAULT_SAMPLES 64
 
-/* The filtered field g and its analytic gradient at `count` points (out->distance,
- * out->gradient; the other outputs must be NULL). Parameters left 0 take the defaults above;
+/* The filtered field g and its analytic gradient (or, with filter->sample_gradient, the
+ * samples' mean gradient) at `count` points (out->distance, out->gradient; the other outputs
+ * must be NULL). Parameters left 0 take the defaults above;
  * a bad one fails with SDF_EINVAL and a message in *diag (which states the bound for a bump
  * that is too wide). The same points, options and seed give the same floats on any thread
  * count. Costs n + 1 signed-distance queries per point (n + 27 when adaptive), evaluated as
