@@ -35,33 +35,6 @@ static cJSON *job_json(const sdfd_job_status *s)
     return o;
 }
 
-/* Check a bake's options against the mesh and the server's limits, as the job would. */
-static int check_bake(request *req, const sdf_mesh *mesh, sdfd_bake_request *bake,
-                      char *err, size_t cap)
-{
-    const sdfd_config *cfg = &req->http->srv->cfg;
-    sdf_bake_options o = bake->options;
-    o.filter = bake->filtered ? &bake->filter : NULL;
-    sdf_volume_info planned;
-    sdf_diag diag = {0};
-    int rc = sdf_volume_plan(mesh, &o, &planned, &diag);
-    if (rc) {
-        snprintf(err, cap, "%s", diag.message);
-        return rc;
-    }
-    size_t nodes = planned.dims[0] * planned.dims[1] * planned.dims[2];
-    size_t side = planned.order ? 2 * (size_t)planned.fine_half + 1 : 1;
-    size_t points = nodes * side * side * side;
-    if (bake->filtered)
-        return sdfd_filter_validate(mesh, &bake->filter, points, cfg->max_bake_queries, err, cap);
-    if (points > cfg->max_bake_queries) {
-        snprintf(err, cap, "the bake costs %zu distance queries, over --max-bake-queries %zu; "
-                 "lower the resolution", points, cfg->max_bake_queries);
-        return SDF_ELIMIT;
-    }
-    return 0;
-}
-
 enum MHD_Result sdfd_http_bake(request *req)
 {
     sdfd_server *srv = req->http->srv;
@@ -83,11 +56,6 @@ enum MHD_Result sdfd_http_bake(request *req)
                                    names.smoothing_mesh);
         }
         bake.filter.smooth.mesh = bake.smoothing_mesh;
-    }
-    if ((rc = check_bake(req, mesh, &bake, err, sizeof err))) {
-        sdf_mesh_release(mesh);
-        sdf_mesh_release(bake.smoothing_mesh);
-        return sdfd_http_error(req, rc, "%s", err);
     }
     const char *volume = names.volume[0] ? names.volume : req->name;
     char id[24];

@@ -108,7 +108,8 @@ int main(int argc, char **argv)
     srv.registry = sdfd_registry_create(srv.cfg.max_meshes, srv.cfg.max_total_triangles);
     srv.metrics = sdfd_metrics_create();
     srv.volumes = sdfd_volumes_create(srv.cfg.max_volumes, srv.cfg.max_volume_bytes,
-                                      (int)srv.cfg.max_bakes, srv.cfg.max_jobs, srv.cfg.threads);
+                                      (int)srv.cfg.max_bakes, srv.cfg.max_jobs,
+                                      srv.cfg.max_bake_queries, srv.cfg.threads);
     if (!srv.registry || !srv.metrics || !srv.volumes ||
         sdfd_batcher_create(srv.cfg.threads, srv.cfg.batch_window_us, srv.cfg.batch_max_points,
                             srv.cfg.max_queued_points, srv.metrics, &srv.batcher)) {

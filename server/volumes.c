@@ -31,7 +31,7 @@ struct sdfd_volumes {
     sdfd_stored_volume **items;   /* sorted by name */
     size_t count, max_volumes, max_bytes, bytes, reserved;
     job *jobs;
-    size_t job_count, max_jobs;
+    size_t job_count, max_jobs, max_queries;
     int running, max_running, threads, closing;
     unsigned long next_id;
     unsigned id_prefix;
@@ -45,7 +45,7 @@ const char *sdfd_job_state_name(sdfd_job_state s)
 }
 
 sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_running,
-                                  size_t max_jobs, int threads)
+                                  size_t max_jobs, size_t max_queries, int threads)
 {
     sdfd_volumes *v = calloc(1, sizeof *v);
     if (!v || !(v->items = calloc(max_volumes ? max_volumes : 1, sizeof *v->items))) {
@@ -58,6 +58,7 @@ sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_
     v->max_bytes = max_bytes;
     v->max_running = max_running > 0 ? max_running : 1;
     v->max_jobs = max_jobs ? max_jobs : 1;
+    v->max_queries = max_queries;
     v->threads = threads;
     struct timespec t;
     clock_gettime(CLOCK_REALTIME, &t);
@@ -349,6 +350,25 @@ static job *unlink_oldest_finished(sdfd_volumes *v)
     return j;
 }
 
+/* The distance queries the planned bake costs, against the limit (a filtered bake: its
+ * parameters too, as a filtered query's are checked). */
+static int check_queries(const sdfd_volumes *v, const sdf_mesh *mesh,
+                         const sdf_volume_info *planned, const sdfd_bake_request *req, char *err,
+                         size_t err_cap)
+{
+    size_t nodes = planned->dims[0] * planned->dims[1] * planned->dims[2];
+    size_t side = planned->order ? 2 * (size_t)planned->fine_half + 1 : 1;
+    size_t points = nodes * side * side * side;
+    if (req->filtered)
+        return sdfd_filter_validate(mesh, &req->filter, points, v->max_queries, err, err_cap);
+    if (points > v->max_queries) {
+        snprintf(err, err_cap, "the bake costs %zu distance queries, over --max-bake-queries %zu; "
+                 "lower the resolution", points, v->max_queries);
+        return SDF_ELIMIT;
+    }
+    return 0;
+}
+
 int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
                       const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
                       size_t err_cap)
@@ -368,11 +388,13 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         o->progress = on_progress;
         o->user = j;
         o->query.threads = v->threads;
-        /* The library's own defaults say what the bake will make (the caller checked it). */
+        /* The library's own checks and defaults say what the bake will make. */
         sdf_diag diag = {0};
         if ((rc = sdf_volume_plan(mesh, o, &planned, &diag)) ||
             (rc = sdf_volume_bake_scratch(mesh, o, &working, &diag)))
             snprintf(err, err_cap, "%s", diag.message);
+        else
+            rc = check_queries(v, mesh, &planned, &j->req, err, err_cap);
         snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
         snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
     }

@@ -31,8 +31,9 @@ typedef struct sdfd_stored_volume {
     double bake_seconds;
 } sdfd_stored_volume;
 
+/* max_queries: the distance queries one bake may cost (--max-bake-queries). */
 sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_running,
-                                  size_t max_jobs, int threads);
+                                  size_t max_jobs, size_t max_queries, int threads);
 /* Refuse new bakes and cancel every job (graceful shutdown, step 1); does not wait. */
 void sdfd_volumes_close(sdfd_volumes *v);
 /* Cancel every job, wait for their threads, release every volume. NULL is a no-op. */
@@ -93,8 +94,10 @@ typedef struct sdfd_bake_request {
 
 /* Start a job baking `mesh` (a retained reference handed over, like req->smoothing_mesh,
  * released when the job ends) into the volume `volume_name`. Writes the job id into id.
- * SDF_ELIMIT when the volume would break the byte limit, SDF_EBUSY when max_jobs are still
- * unfinished, SDF_EUNAVAILABLE when shutting down; on failure the references are released. */
+ * Every admission rule is here: SDF_EINVAL for options the library refuses (its message),
+ * SDF_ELIMIT when the bake would cost more distance queries than max_queries or break the
+ * byte limit, SDF_EBUSY when max_jobs are still unfinished, SDF_EUNAVAILABLE when shutting
+ * down; on failure the references are released and `err` says why. */
 int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
                       const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
                       size_t err_cap);
