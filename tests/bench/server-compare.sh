@@ -4,9 +4,11 @@
 # (binary, HTTP octet-stream, HTTP JSON, each one request of N points; then 64 concurrent
 # clients x 1,000 points over binary and octet-stream), and prints a Markdown table with each
 # throughput as a ratio of the in-process one. The 64 clients' requests coalesce into batches
-# of up to 64,000 points, so the in-process library on 64,000 points is shown too, and the
-# last column compares the 64-client rows with it (what the server adds to a batch that
-# size). Both generate the band workload from the same seed, so the points are identical.
+# of up to 64,000 points, so the in-process library on 64,000 points is shown too, and a
+# column compares the 64-client rows with it (what the server adds to a batch that size);
+# the last compares them with the library called in-process the way those clients call the
+# server, 1,000 points at a time (best of 200 calls on one request's points). Both generate
+# the band workload from the same seed, so the points are identical.
 # Needs a release build in build/.
 #
 #   tests/bench/server-compare.sh [MESH...]     (default: fandisk, refined_elephant)
@@ -19,8 +21,9 @@ trap 'kill $pid 2>/dev/null; rm -f "$log"' EXIT
 
 mqs() { awk '/^throughput:/ {print $2}'; }
 
-echo "| mesh | path | clients x points | Mq/s | vs in-process | latency p50 / p99 ms | vs in-process 64,000 |"
-echo "| --- | --- | --- | ---: | ---: | --- | ---: |"
+echo "| mesh | path | clients x points | Mq/s | vs in-process | latency p50 / p99 ms |" \
+    "vs in-process 64,000 | vs in-process 1,000 |"
+echo "| --- | --- | --- | ---: | ---: | --- | ---: | ---: |"
 for mesh in "$@"; do
     build/server/sdfd --http 127.0.0.1:0 --bin 127.0.0.1:0 --mesh "m=$mesh" 2>"$log" &
     pid=$!
@@ -29,11 +32,16 @@ for mesh in "$@"; do
     bin=$(grep '"proto":"binary"' "$log" | sed 's/.*"port":\([0-9]*\).*/\1/')
     base=$(build/tests/bench/sdf-bench "$mesh" --workload band --n "$n" --threads 2 | mqs)
     name=$(basename "$mesh")
-    echo "| $name | in-process sdf-bench | 1 x $n | $base | 1.00 | | |"
+    echo "| $name | in-process sdf-bench | 1 x $n | $base | 1.00 | | | |"
     small=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 64000 --threads 2 \
         --repeat 20 | mqs)
     ratio() { awk -v a="$1" -v b="$2" 'BEGIN {printf "%.2f", a / b}'; }
-    echo "| $name | in-process sdf-bench | 1 x 64000 | $small | $(ratio "$small" "$base") | | 1.00 |"
+    echo "| $name | in-process sdf-bench | 1 x 64000 | $small |" \
+        "$(ratio "$small" "$base") | | 1.00 | |"
+    request=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 1000 --threads 2 \
+        --repeat 200 | mqs)
+    echo "| $name | in-process sdf-bench | 1 x 1000 | $request |" \
+        "$(ratio "$request" "$base") | | | 1.00 |"
     run() { # form clients
         out=$(build/tests/bench/sdfd-bench "$mesh" --name m --http "127.0.0.1:$http" \
             --bin "127.0.0.1:$bin" --n "$n" --form "$1" --clients "$2" --per-request 1000)
@@ -41,7 +49,8 @@ for mesh in "$@"; do
         lat=$(echo "$out" | awk '/^latency/ {print $4 " / " $6}')
         shape=$([ "$2" = 1 ] && echo "1 x $n" || echo "$2 x 1000")
         vs_small=$([ "$2" = 1 ] && echo "" || ratio "$v" "$small")
-        echo "| $name | $1 | $shape | $v | $(ratio "$v" "$base") | $lat | $vs_small |"
+        vs_request=$([ "$2" = 1 ] && echo "" || ratio "$v" "$request")
+        echo "| $name | $1 | $shape | $v | $(ratio "$v" "$base") | $lat | $vs_small | $vs_request |"
     }
     run binary 1
     run octet 1
