@@ -152,6 +152,9 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
                                        err, cap);
         cJSON_free(inner);
         out->filtered = 1;
+        if (!rc && out->filter.sample_gradient) /* a bake keeps values only */
+            return fail(err, cap, "'%s' is for queries' gradients; a bake takes no gradient",
+                        "sample_gradient");
         return rc;
     }
     snprintf(err, cap, "unknown key '%s' (volume, bounds, margin, resolution, order, H, delta, "

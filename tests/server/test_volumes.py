@@ -190,6 +190,7 @@ class Volumes(unittest.TestCase):
                ({"field": "smooth"}, 422, "field"),
                ({"field": "raw", "filter": {"samples": 8}}, 422, "filter"),
                ({"filter": {"kernel": "bump", "b": 1}}, 422, "8 f_c / 9"),
+               ({"filter": {"sample_gradient": True}}, 422, "sample_gradient"),
                ({"volume": ".hidden"}, 422, "volume"),
                ({"resolution": 300}, 413, "--max-bake-queries"),
                ({"order": 1, "resolution": 100}, 413, "--max-bake-queries")]
