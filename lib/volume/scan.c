@@ -7,9 +7,9 @@
  * node can be from the surface (`reach_front` on the outward side, `reach_back` inside),
  * which a coarse lattice of exact queries bounds. Worker threads take runs of features in
  * Morton order, each into its own per-node "best so far" arrays (no locks; the loop over one
- * region's nodes is volume/raster.c); the rows are
- * then finished in parallel, the workers' bests merged by (distance, feature id) so the
- * result does not depend on how the features were shared out. */
+ * region's nodes is volume/raster.c); the rows are then finished in parallel, the workers'
+ * bests merged by (distance, feature id) so the result does not depend on how the features
+ * were shared out. */
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
