@@ -184,7 +184,8 @@ static void test_filtered_direct(const char *file, const char *kind, int samples
     CHECK(sdf__samples_draw(&resolved, &s) == 0, "draw");
     /* Direct: every displaced sample asked of sdf_query on its own batch, with gradients. */
     float *x = malloc(3 * (size_t)s.n * sizeof *x), *fx = malloc((size_t)s.n * sizeof *fx);
-    float *gx = malloc(3 * (size_t)s.n * sizeof *gx), *mean_grad = malloc(3 * n * sizeof *gx);
+    float *gx = malloc(3 * (size_t)s.n * sizeof *gx);
+    float *mean_grad = malloc(3 * n * sizeof *mean_grad);
     float gp[3];
     double worst = 0, worst_rel = 0;
     for (size_t i = 0; i < n; i++) {
@@ -240,7 +241,7 @@ static void test_filtered_direct(const char *file, const char *kind, int samples
     /* A sample's winner is closest up to float rounding (query/cluster.h): where two
      * triangles tie that closely over a flat stretch, their closest points may lie up to
      * ~sqrt(2e-6) of the distance apart, so that sample's direction may differ from
-     * sdf_query's by ~1.4e-3 (seen: 1.2e-3, weighed 1/n in the mean). Elsewhere the mean is
+     * sdf_query's by ~1.4e-3 (seen: 1.2e-3, weighted 1/n in the mean). Elsewhere the mean is
      * sdf_query's to float rounding. */
     double worst_grad = 0, from_analytic = 0;
     size_t off = 0;
