@@ -470,11 +470,13 @@ int sdf__find_lattice(const float *points, size_t stride, size_t count, size_t d
             axis[a][i] = point_at(&b, i * step[a])[a];
     }
     int ok = axis[0] && axis[1] && axis[2];
-    for (size_t n = 0; ok && n < count; n++) {
-        const float *p = point_at(&b, n);
-        ok = p[0] == axis[0][n % nx] && p[1] == axis[1][n / nx % ny] &&
-             p[2] == axis[2][n / (nx * ny)];
-    }
+    /* Every point on its node, axis by axis (nested loops: no division per point). */
+    for (size_t k = 0, n = 0; ok && k < dims[2]; k++)
+        for (size_t j = 0; ok && j < ny; j++)
+            for (size_t i = 0; ok && i < nx; i++, n++) {
+                const float *p = point_at(&b, n);
+                ok = p[0] == axis[0][i] && p[1] == axis[1][j] && p[2] == axis[2][k];
+            }
     if (!ok) {
         for (int a = 0; a < 3; a++)
             free(axis[a]), axis[a] = NULL;
