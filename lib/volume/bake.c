@@ -592,7 +592,7 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
     if (rc)
         return rc;
     bake_out o = {.smallest_f = INFINITY, .largest_f = -INFINITY};
-    if (!rc && (rc = sdf__volume_alloc(&plan->info, &o.v)))
+    if ((rc = sdf__volume_alloc(&plan->info, &o.v)))
         sdf__diag_set(diag, rc, 0, -1, "no memory for a volume of %zu x %zu x %zu nodes",
                       plan->info.dims[0], plan->info.dims[1], plan->info.dims[2]);
     int first = plan->info.order == 1;
