@@ -9,24 +9,28 @@
 #include "core/parallel.h"
 #include "sdf/sdf.h"
 
-typedef struct tri {
-    double v[3][3];
+/* A triangle as the search first sees it, in the tree's primitive order (a leaf's are
+ * consecutive): its box and corner ids. Most pairs of triangles end there. */
+typedef struct prim_box {
     float lo[3], hi[3];
-    const uint32_t *idx;
-} tri;
+    uint32_t idx[3];
+} prim_box;
 
-static void load_tri(const float *pos, const uint32_t *triangles, uint32_t t, tri *out)
+/* A leaf's triangles' corners in double, converted once a pair needs orientation tests. */
+typedef struct leaf_corners {
+    uint32_t loaded; /* bit i: v[i] is filled */
+    double v[SDF__TREE_MAX_LEAF][3][3];
+} leaf_corners;
+
+static const double (*corners(leaf_corners *c, const float *pos, const prim_box *b, int i))[3]
 {
-    out->idx = triangles + 3 * (size_t)t;
-    for (int i = 0; i < 3; i++) {
-        out->lo[i] = out->hi[i] = pos[3 * out->idx[0] + i];
-        for (int k = 0; k < 3; k++) {
-            float x = pos[3 * out->idx[k] + i];
-            out->v[k][i] = x;
-            out->lo[i] = x < out->lo[i] ? x : out->lo[i];
-            out->hi[i] = x > out->hi[i] ? x : out->hi[i];
-        }
+    if (!(c->loaded >> i & 1)) {
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < 3; a++)
+                c->v[i][k][a] = pos[3 * (size_t)b->idx[k] + a];
+        c->loaded |= 1u << i;
     }
+    return c->v[i];
 }
 
 /* Sign of the volume of tetrahedron (a, b, c, d): which side of plane abc d lies on; 0 when
@@ -56,9 +60,9 @@ static int orient(const double a[3], const double b[3], const double c[3], const
 /* Does segment pq meet triangle t? Touching counts (an edge through another triangle's edge
  * or vertex): for the sign, a contact breaks pseudonormals as surely as a crossing. A
  * segment lying in the triangle's plane is not reported. */
-static int segment_crosses(const double p[3], const double q[3], const tri *t)
+static int segment_crosses(const double p[3], const double q[3], const double (*t)[3])
 {
-    const double *a = t->v[0], *b = t->v[1], *c = t->v[2];
+    const double *a = t[0], *b = t[1], *c = t[2];
     int sp = orient(a, b, c, p), sq = orient(a, b, c, q);
     if (sp == sq) /* same side, or coplanar */
         return 0;
@@ -68,7 +72,7 @@ static int segment_crosses(const double p[3], const double q[3], const tri *t)
     return (lo >= 0 || hi <= 0) && (lo != 0 || hi != 0);
 }
 
-static int shares_vertex(const tri *a, const tri *b)
+static int shares_vertex(const prim_box *a, const prim_box *b)
 {
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++)
@@ -77,37 +81,48 @@ static int shares_vertex(const tri *a, const tri *b)
     return 0;
 }
 
-static int triangles_intersect(const tri *a, const tri *b)
+/* Triangles a and b, whose boxes overlap (ca, cb: their leaves' corner caches, i and j
+ * their places there). */
+static int triangles_intersect(const float *pos, const prim_box *a, const prim_box *b,
+                               leaf_corners *ca, int i, leaf_corners *cb, int j)
 {
-    for (int i = 0; i < 3; i++)
-        if (a->hi[i] < b->lo[i] || b->hi[i] < a->lo[i])
-            return 0;
     if (shares_vertex(a, b))
         return 0;
+    const double(*u)[3] = corners(ca, pos, a, i), (*v)[3] = corners(cb, pos, b, j);
     for (int k = 0; k < 3; k++) {
-        if (segment_crosses(a->v[k], a->v[(k + 1) % 3], b) ||
-            segment_crosses(b->v[k], b->v[(k + 1) % 3], a))
+        if (segment_crosses(u[k], u[(k + 1) % 3], v) || segment_crosses(v[k], v[(k + 1) % 3], u))
             return 1;
     }
     return 0;
 }
 
-static int leaves_intersect(const sdf__tree *tree, const float *pos, const uint32_t *triangles,
-                            const sdf__tree_node *x, const sdf__tree_node *y)
+/* Bit j set where box a overlaps ys[j]'s, j in [from, count): without branches, since
+ * whether two neighbouring triangles' boxes overlap is a coin toss to the predictor. */
+static uint32_t overlapping(const prim_box *a, const prim_box *ys, uint32_t from, uint32_t count)
 {
-    tri a[SDF__TREE_MAX_LEAF], b[SDF__TREE_MAX_LEAF]; /* each corner converted once */
-    for (uint32_t i = 0; i < x->count; i++)
-        load_tri(pos, triangles, tree->prims[x->first + i], &a[i]);
-    const tri *bs = a;
-    if (x != y) {
-        for (uint32_t j = 0; j < y->count; j++)
-            load_tri(pos, triangles, tree->prims[y->first + j], &b[j]);
-        bs = b;
+    uint32_t mask = 0;
+    for (uint32_t j = from; j < count; j++) {
+        const prim_box *b = &ys[j];
+        int apart = (a->hi[0] < b->lo[0]) | (b->hi[0] < a->lo[0]) | (a->hi[1] < b->lo[1]) |
+                    (b->hi[1] < a->lo[1]) | (a->hi[2] < b->lo[2]) | (b->hi[2] < a->lo[2]);
+        mask |= (uint32_t)!apart << j;
     }
+    return mask;
+}
+
+static int leaves_intersect(const prim_box *boxes, const float *pos, const sdf__tree_node *x,
+                            const sdf__tree_node *y)
+{
+    leaf_corners a, b;
+    a.loaded = b.loaded = 0;
+    leaf_corners *cb = x == y ? &a : &b;
+    const prim_box *xs = boxes + x->first, *ys = boxes + y->first;
     for (uint32_t i = 0; i < x->count; i++)
-        for (uint32_t j = x == y ? i + 1 : 0; j < y->count; j++)
-            if (triangles_intersect(&a[i], &bs[j]))
+        for (uint32_t m = overlapping(&xs[i], ys, x == y ? i + 1 : 0, y->count); m; m &= m - 1) {
+            int j = __builtin_ctz(m);
+            if (triangles_intersect(pos, &xs[i], &ys[j], &a, (int)i, cb, j))
                 return 1;
+        }
     return 0;
 }
 
@@ -154,20 +169,29 @@ static int expand(pair_stack *s, const sdf__tree *tree, pair p)
     return push(s, first, other) || push(s, first + 1, other) ? SDF_ENOMEM : 0;
 }
 
+typedef struct search {
+    const sdf__tree *tree;
+    const float *positions;
+    const uint32_t *triangles;
+    prim_box *boxes; /* tree->prims[i]'s box and corner ids at boxes[i] */
+    const pair *tasks;
+    atomic_int found; /* 1: an intersection; SDF_ENOMEM: a thread ran out of memory */
+} search;
+
 /* Search below one pair with a private stack until an intersection turns up here or in
- * another thread (`found`). Returns 1, 0, or SDF_ENOMEM. */
-static int search_pair(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
-                       pair start, atomic_int *found)
+ * another thread. Returns 1, 0, or SDF_ENOMEM. */
+static int search_pair(search *sr, pair start)
 {
+    const sdf__tree *tree = sr->tree;
     pair_stack s = {0};
     int rc = push(&s, start.a, start.b);
-    while (!rc && s.count && !atomic_load_explicit(found, memory_order_relaxed)) {
+    while (!rc && s.count && !atomic_load_explicit(&sr->found, memory_order_relaxed)) {
         pair p = s.items[--s.count];
         const sdf__tree_node *x = &tree->nodes[p.a], *y = &tree->nodes[p.b];
         if (p.a != p.b && !boxes_overlap(x, y))
             continue;
         if (x->count && y->count)
-            rc = leaves_intersect(tree, positions, triangles, x, y);
+            rc = leaves_intersect(sr->boxes, sr->positions, x, y);
         else
             rc = expand(&s, tree, p);
     }
@@ -175,20 +199,12 @@ static int search_pair(const sdf__tree *tree, const float *positions, const uint
     return rc;
 }
 
-typedef struct search {
-    const sdf__tree *tree;
-    const float *positions;
-    const uint32_t *triangles;
-    const pair *tasks;
-    atomic_int found; /* 1: an intersection; SDF_ENOMEM: a thread ran out of memory */
-} search;
-
 static void search_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     search *sr = ctx;
     for (size_t i = begin; i < end && !atomic_load(&sr->found); i++) {
-        int rc = search_pair(sr->tree, sr->positions, sr->triangles, sr->tasks[i], &sr->found);
+        int rc = search_pair(sr, sr->tasks[i]);
         if (rc) {
             int none = 0;
             atomic_compare_exchange_strong(&sr->found, &none, rc);
@@ -196,8 +212,30 @@ static void search_range(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
+/* The primitives' boxes and corner ids, in the tree's order. */
+static void boxes_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    search *sr = ctx;
+    for (size_t i = begin; i < end; i++) {
+        prim_box *b = &sr->boxes[i];
+        const uint32_t *t = sr->triangles + 3 * (size_t)sr->tree->prims[i];
+        const float *c[3];
+        for (int k = 0; k < 3; k++) {
+            b->idx[k] = t[k];
+            c[k] = sr->positions + 3 * (size_t)t[k];
+        }
+        for (int a = 0; a < 3; a++) {
+            b->lo[a] = c[0][a] < c[1][a] ? c[0][a] : c[1][a];
+            b->lo[a] = c[2][a] < b->lo[a] ? c[2][a] : b->lo[a];
+            b->hi[a] = c[0][a] > c[1][a] ? c[0][a] : c[1][a];
+            b->hi[a] = c[2][a] > b->hi[a] ? c[2][a] : b->hi[a];
+        }
+    }
+}
+
 /* The top of the search runs here until there are enough independent pairs to share out;
- * the rest runs on every CPU (1.4M triangles: 1.5 s on one thread). */
+ * the rest runs on every CPU. */
 #define PARALLEL_TASKS 256
 
 int sdf__self_intersects(const sdf__tree *tree, const float *positions, const uint32_t *triangles)
@@ -222,8 +260,15 @@ int sdf__self_intersects(const sdf__tree *tree, const float *positions, const ui
         free(tasks.items);
         return rc;
     }
-    search sr = {tree, positions, triangles, tasks.items, 0};
+    search sr = {tree, positions, triangles, malloc((tree->prim_count + 1) * sizeof(prim_box)),
+                 tasks.items, 0};
+    if (!sr.boxes) {
+        free(tasks.items);
+        return SDF_ENOMEM;
+    }
+    sdf__parallel_for(tree->prim_count, 16384, 0, boxes_range, &sr);
     sdf__parallel_for(tasks.count, 1, 0, search_range, &sr);
+    free(sr.boxes);
     free(tasks.items);
     return atomic_load(&sr.found);
 }

@@ -1,11 +1,16 @@
 /* test_topology.c - the mesh report: closedness, manifoldness, orientation, flipping of
  * inside-out meshes, degenerate triangles, volume, self-intersection, welding; and the
  * handle's reference counting and argument checks. Meshes are small hand-made ones whose
- * answers are known exactly. */
+ * answers are known exactly, and fandisk.off with one vertex moved, whose self-intersection
+ * is decided by brute force over every pair of triangles (the tree search must agree). */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "../common/check.h"
+#include "../common/workload.h"
+#include "mesh/intersect.h"
+#include "mesh/mesh.h"
 
 static const float cube_v[8 * 3] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0,
                                     0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
@@ -146,6 +151,192 @@ static void test_self_intersection(void)
     sdf_mesh_release(m);
 }
 
+/* Does segment pq cross triangle abc? The plane's crossing point, then its barycentric
+ * coordinates: a different construction from the library's orientation tests, and exact
+ * enough away from touching contacts, which randomly moved vertices do not make. */
+static int ref_segment_crosses(const double p[3], const double q[3], const double *a,
+                               const double *b, const double *c)
+{
+    double u[3], v[3], n[3], d[3], ap[3];
+    for (int i = 0; i < 3; i++)
+        u[i] = b[i] - a[i], v[i] = c[i] - a[i], d[i] = q[i] - p[i], ap[i] = a[i] - p[i];
+    n[0] = u[1] * v[2] - u[2] * v[1], n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+    double along = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
+    if (along == 0)
+        return 0; /* parallel to the plane */
+    double t = (n[0] * ap[0] + n[1] * ap[1] + n[2] * ap[2]) / along;
+    if (t < 0 || t > 1)
+        return 0;
+    double w[3];
+    for (int i = 0; i < 3; i++)
+        w[i] = p[i] + t * d[i] - a[i];
+    double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2], vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    double uv = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    double wu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2], wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+    double den = uu * vv - uv * uv, s = (vv * wu - uv * wv) / den, r = (uu * wv - uv * wu) / den;
+    return s >= 0 && r >= 0 && s + r <= 1;
+}
+
+/* Do triangles i and j (sharing no vertex) of the array mesh cross? Some edge of one
+ * crosses the other. */
+static int ref_triangles_cross(const float *pos, const uint32_t *tri, size_t i, size_t j)
+{
+    double c[2][3][3];
+    const size_t t[2] = {i, j};
+    for (int s = 0; s < 2; s++)
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < 3; a++)
+                c[s][k][a] = pos[3 * (size_t)tri[3 * t[s] + k] + a];
+    for (int s = 0; s < 2; s++)
+        for (int k = 0; k < 3; k++)
+            if (ref_segment_crosses(c[s][k], c[s][(k + 1) % 3], c[1 - s][0], c[1 - s][1],
+                                    c[1 - s][2]))
+                return 1;
+    return 0;
+}
+
+/* Each triangle's box: lo xyz, hi xyz. */
+static float *triangle_boxes(const float *pos, const uint32_t *tri, size_t nt)
+{
+    float *box = malloc(6 * nt * sizeof *box);
+    for (size_t t = 0; box && t < nt; t++)
+        for (int a = 0; a < 3; a++) {
+            box[6 * t + a] = INFINITY, box[6 * t + 3 + a] = -INFINITY;
+            for (int k = 0; k < 3; k++) {
+                float x = pos[3 * (size_t)tri[3 * t + k] + a];
+                box[6 * t + a] = fminf(box[6 * t + a], x);
+                box[6 * t + 3 + a] = fmaxf(box[6 * t + 3 + a], x);
+            }
+        }
+    return box;
+}
+
+static int boxes_apart(const float *box, size_t i, size_t j)
+{
+    const float *a = box + 6 * i, *b = box + 6 * j;
+    return a[3] < b[0] || b[3] < a[0] || a[4] < b[1] || b[4] < a[1] || a[5] < b[2] ||
+           b[5] < a[2];
+}
+
+static int share_vertex(const uint32_t *tri, size_t i, size_t j)
+{
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++)
+            if (tri[3 * i + a] == tri[3 * j + b])
+                return 1;
+    return 0;
+}
+
+/* Brute force: does any triangle in `touched` (or, with touched NULL, any at all) cross
+ * another triangle it shares no vertex with? */
+static int ref_self_intersects(const float *pos, const uint32_t *tri, size_t nt,
+                               const uint8_t *touched)
+{
+    float *box = triangle_boxes(pos, tri, nt);
+    int found = 0;
+    for (size_t i = 0; box && i < nt && !found; i++) {
+        if (touched && !touched[i])
+            continue;
+        for (size_t j = touched ? 0 : i + 1; j < nt && !found; j++)
+            found = j != i && (!touched || !touched[j] || j > i) && !boxes_apart(box, i, j) &&
+                    !share_vertex(tri, i, j) && ref_triangles_cross(pos, tri, i, j);
+    }
+    CHECK(box != NULL, "out of memory");
+    free(box);
+    return found;
+}
+
+/* fandisk.off does not cross itself; moving one vertex by a random step (1e-2.5 to 1e-0.5 of
+ * the diagonal) sometimes makes its triangles cross others. Each variant's report must say
+ * what brute force over its triangles' pairs says, and both answers must turn up. */
+static void test_self_intersection_brute_force(void)
+{
+    sdf_mesh *base = load_data_mesh("fandisk.off");
+    if (!base)
+        return;
+    sdf_mesh_report r;
+    sdf_mesh_get_report(base, &r);
+    size_t nv = r.vertices, nt = r.triangles;
+    float *pos = malloc(3 * nv * sizeof *pos);
+    uint32_t *tri = malloc(3 * nt * sizeof *tri);
+    uint8_t *touched = malloc(nt);
+    memcpy(tri, base->triangles, 3 * nt * sizeof *tri);
+    CHECK(!r.self_intersecting && !ref_self_intersects(base->positions, tri, nt, NULL),
+          "fandisk should not cross itself (report %d)", r.self_intersecting);
+    sdf_rng rng = {2024};
+    int agreed[2] = {0, 0};
+    for (int trial = 0; trial < 40; trial++) {
+        memcpy(pos, base->positions, 3 * nv * sizeof *pos);
+        uint32_t v = (uint32_t)(sdf_rng_next(&rng) % nv);
+        double step = r.diagonal * pow(10, -2.5 + 2 * sdf_rng_uniform(&rng));
+        double dir[3], len = 0;
+        for (int a = 0; a < 3; a++)
+            dir[a] = sdf_rng_normal(&rng), len += dir[a] * dir[a];
+        for (int a = 0; a < 3; a++)
+            pos[3 * v + a] += (float)(step * dir[a] / sqrt(len));
+        for (size_t t = 0; t < nt; t++)
+            touched[t] = tri[3 * t] == v || tri[3 * t + 1] == v || tri[3 * t + 2] == v;
+        int expected = ref_self_intersects(pos, tri, nt, touched);
+        sdf_mesh *m = make(pos, nv, tri, nt, &r);
+        if (!m)
+            break;
+        CHECK(r.closed && r.self_intersecting == expected,
+              "fandisk, vertex %u moved %g: self-intersecting %d, brute force %d", v, step,
+              r.self_intersecting, expected);
+        agreed[expected] += r.self_intersecting == expected;
+        sdf_mesh_release(m);
+    }
+    CHECK(agreed[0] > 0 && agreed[1] > 0, "moved vertices: %d crossing and %d clean agreed",
+          agreed[1], agreed[0]);
+    printf("self-intersection vs brute force: %d crossing, %d clean variants agreed\n", agreed[1],
+           agreed[0]);
+    free(pos), free(tri), free(touched);
+    sdf_mesh_release(base);
+}
+
+/* Soups of small random triangles, sharing no vertex, in a unit cube: a few pairs cross in
+ * about half of them. The tree search (called directly: a soup is open, and the report
+ * only searches closed meshes) must agree with brute force in every soup, wherever in the
+ * tree's leaves the crossing pair lies. */
+static void test_self_intersection_soups(void)
+{
+    enum { SOUPS = 400, TRIANGLES = 240 };
+    const double LONG = 0.04, SMALL = 0.005; /* sliver length and corner spread */
+    sdf_rng rng = {77};
+    float pos[9 * TRIANGLES];
+    uint32_t tri[3 * TRIANGLES];
+    for (uint32_t i = 0; i < 3 * TRIANGLES; i++)
+        tri[i] = i;
+    int agreed[2] = {0, 0};
+    for (int soup = 0; soup < SOUPS; soup++) {
+        for (int t = 0; t < TRIANGLES; t++) {
+            /* Half of them long slivers, which cross triangles in other leaves. */
+            double c[3], along[3], len = t % 2 ? LONG : 0;
+            for (int a = 0; a < 3; a++)
+                c[a] = sdf_rng_uniform(&rng), along[a] = len * sdf_rng_normal(&rng);
+            for (int k = 0; k < 3; k++)
+                for (int a = 0; a < 3; a++)
+                    pos[9 * t + 3 * k + a] =
+                        (float)(c[a] + (k - 1) * along[a] + SMALL * sdf_rng_normal(&rng));
+        }
+        int expected = ref_self_intersects(pos, tri, TRIANGLES, NULL);
+        sdf_mesh_report r;
+        sdf_mesh *m = make(pos, 3 * TRIANGLES, tri, TRIANGLES, &r);
+        if (!m)
+            break;
+        int found = sdf__self_intersects(&m->tree, m->positions, m->triangles);
+        CHECK(found == expected, "soup %d: the tree search says %d, brute force %d", soup, found,
+              expected);
+        agreed[expected] += found == expected;
+        sdf_mesh_release(m);
+    }
+    CHECK(agreed[0] > SOUPS / 10 && agreed[1] > SOUPS / 10,
+          "soups: %d crossing and %d clean agreed", agreed[1], agreed[0]);
+    printf("self-intersection of soups vs brute force: %d crossing, %d clean agreed\n", agreed[1],
+           agreed[0]);
+}
+
 static void test_demo_and_handles(void)
 {
     sdf_mesh *m;
@@ -197,6 +388,8 @@ int main(void)
     test_inside_out();
     test_open_and_broken();
     test_self_intersection();
+    test_self_intersection_brute_force();
+    test_self_intersection_soups();
     test_demo_and_handles();
     return check_finish("test_topology");
 }
