@@ -51,10 +51,14 @@ static int step_weld(sdf_mesh *m, float *soup, size_t soup_vertices)
                      &m->report.vertices);
 }
 
+/* The edges, orientation and the pseudonormals (which need the orientation and which
+ * triangles use each edge, known only here). */
 static int step_orient(sdf_mesh *m)
 {
     sdf_mesh_report *r = &m->report;
-    int rc = sdf__analyse(m->positions, m->triangles, r->triangles, &m->edge_of, &m->edge_count, r);
+    sdf__edge_faces faces;
+    int rc = sdf__analyse(m->positions, m->triangles, r->triangles, &m->edge_of, &m->edge_count,
+                          &faces, r);
     if (rc)
         return rc;
     if (r->closed && r->volume < 0) {
@@ -69,7 +73,10 @@ static int step_orient(sdf_mesh *m)
         extent = fabsf(r->bbox_max[i]) > extent ? fabsf(r->bbox_max[i]) : extent;
     }
     m->surface_epsilon = 4 * FLT_EPSILON * (extent > 0 ? extent : 1);
-    return 0;
+    rc = sdf__pseudonormals_create(m->positions, r->vertices, m->triangles, r->triangles, &faces,
+                                   m->edge_count, &m->normals);
+    sdf__edge_faces_free(&faces);
+    return rc;
 }
 
 static int step_trees(sdf_mesh *m, sdf_diag *diag)
@@ -104,9 +111,8 @@ static int step_choose_sign(sdf_mesh *m, sdf_diag *diag)
 static int step_sign_data(sdf_mesh *m, sdf_diag *diag)
 {
     sdf_mesh_report *r = &m->report;
-    int rc = sdf__pseudonormals_create(m->positions, r->vertices, m->triangles, m->edge_of,
-                                       r->triangles, m->edge_count, &m->normals);
-    if (!rc && r->auto_sign == SDF_SIGN_WINDING) /* what the default sign needs, now */
+    int rc = 0;
+    if (r->auto_sign == SDF_SIGN_WINDING) /* what the default sign needs, now */
         rc = sdf__mesh_need_winding(m);
     if (rc)
         return sdf__diag_set(diag, rc, 0, -1, "out of memory for the sign data");

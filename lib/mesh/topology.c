@@ -171,8 +171,17 @@ static void sort_half_edges(half_edge *h, size_t n)
  * memory is read in order: a hash table over 4M half-edges spent 0.9 s of a 1.4M-triangle
  * build in cache misses) and grouping each vertex's list by the other vertex. Edge ids
  * follow (lower vertex, upper vertex) order. */
+void sdf__edge_faces_free(sdf__edge_faces *faces)
+{
+    free(faces->start);
+    free(faces->face);
+    faces->start = NULL;
+    faces->face = NULL;
+}
+
 int sdf__analyse(const float *positions, const uint32_t *triangles, size_t triangle_count,
-                 uint32_t **edge_of_out, size_t *edge_count, sdf_mesh_report *r)
+                 uint32_t **edge_of_out, size_t *edge_count, sdf__edge_faces *faces,
+                 sdf_mesh_report *r)
 {
     size_t vertex_count = 0;
     for (size_t i = 0; i < 3 * triangle_count; i++)
@@ -180,10 +189,17 @@ int sdf__analyse(const float *positions, const uint32_t *triangles, size_t trian
     size_t *start = calloc(vertex_count + 2, sizeof *start);
     half_edge *filed = malloc((3 * triangle_count + 1) * sizeof *filed);
     uint32_t *edge_of = malloc((3 * triangle_count + 1) * sizeof *edge_of);
-    if (!start || !filed || !edge_of) {
+    /* At most one edge per half-edge; trimmed once the edges are counted. */
+    sdf__edge_faces found = {0};
+    if (faces) {
+        found.start = malloc((3 * triangle_count + 1) * sizeof *found.start);
+        found.face = malloc((3 * triangle_count + 1) * sizeof *found.face);
+    }
+    if (!start || !filed || !edge_of || (faces && (!found.start || !found.face))) {
         free(start);
         free(filed);
         free(edge_of);
+        sdf__edge_faces_free(&found);
         return SDF_ENOMEM;
     }
     for (size_t t = 0; t < triangle_count; t++) {
@@ -217,9 +233,13 @@ int sdf__analyse(const float *positions, const uint32_t *triangles, size_t trian
         for (size_t i = 0; i < n;) {
             size_t j = i;
             int balance = 0; /* +1 per use leaving the lower vertex, -1 per use entering it */
+            if (faces) /* the uses of this edge are filed[start[v] + i .. start[v] + j) */
+                found.start[edges] = start[v] + i;
             for (; j < n && h[j].other == h[i].other; j++) {
                 edge_of[h[j].corner] = edges;
                 balance += triangles[h[j].corner] == v ? 1 : -1;
+                if (faces)
+                    found.face[start[v] + j] = h[j].corner / 3;
             }
             size_t uses = j - i;
             boundary += uses == 1;
@@ -228,6 +248,12 @@ int sdf__analyse(const float *positions, const uint32_t *triangles, size_t trian
             edges++;
             i = j;
         }
+    }
+    if (faces) {
+        found.start[edges] = start[vertex_count];
+        size_t *trimmed = realloc(found.start, ((size_t)edges + 1) * sizeof *found.start);
+        found.start = trimmed ? trimmed : found.start;
+        *faces = found;
     }
     free(start);
     free(filed);

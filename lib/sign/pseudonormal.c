@@ -86,55 +86,81 @@ static void compute_terms(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
+typedef struct edges_job {
+    const face_terms *terms;
+    const sdf__edge_faces *faces;
+    float *out;
+} edges_job;
+
+/* Each edge's normal: the sum of its faces' normals (weight pi, common to all: dropped) in
+ * triangle order, made unit. */
+static void edges_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const edges_job *job = ctx;
+    for (size_t e = begin; e < end; e++) {
+        double sum[3] = {0, 0, 0};
+        for (size_t s = job->faces->start[e]; s < job->faces->start[e + 1]; s++) {
+            const face_terms *f = &job->terms[job->faces->face[s]];
+            if (!f->has_normal)
+                continue;
+            for (int i = 0; i < 3; i++)
+                sum[i] += f->normal[i];
+        }
+        store_unit(job->out + 3 * e, sum);
+    }
+}
+
+typedef struct units_job {
+    double *sum;
+    float *out;
+} units_job;
+
+static void units_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const units_job *job = ctx;
+    for (size_t v = begin; v < end; v++)
+        store_unit(job->out + 3 * v, job->sum + 3 * v);
+}
+
 int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
-                              const uint32_t *triangles, const uint32_t *edge_of,
-                              size_t triangle_count, size_t edge_count,
+                              const uint32_t *triangles, size_t triangle_count,
+                              const sdf__edge_faces *faces, size_t edge_count,
                               sdf__pseudonormals **out)
 {
     sdf__pseudonormals *pn = calloc(1, sizeof *pn);
-    double *edge_sum = calloc(3 * edge_count + 1, sizeof *edge_sum);
     double *vertex_sum = calloc(3 * vertex_count + 1, sizeof *vertex_sum);
+    face_terms *terms = malloc((triangle_count + 1) * sizeof *terms);
     if (pn) {
         pn->edge = malloc((3 * edge_count + 1) * sizeof(float));
         pn->vertex = malloc((3 * vertex_count + 1) * sizeof(float));
     }
-    if (!pn || !edge_sum || !vertex_sum || !pn->edge || !pn->vertex) {
-        free(edge_sum);
+    if (!pn || !vertex_sum || !terms || !pn->edge || !pn->vertex) {
         free(vertex_sum);
+        free(terms);
         sdf__pseudonormals_destroy(pn);
         return SDF_ENOMEM;
     }
-    /* The normals and corner angles (the costly part: square roots and atan2) on all CPUs;
-     * the sums then in triangle order on one, so the result does not depend on threads. */
-    face_terms *terms = malloc((triangle_count + 1) * sizeof *terms);
-    if (!terms) {
-        free(edge_sum);
-        free(vertex_sum);
-        sdf__pseudonormals_destroy(pn);
-        return SDF_ENOMEM;
-    }
+    /* The normals and corner angles (the costly part: square roots and atan2) and the edges'
+     * sums (each over its own faces) on all CPUs; the vertices' sums in triangle order on one,
+     * so the result does not depend on threads. */
     terms_job job = {positions, triangles, terms};
     sdf__parallel_for(triangle_count, 4096, 0, compute_terms, &job);
+    edges_job edges = {terms, faces, pn->edge};
+    sdf__parallel_for(edge_count, 4096, 0, edges_range, &edges);
     for (size_t t = 0; t < triangle_count; t++) {
         const uint32_t *tri = triangles + 3 * t;
         const face_terms *f = &terms[t];
         if (!f->has_normal)
             continue;
-        for (int k = 0; k < 3; k++) {
-            uint32_t e = edge_of[3 * t + k];
-            for (int i = 0; i < 3; i++) {
+        for (int k = 0; k < 3; k++)
+            for (int i = 0; i < 3; i++)
                 vertex_sum[3 * tri[k] + i] += f->angle[k] * f->normal[i];
-                if (e != SDF__NO_EDGE)
-                    edge_sum[3 * e + i] += f->normal[i]; /* weight pi, common to all: dropped */
-            }
-        }
     }
     free(terms);
-    for (size_t e = 0; e < edge_count; e++)
-        store_unit(pn->edge + 3 * e, edge_sum + 3 * e);
-    for (size_t v = 0; v < vertex_count; v++)
-        store_unit(pn->vertex + 3 * v, vertex_sum + 3 * v);
-    free(edge_sum);
+    units_job units = {vertex_sum, pn->vertex};
+    sdf__parallel_for(vertex_count, 4096, 0, units_range, &units);
     free(vertex_sum);
     pn->bytes = (3 * edge_count + 3 * vertex_count) * sizeof(float);
     *out = pn;

@@ -6,7 +6,9 @@
  *  - the hierarchical winding number stays close to the brute-force value, and evaluated per
  *    packet it gives the same signed distances as per point;
  *  - auto picks pseudonormal for closed meshes that do not intersect themselves, winding
- *    otherwise (cow.off is closed once welded, but self-intersecting). */
+ *    otherwise (cow.off is closed once welded, but self-intersecting);
+ *  - the stored edge and vertex pseudonormals equal their definition, computed here the
+ *    slow way (every mesh above). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,6 +16,9 @@
 #include "../common/check.h"
 #include "../common/reference.h"
 #include "../common/workload.h"
+#include "mesh/mesh.h"
+#include "mesh/topology.h"
+#include "sign/pseudonormal.h"
 
 #define N_BAND 1500
 #define N_BOX 1500
@@ -158,6 +163,97 @@ static void test_winding_values(const char *name, sdf_mesh *mesh)
     free_sample(&s);
 }
 
+typedef struct edge_use {
+    uint32_t lo, hi, tri;
+} edge_use;
+
+static int by_vertices(const void *a, const void *b)
+{
+    const edge_use *x = a, *y = b;
+    if (x->lo != y->lo)
+        return x->lo < y->lo ? -1 : 1;
+    return x->hi < y->hi ? -1 : x->hi > y->hi;
+}
+
+static void unit(double v[3])
+{
+    double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    for (int i = 0; len > 0 && i < 3; i++)
+        v[i] /= len;
+}
+
+/* Baerentzen & Aanaes's pseudonormals from their definition: a triangle's unit normal and
+ * its corner angles (acos of unit edge vectors; the library uses atan2); an edge's is the
+ * sum of the normals of the triangles that use it (found by sorting every triangle's
+ * (lower, upper) vertex pairs), a vertex's the sum of angle times normal over its triangles.
+ * The library's float unit vectors must agree to 1e-5. */
+static void test_pseudonormal_values(const char *name, const sdf_mesh *m)
+{
+    size_t nt = m->report.triangles, nv = m->report.vertices;
+    double *normal = calloc(3 * nt, sizeof *normal), *angle = calloc(3 * nt, sizeof *angle);
+    double *vertex = calloc(3 * nv, sizeof *vertex), *edge_sum = calloc(9 * nt, sizeof *edge_sum);
+    edge_use *uses = malloc(3 * nt * sizeof *uses);
+    size_t *use_of = malloc(3 * nt * sizeof *use_of); /* corner 3t + k -> its group's first use */
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *tri = m->triangles + 3 * t;
+        double p[3][3], u[3], v[3];
+        for (int k = 0; k < 3; k++)
+            for (int a = 0; a < 3; a++)
+                p[k][a] = m->positions[3 * (size_t)tri[k] + a];
+        for (int a = 0; a < 3; a++)
+            u[a] = p[1][a] - p[0][a], v[a] = p[2][a] - p[0][a];
+        double *n = normal + 3 * t;
+        n[0] = u[1] * v[2] - u[2] * v[1], n[1] = u[2] * v[0] - u[0] * v[2];
+        n[2] = u[0] * v[1] - u[1] * v[0];
+        unit(n);
+        for (int k = 0; k < 3; k++) {
+            double e1[3], e2[3];
+            for (int a = 0; a < 3; a++)
+                e1[a] = p[(k + 1) % 3][a] - p[k][a], e2[a] = p[(k + 2) % 3][a] - p[k][a];
+            unit(e1), unit(e2);
+            double c = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+            angle[3 * t + k] = acos(fmax(-1, fmin(1, c)));
+            for (int a = 0; a < 3; a++)
+                vertex[3 * (size_t)tri[k] + a] += angle[3 * t + k] * n[a];
+            uint32_t x = tri[k], y = tri[(k + 1) % 3];
+            uses[3 * t + k] = (edge_use){x < y ? x : y, x < y ? y : x, (uint32_t)(3 * t + k)};
+        }
+    }
+    qsort(uses, 3 * nt, sizeof *uses, by_vertices);
+    for (size_t i = 0, j; i < 3 * nt; i = j) {
+        for (j = i; j < 3 * nt && !by_vertices(&uses[i], &uses[j]); j++) {
+            use_of[uses[j].tri] = i;
+            for (int a = 0; a < 3; a++)
+                edge_sum[3 * i + a] += normal[3 * (uses[j].tri / 3) + a];
+        }
+    }
+    double worst_edge = 0, worst_vertex = 0;
+    size_t edges = 0;
+    for (size_t c = 0; c < 3 * nt; c++) {
+        uint32_t e = m->edge_of[c];
+        const uint32_t *tri = m->triangles + 3 * (c / 3);
+        if (e == SDF__NO_EDGE || tri[0] == tri[1] || tri[1] == tri[2] || tri[2] == tri[0])
+            continue;
+        double ref[3] = {edge_sum[3 * use_of[c]], edge_sum[3 * use_of[c] + 1],
+                         edge_sum[3 * use_of[c] + 2]};
+        unit(ref);
+        for (int a = 0; a < 3; a++)
+            worst_edge = fmax(worst_edge, fabs(ref[a] - m->normals->edge[3 * (size_t)e + a]));
+        edges++;
+    }
+    for (size_t v = 0; v < nv; v++) {
+        unit(vertex + 3 * v);
+        for (int a = 0; a < 3; a++)
+            worst_vertex = fmax(worst_vertex, fabs(vertex[3 * v + a] - m->normals->vertex[3 * v + a]));
+    }
+    CHECK(edges > 0 && worst_edge <= 1e-5 && worst_vertex <= 1e-5,
+          "%s: pseudonormals %g (edges, %zu checked) and %g (vertices) from their definition", name,
+          worst_edge, edges, worst_vertex);
+    printf("pseudonormals %s: edges within %.2g, vertices within %.2g of the definition\n", name,
+           worst_edge, worst_vertex);
+    free(normal), free(angle), free(vertex), free(edge_sum), free(uses), free(use_of);
+}
+
 int main(void)
 {
     const char *closed[] = {"fandisk.off", "knot1.off"};
@@ -167,6 +263,7 @@ int main(void)
         if (m) {
             test_closed(closed[i], m);
             test_winding_values(closed[i], m);
+            test_pseudonormal_values(closed[i], m);
         }
         sdf_mesh_release(m);
     }
@@ -179,6 +276,7 @@ int main(void)
         if (m) {
             test_open(open[i], m);
             test_winding_values(open[i], m);
+            test_pseudonormal_values(open[i], m);
         }
         sdf_mesh_release(m);
     }
