@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/parallel.h"
+
 static size_t table_size(size_t n)
 {
     size_t cap = 16;
@@ -107,25 +109,64 @@ static double signed_volume(const float *pos, const uint32_t *t)
     return (a[0] * cx + a[1] * cy + a[2] * cz) / 6.0;
 }
 
-static void geometry_summary(const float *pos, const uint32_t *tris, size_t nt,
-                             sdf_mesh_report *r)
+/* Triangles per partial sum of the summary: a fixed split, so that the volume's rounding
+ * does not depend on the number of threads. */
+#define SUMMARY_CHUNK 65536
+
+typedef struct summary_part {
+    double lo[3], hi[3], volume;
+    size_t degenerate;
+} summary_part;
+
+typedef struct summary_job {
+    const float *pos;
+    const uint32_t *tris;
+    summary_part *parts; /* one per SUMMARY_CHUNK triangles */
+} summary_job;
+
+static void summary_range(void *ctx, size_t begin, size_t end, int worker)
 {
+    (void)worker;
+    const summary_job *job = ctx;
+    summary_part p = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}, 0, 0};
+    for (size_t t = begin; t < end; t++) {
+        const uint32_t *tri = job->tris + 3 * t;
+        for (int k = 0; k < 3; k++) {
+            for (int i = 0; i < 3; i++) {
+                double x = job->pos[3 * tri[k] + i];
+                p.lo[i] = x < p.lo[i] ? x : p.lo[i];
+                p.hi[i] = x > p.hi[i] ? x : p.hi[i];
+            }
+        }
+        if (has_repeated_corner(tri) || triangle_area2(job->pos, tri) == 0.0)
+            p.degenerate++;
+        p.volume += signed_volume(job->pos, tri);
+    }
+    job->parts[begin / SUMMARY_CHUNK] = p;
+}
+
+/* Box, diagonal, volume and degenerate triangles, over chunks of triangles on all CPUs. */
+static int geometry_summary(const float *pos, const uint32_t *tris, size_t nt,
+                            sdf_mesh_report *r)
+{
+    size_t chunks = (nt + SUMMARY_CHUNK - 1) / SUMMARY_CHUNK;
+    summary_job job = {pos, tris, malloc((chunks + 1) * sizeof *job.parts)};
+    if (!job.parts)
+        return SDF_ENOMEM;
+    sdf__parallel_for(nt, SUMMARY_CHUNK, 0, summary_range, &job);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     double volume = 0;
     size_t degenerate = 0;
-    for (size_t t = 0; t < nt; t++) {
-        const uint32_t *tri = tris + 3 * t;
-        for (int k = 0; k < 3; k++) {
-            for (int i = 0; i < 3; i++) {
-                double x = pos[3 * tri[k] + i];
-                lo[i] = x < lo[i] ? x : lo[i];
-                hi[i] = x > hi[i] ? x : hi[i];
-            }
+    for (size_t c = 0; c < chunks; c++) {
+        const summary_part *p = &job.parts[c];
+        for (int i = 0; i < 3; i++) {
+            lo[i] = p->lo[i] < lo[i] ? p->lo[i] : lo[i];
+            hi[i] = p->hi[i] > hi[i] ? p->hi[i] : hi[i];
         }
-        if (has_repeated_corner(tri) || triangle_area2(pos, tri) == 0.0)
-            degenerate++;
-        volume += signed_volume(pos, tri);
+        volume += p->volume;
+        degenerate += p->degenerate;
     }
+    free(job.parts);
     double d2 = 0;
     for (int i = 0; i < 3; i++) {
         r->bbox_min[i] = (float)lo[i];
@@ -135,6 +176,7 @@ static void geometry_summary(const float *pos, const uint32_t *tris, size_t nt,
     r->diagonal = sqrt(d2);
     r->volume = volume;
     r->degenerate_triangles = degenerate;
+    return 0;
 }
 
 /* A half-edge filed under its lower vertex: the other vertex, and which triangle corner
@@ -164,6 +206,60 @@ static void sort_half_edges(half_edge *h, size_t n)
             j--;
         }
         h[j] = x;
+    }
+}
+
+#define GROUP_CHUNK 16384 /* vertices per task of the grouping into edges */
+
+/* One chunk of vertices' edges: how many (then, numbering, the first one's id) and their
+ * kinds. */
+typedef struct group_chunk {
+    size_t edges, boundary, nonmanifold, misoriented;
+} group_chunk;
+
+typedef struct group_job {
+    const uint32_t *triangles;
+    half_edge *filed;
+    const size_t *start; /* vertex v's half-edges are filed[start[v] .. start[v + 1]) */
+    uint32_t *edge_of;
+    sdf__edge_faces *faces; /* or NULL */
+    group_chunk *chunk;
+    int number; /* 0: sort and count the edges; 1: number them */
+} group_job;
+
+static void group_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const group_job *job = ctx;
+    group_chunk *c = &job->chunk[begin / GROUP_CHUNK];
+    size_t edge = c->edges;
+    for (size_t v = begin; v < end; v++) {
+        half_edge *h = job->filed + job->start[v];
+        size_t n = job->start[v + 1] - job->start[v];
+        if (!job->number) {
+            sort_half_edges(h, n);
+            for (size_t i = 0; i < n; i++)
+                c->edges += i == 0 || h[i].other != h[i - 1].other;
+            continue;
+        }
+        for (size_t i = 0; i < n;) {
+            size_t j = i;
+            int balance = 0; /* +1 per use leaving the lower vertex, -1 per use entering it */
+            if (job->faces) /* the uses of this edge are filed[start[v] + i .. start[v] + j) */
+                job->faces->start[edge] = job->start[v] + i;
+            for (; j < n && h[j].other == h[i].other; j++) {
+                job->edge_of[h[j].corner] = (uint32_t)edge;
+                balance += job->triangles[h[j].corner] == v ? 1 : -1;
+                if (job->faces)
+                    job->faces->face[job->start[v] + j] = h[j].corner / 3;
+            }
+            size_t uses = j - i;
+            c->boundary += uses == 1;
+            c->nonmanifold += uses > 2;
+            c->misoriented += uses == 2 && balance != 0;
+            edge++;
+            i = j;
+        }
     }
 }
 
@@ -223,32 +319,34 @@ int sdf__analyse(const float *positions, const uint32_t *triangles, size_t trian
             filed[start[(a < b ? a : b) + 1]++] = (half_edge){a < b ? b : a, (uint32_t)(3 * t + k)};
         }
     }
-    /* Now start[v] is the first slot of vertex v, start[v + 1] its end. */
-    uint32_t edges = 0;
-    size_t boundary = 0, nonmanifold = 0, misoriented = 0;
-    for (size_t v = 0; v < vertex_count; v++) {
-        half_edge *h = filed + start[v];
-        size_t n = start[v + 1] - start[v];
-        sort_half_edges(h, n);
-        for (size_t i = 0; i < n;) {
-            size_t j = i;
-            int balance = 0; /* +1 per use leaving the lower vertex, -1 per use entering it */
-            if (faces) /* the uses of this edge are filed[start[v] + i .. start[v] + j) */
-                found.start[edges] = start[v] + i;
-            for (; j < n && h[j].other == h[i].other; j++) {
-                edge_of[h[j].corner] = edges;
-                balance += triangles[h[j].corner] == v ? 1 : -1;
-                if (faces)
-                    found.face[start[v] + j] = h[j].corner / 3;
-            }
-            size_t uses = j - i;
-            boundary += uses == 1;
-            nonmanifold += uses > 2;
-            misoriented += uses == 2 && balance != 0;
-            edges++;
-            i = j;
-        }
+    /* Now start[v] is the first slot of vertex v, start[v + 1] its end. Group each vertex's
+     * half-edges into edges on all CPUs: chunks of vertices count theirs, then number them
+     * from the count before the chunk, so ids are the same on any number of threads. */
+    size_t chunks = (vertex_count + GROUP_CHUNK - 1) / GROUP_CHUNK;
+    group_job job = {triangles, filed, start, edge_of, faces ? &found : NULL,
+                     calloc(chunks + 1, sizeof *job.chunk), 0};
+    if (!job.chunk) {
+        free(start);
+        free(filed);
+        free(edge_of);
+        sdf__edge_faces_free(&found);
+        return SDF_ENOMEM;
     }
+    sdf__parallel_for(vertex_count, GROUP_CHUNK, 0, group_range, &job);
+    size_t edges = 0, boundary = 0, nonmanifold = 0, misoriented = 0;
+    for (size_t c = 0; c < chunks; c++) {
+        size_t here = job.chunk[c].edges;
+        job.chunk[c].edges = edges; /* now its first edge id */
+        edges += here;
+    }
+    job.number = 1;
+    sdf__parallel_for(vertex_count, GROUP_CHUNK, 0, group_range, &job);
+    for (size_t c = 0; c < chunks; c++) {
+        boundary += job.chunk[c].boundary;
+        nonmanifold += job.chunk[c].nonmanifold;
+        misoriented += job.chunk[c].misoriented;
+    }
+    free(job.chunk);
     if (faces) {
         found.start[edges] = start[vertex_count];
         size_t *trimmed = realloc(found.start, ((size_t)edges + 1) * sizeof *found.start);
@@ -262,7 +360,12 @@ int sdf__analyse(const float *positions, const uint32_t *triangles, size_t trian
     r->misoriented_edges = misoriented;
     r->edge_manifold = nonmanifold == 0;
     r->closed = boundary == 0 && nonmanifold == 0 && misoriented == 0 && edges > 0;
-    geometry_summary(positions, triangles, triangle_count, r);
+    if (geometry_summary(positions, triangles, triangle_count, r)) {
+        free(edge_of);
+        if (faces)
+            sdf__edge_faces_free(faces);
+        return SDF_ENOMEM;
+    }
     *edge_of_out = edge_of;
     *edge_count = edges;
     return 0;
