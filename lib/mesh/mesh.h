@@ -36,7 +36,8 @@ struct sdf_mesh {
 
 /* Take ownership of a triangle soup (positions with 3 floats per vertex, 0-based triangle
  * indices already checked < vertex_count) and build the full mesh: weld, analyse, orient,
- * BVHs and sign data. Frees `positions` and `triangles` in all cases. */
+ * BVHs and sign data (on a second thread beside the caller's for part of it). Frees
+ * `positions` and `triangles` in all cases. */
 int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
                     size_t triangle_count, sdf_format format, sdf_mesh **out, sdf_diag *diag);
 
