@@ -34,6 +34,27 @@ static void position_bits(const float *p, uint32_t out[3])
     }
 }
 
+#define WELD_AHEAD 16 /* vertices between a slot's prefetch and its use */
+
+static size_t weld_hash(const uint32_t key[3])
+{
+    return (size_t)mix((uint64_t)key[0] * 73856093u ^ (uint64_t)key[1] << 21 ^
+                       (uint64_t)key[2] << 42 ^ key[2]);
+}
+
+typedef struct remap_job {
+    uint32_t *triangles;
+    const uint32_t *remap;
+} remap_job;
+
+static void remap_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const remap_job *job = ctx;
+    for (size_t i = begin; i < end; i++)
+        job->triangles[i] = job->remap[job->triangles[i]];
+}
+
 int sdf__weld(const float *positions, size_t vertex_count, uint32_t *triangles,
               size_t triangle_count, float **out, size_t *out_count)
 {
@@ -51,9 +72,12 @@ int sdf__weld(const float *positions, size_t vertex_count, uint32_t *triangles,
     size_t n = 0;
     for (size_t v = 0; v < vertex_count; v++) {
         uint32_t key[3];
+        if (v + WELD_AHEAD < vertex_count) { /* large meshes' tables outgrow the caches */
+            position_bits(positions + 3 * (v + WELD_AHEAD), key);
+            __builtin_prefetch(&slot[weld_hash(key) & (cap - 1)]);
+        }
         position_bits(positions + 3 * v, key);
-        size_t h = mix((uint64_t)key[0] * 73856093u ^ (uint64_t)key[1] << 21 ^
-                       (uint64_t)key[2] << 42 ^ key[2]) & (cap - 1);
+        size_t h = weld_hash(key) & (cap - 1);
         for (;; h = (h + 1) & (cap - 1)) {
             if (slot[h] == UINT32_MAX) {
                 slot[h] = (uint32_t)n;
@@ -69,8 +93,8 @@ int sdf__weld(const float *positions, size_t vertex_count, uint32_t *triangles,
             }
         }
     }
-    for (size_t i = 0; i < 3 * triangle_count; i++)
-        triangles[i] = remap[triangles[i]];
+    remap_job job = {triangles, remap};
+    sdf__parallel_for(3 * triangle_count, (size_t)1 << 16, 0, remap_range, &job);
     welded[3 * n] = 0.0f; /* padding Embree may read */
     free(slot);
     free(remap);
