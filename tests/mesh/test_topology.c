@@ -171,9 +171,11 @@ static int ref_segment_crosses(const double p[3], const double q[3], const doubl
     double w[3];
     for (int i = 0; i < 3; i++)
         w[i] = p[i] + t * d[i] - a[i];
-    double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2], vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
     double uv = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-    double wu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2], wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+    double wu = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
+    double wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
     double den = uu * vv - uv * uv, s = (vv * wu - uv * wv) / den, r = (uu * wv - uv * wu) / den;
     return s >= 0 && r >= 0 && s + r <= 1;
 }

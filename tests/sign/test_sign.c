@@ -244,7 +244,8 @@ static void test_pseudonormal_values(const char *name, const sdf_mesh *m)
     for (size_t v = 0; v < nv; v++) {
         unit(vertex + 3 * v);
         for (int a = 0; a < 3; a++)
-            worst_vertex = fmax(worst_vertex, fabs(vertex[3 * v + a] - m->normals->vertex[3 * v + a]));
+            worst_vertex =
+                fmax(worst_vertex, fabs(vertex[3 * v + a] - m->normals->vertex[3 * v + a]));
     }
     CHECK(edges > 0 && worst_edge <= 1e-5 && worst_vertex <= 1e-5,
           "%s: pseudonormals %g (edges, %zu checked) and %g (vertices) from their definition", name,
