@@ -136,8 +136,8 @@ SDF__HOT_INLINE void fat_node(const sdf__scan_call *st, const sdf__region *r, sd
  * contraction (ISO C), each lane rounds as the scalar code does, so the bits do not depend
  * on the CPU. */
 SDF__SIMD_CLONES void sdf__scan_region(const sdf__scan_call *st, const sdf__region *r,
-                                      uint32_t feature, sdf__node_best *best,
-                                         float *best_samples, sdf__fat_region *fr)
+                                       uint32_t feature, sdf__node_best *best,
+                                       float *best_samples, sdf__fat_region *fr)
 {
     const sdf__scan *s = st->scan;
     double pad = s->feat.row_pad;

@@ -291,16 +291,17 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
     int distances_only = out->distance && !out->gradient && !out->closest && !out->triangle &&
                          !out->barycentric;
     sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
-                     .best = malloc(w * nodes * sizeof(sdf__node_best)),
-                     .distances_only = distances_only,
-                     .regions = malloc(w * sizeof(sdf__region)),
-                     .points = malloc(w * nx * 3 * sizeof(float)),
-                     .hits = malloc(w * nx * sizeof(sdf__hit)),
-                     .slow = malloc(w * nx * sizeof(uint32_t)),
-                     .slow_out = malloc(w * nx * sizeof(float)), .workers = workers, .out = *out};
-    int rc = st.best && st.regions && st.points &&
-                     st.hits && st.slow && st.slow_out
-                 ? 0 : SDF_ENOMEM;
+                         .best = malloc(w * nodes * sizeof(sdf__node_best)),
+                         .distances_only = distances_only,
+                         .regions = malloc(w * sizeof(sdf__region)),
+                         .points = malloc(w * nx * 3 * sizeof(float)),
+                         .hits = malloc(w * nx * sizeof(sdf__hit)),
+                         .slow = malloc(w * nx * sizeof(uint32_t)),
+                         .slow_out = malloc(w * nx * sizeof(float)),
+                         .workers = workers, .out = *out};
+    int rc = st.best && st.regions && st.points && st.hits && st.slow && st.slow_out
+                 ? 0
+                 : SDF_ENOMEM;
     if (!rc)
         rc = ensure_zspans(s, &st);
     if (!rc) {
@@ -356,10 +357,11 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
         s->sample_scratch_count = s->sample_scratch ? scratch : 0;
     }
     sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
-                     .regions = malloc(w * sizeof(sdf__region)), .workers = workers,
-                     .fine_w = 2 * half + 1, .sample_best = s->sample_scratch,
-                     .merged = malloc(w * MERGE_NODES * w3 * sizeof(float)),
-                     .fat = malloc(w * sizeof(sdf__fat_region)), .consume = consume, .user = user};
+                         .regions = malloc(w * sizeof(sdf__region)), .workers = workers,
+                         .fine_w = 2 * half + 1, .sample_best = s->sample_scratch,
+                         .merged = malloc(w * MERGE_NODES * w3 * sizeof(float)),
+                         .fat = malloc(w * sizeof(sdf__fat_region)), .consume = consume,
+                         .user = user};
     int rc = st.regions && st.sample_best && st.merged && st.fat ? 0 : SDF_ENOMEM;
     if (half < 1 || half > 4)
         rc = SDF_EINVAL;
