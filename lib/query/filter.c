@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "core/diag.h"
+#include "query/morton.h"
 #include "query/packet.h"
 
 #define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (~37 MB of scratch) */
@@ -530,7 +531,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     /* Points in Morton order, so consecutive points' samples touch the same parts of the tree
      * (without memory for the order: the given order, the same floats). */
     uint32_t *order = count > 1 && count <= UINT32_MAX ? malloc(count * sizeof *order) : NULL;
-    if (order && sdf__morton_order((const char *)points, stride, count, order)) {
+    if (order && sdf__morton_order((const char *)points, stride, count, inner.threads, order)) {
         free(order);
         order = NULL;
     }

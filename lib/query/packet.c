@@ -11,68 +11,6 @@
 #include "query/triangle.h"
 #include "sdf/sdf.h"
 
-/* ---- Morton order ------------------------------------------------------------------------ */
-
-/* Spread the low 10 bits of v so they occupy every third bit. */
-static uint32_t spread10(uint32_t v)
-{
-    v &= 0x3ff;
-    v = (v | v << 16) & 0x030000ff;
-    v = (v | v << 8) & 0x0300f00f;
-    v = (v | v << 4) & 0x030c30c3;
-    v = (v | v << 2) & 0x09249249;
-    return v;
-}
-
-int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t *order)
-{
-    if (count > UINT32_MAX)
-        return SDF_ENOMEM;
-    uint64_t *keys = malloc(2 * (count + 1) * sizeof *keys);
-    if (!keys)
-        return SDF_ENOMEM;
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < count; i++) {
-        const float *p = (const float *)(points + i * stride);
-        for (int k = 0; k < 3; k++) {
-            lo[k] = p[k] < lo[k] ? p[k] : lo[k];
-            hi[k] = p[k] > hi[k] ? p[k] : hi[k];
-        }
-    }
-    float scale[3];
-    for (int k = 0; k < 3; k++)
-        scale[k] = hi[k] > lo[k] ? 1023.0f / (hi[k] - lo[k]) : 0.0f;
-    /* key = code << 32 | index: sorting keys sorts indices by code, stably. */
-    for (size_t i = 0; i < count; i++) {
-        const float *p = (const float *)(points + i * stride);
-        uint32_t c[3];
-        for (int k = 0; k < 3; k++)
-            c[k] = (uint32_t)((p[k] - lo[k]) * scale[k]);
-        uint64_t code = spread10(c[0]) | spread10(c[1]) << 1 | spread10(c[2]) << 2;
-        keys[i] = code << 32 | i;
-    }
-    uint64_t *src = keys, *dst = keys + count;
-    for (int shift = 32; shift < 62; shift += 10) { /* 3 passes of 10 bits over the code */
-        size_t hist[1024] = {0};
-        for (size_t i = 0; i < count; i++)
-            hist[(src[i] >> shift) & 1023]++;
-        for (size_t b = 0, sum = 0; b < 1024; b++) {
-            size_t h = hist[b];
-            hist[b] = sum;
-            sum += h;
-        }
-        for (size_t i = 0; i < count; i++)
-            dst[hist[(src[i] >> shift) & 1023]++] = src[i];
-        uint64_t *t = src;
-        src = dst;
-        dst = t;
-    }
-    for (size_t i = 0; i < count; i++)
-        order[i] = (uint32_t)src[i];
-    free(keys);
-    return 0;
-}
-
 /* ---- packet traversal -------------------------------------------------------------------- */
 
 /* Float box tests may round a distance up by a few ulps; culling compares against a bound

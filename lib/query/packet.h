@@ -28,11 +28,6 @@
 
 #define SDF__PACKET 32
 
-/* Visit order of `count` points (xyz floats `stride` bytes apart): 30-bit Morton codes over
- * the points' bounding box, sorted by a 3-pass LSD radix sort. `order` receives point
- * indices. Returns 0 or SDF_ENOMEM (count must be < 2^32). */
-int sdf__morton_order(const char *points, size_t stride, size_t count, uint32_t *order);
-
 typedef struct sdf__packet {
     int n;                                     /* points 1..SDF__PACKET; lanes past n hold
                                                   copies of the last (padding, ignored) */

@@ -21,6 +21,7 @@
 #include "mesh/mesh.h"
 #include "query/cluster.h"
 #include "query/filter.h"
+#include "query/morton.h"
 #include "query/packet.h"
 #include "sign/pseudonormal.h"
 #include "sign/raycast.h"
@@ -333,7 +334,7 @@ static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_opti
     if ((opts && opts->traversal == SDF_TRAVERSAL_SINGLE) || count < 2 || count > UINT32_MAX)
         return NULL;
     uint32_t *order = malloc(count * sizeof *order);
-    if (order && sdf__morton_order(b->points, b->stride, count, order)) {
+    if (order && sdf__morton_order(b->points, b->stride, count, opts ? opts->threads : 0, order)) {
         free(order);
         order = NULL;
     }

@@ -22,6 +22,7 @@
 #include "mesh/topology.h"
 #include "volume/regions.h"
 #include "query/filter.h"
+#include "query/morton.h"
 #include "query/packet.h"
 #include "query/triangle.h"
 #include "volume/raster.h"
@@ -396,7 +397,8 @@ static int feature_order(sdf__scan *s)
     }
     for (size_t f = 0; f < s->feat.count; f++)
         sdf__feature_position(&s->feat, f, at + 3 * f);
-    int rc = sdf__morton_order((const char *)at, 3 * sizeof(float), s->feat.count, s->order);
+    int rc = sdf__morton_order((const char *)at, 3 * sizeof(float), s->feat.count,
+                               s->query.threads, s->order);
     free(at);
     return rc;
 }
