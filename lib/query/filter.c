@@ -443,7 +443,7 @@ size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int 
 {
     /* As sdf_query_filtered allocates: f and grad f at the points (and at the smoothing
      * mesh), the sample set, one block's samples and plans, the points' Morton order and its
-     * sort keys, and the larger of its inner queries' own scratch. */
+     * sort's scratch, and the larger of its inner queries' own scratch. */
     size_t n = f->grid ? 27 : (size_t)f->samples;
     size_t per_point = n + (f->min_samples ? STENCIL : 0);
     size_t block = BLOCK_SAMPLES / per_point > 0 ? BLOCK_SAMPLES / per_point : 1;
@@ -452,7 +452,8 @@ size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int 
                         sizeof(double) + sizeof(int8_t) + sizeof(uint8_t);
     size_t inner = sdf__query_scratch_bound(count > per_block ? count : per_block, threads);
     return 2 * 4 * sizeof(float) * (count + 1) + n * 4 * sizeof(double) +
-           per_block * per_sample + block * sizeof(point_plan) + 20 * (count + 1) + inner;
+           per_block * per_sample + block * sizeof(point_plan) + 4 * (count + 1) +
+           sdf__morton_scratch_bound(count, threads) + inner;
 }
 
 int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,

@@ -173,6 +173,25 @@ static void counts_from_next(morton_sort *s)
         }
 }
 
+/* How the keys are cut: parts of 2^shift positions, one per thread, at most MAX_PARTS. */
+static size_t parts_for(size_t count, int threads, unsigned *shift)
+{
+    int workers = count < PARALLEL_MIN_POINTS ? 1 : sdf__effective_threads(threads, count, 1);
+    size_t want = workers < MAX_PARTS ? (size_t)workers : MAX_PARTS;
+    *shift = 0;
+    while (((size_t)1 << *shift) * want < count)
+        ++*shift;
+    return count ? ((count - 1) >> *shift) + 1 : 0; /* at most `want` */
+}
+
+size_t sdf__morton_scratch_bound(size_t count, int threads)
+{
+    unsigned shift;
+    size_t parts = parts_for(count, threads, &shift);
+    return 2 * count * sizeof(uint64_t) + (parts + parts * parts) * BUCKETS * sizeof(uint32_t) +
+           2 * parts * 3 * sizeof(float);
+}
+
 int sdf__morton_order(const char *points, size_t stride, size_t count, int threads,
                       uint32_t *order)
 {
@@ -180,12 +199,8 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, int threa
         return SDF_ENOMEM;
     if (count == 0)
         return 0;
-    int workers = count < PARALLEL_MIN_POINTS ? 1 : sdf__effective_threads(threads, count, 1);
-    size_t want = workers < MAX_PARTS ? (size_t)workers : MAX_PARTS;
     morton_sort s = {.points = points, .stride = stride, .count = count, .order = order};
-    while (((size_t)1 << s.part_shift) * want < count)
-        s.part_shift++;
-    s.parts = ((count - 1) >> s.part_shift) + 1; /* at most `want` */
+    s.parts = parts_for(count, threads, &s.part_shift);
     uint64_t *keys = malloc(2 * count * sizeof *keys);
     s.src = keys;
     s.cursor = calloc(s.parts * BUCKETS, sizeof *s.cursor);

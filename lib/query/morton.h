@@ -18,6 +18,10 @@
 int sdf__morton_order(const char *points, size_t stride, size_t count, int threads,
                       uint32_t *order);
 
+/* The bytes sdf__morton_order allocates for `count` points on `threads` (its keys and
+ * histograms), for the callers' scratch bounds. */
+size_t sdf__morton_scratch_bound(size_t count, int threads);
+
 /* The 30-bit code of point p over the box [lo, lo + 1023 / scale] (scale 0 on a flat axis):
  * axis k's 10 bits at every third bit from bit k. Exposed for the tests' slow reference. */
 uint32_t sdf__morton_code(const float p[3], const float lo[3], const float scale[3]);

@@ -396,10 +396,11 @@ static void seeded_range(void *ctx, size_t begin, size_t end, int worker)
 
 size_t sdf__query_scratch_bound(size_t count, int threads)
 {
-    /* The Morton order (4 bytes a point) and its radix sort's keys (16), the lattice check's
+    /* The Morton order (4 bytes a point) and its radix sort's scratch, the lattice check's
      * axes (at most 12 a point), and every worker's cluster scratch (seeded queries). */
     size_t workers = (size_t)sdf__effective_threads(threads, SIZE_MAX, 1);
-    return 32 * (count + 1) + workers * sdf__cluster_bytes(CLUSTER_CANDIDATES);
+    return 16 * (count + 1) + sdf__morton_scratch_bound(count, threads) +
+           workers * sdf__cluster_bytes(CLUSTER_CANDIDATES);
 }
 
 int sdf__query_seeded(const sdf_mesh *mesh, const float *points, const double *bound,

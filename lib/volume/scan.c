@@ -237,8 +237,8 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
     size_t adjacency = 24 * vertices + 8 * edges + 4 * (edges + 1) + 12 * faces +
                        2 * 4 * (vertices + 1) + 8 * edges + 12 * faces + 60 * faces +
                        4 * (edges + vertices + 1);
-    /* The visit order with its positions and sort keys, the z-spans. */
-    size_t order = (4 + 12 + 16 + 8) * (features + 1);
+    /* The visit order with its positions and its sort's scratch, the z-spans. */
+    size_t order = (4 + 12 + 8) * (features + 1) + sdf__morton_scratch_bound(features, threads);
     /* The coarse lattice of exact distances: its points, values, axes and queries. */
     size_t lattice = 16 * coarse + 8 * axes + sdf__query_scratch_bound(coarse, threads);
     /* Node coordinates (double, float while made). */
