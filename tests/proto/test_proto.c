@@ -1,7 +1,10 @@
 /* test_proto.c - the binary protocol codec: every message type round-trips; every
  * truncated prefix of every payload (and of a header) is refused; bad magic, version,
  * lengths, modes, signs and names are refused with their codes; the PROTOCOL.md example
- * frame is byte-exact. */
+ * frame is byte-exact. Then mutations: valid payloads of every type with random bytes
+ * changed, cut or extended, and random garbage, each decoded from a heap block of exactly
+ * its size (so the sanitizer build sees any read past it); a decoder either refuses or
+ * returns fields that lie inside the payload and within the caps. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -227,8 +230,202 @@ static void test_volume_query(void)
     CHECK(sdf_proto_encode_volume_query(frame, sizeof frame, 1, &q) == 0, "name too long");
 }
 
+/* ---- mutations ---------------------------------------------------------------------- */
+
+static uint64_t mutation_state = 0x243f6a8885a308d3u;
+
+static uint32_t next_random(void)
+{
+    mutation_state = mutation_state * 6364136223846793005u + 1442695040888963407u;
+    return (uint32_t)(mutation_state >> 33);
+}
+
+/* Is [p, p + n) inside [base, base + size)? */
+static int inside(const void *base, size_t size, const void *p, size_t n)
+{
+    const unsigned char *b = base, *q = p;
+    return q >= b && q <= b + size && n <= (size_t)(b + size - q);
+}
+
+enum { MUTATE_QUERY, MUTATE_FILTERED, MUTATE_VOLUME, MUTATE_RESULT, MUTATE_ERROR, MUTATE_HELLO,
+       MUTATE_MESHES, MUTATE_KINDS };
+
+/* A valid payload of each kind (without its header) into out; its size. */
+static size_t valid_payload(int kind, unsigned char *out)
+{
+    static const float pts[15] = {1, 2, 3, -4, 5.5f, 1e-30f, 0, 0, 7, 8, 9, 10, -1, -2, -3};
+    size_t n = 0;
+    if (kind == MUTATE_QUERY || kind == MUTATE_FILTERED) {
+        sdf_proto_query q = {.mode = SDF_MODE_CLOSEST, .sign = SDF_SIGN_WINDING, .name = "mesh",
+                             .name_len = 4, .count = 5, .points = pts};
+        if (kind == MUTATE_FILTERED) {
+            q.mode = SDF_MODE_FILTERED;
+            q.filter = (sdf_filter_options){.samples = 64, .smooth.shape = SDF_VOLUME_MESH};
+            q.volume_name = "volume", q.volume_name_len = 6;
+        }
+        n = sdf_proto_encode_query(frame, sizeof frame, 1, &q);
+    } else if (kind == MUTATE_VOLUME) {
+        sdf_proto_volume_query q = {.gradient = 1, .name = "vol", .name_len = 3, .count = 5,
+                                    .points = pts};
+        n = sdf_proto_encode_volume_query(frame, sizeof frame, 1, &q);
+    } else if (kind == MUTATE_RESULT) {
+        n = sdf_proto_encode_result_head(frame, 1, SDF_MODE_GRADIENT, 3);
+        memcpy(frame + n, pts, 4 * 4 * 3);
+        n += 4 * 4 * 3;
+    } else if (kind == MUTATE_ERROR) {
+        n = sdf_proto_encode_error(frame, sizeof frame, 1, SDF_ENOTFOUND, "no mesh named x");
+    } else if (kind == MUTATE_HELLO) {
+        sdf_proto_hello h = {.version = 1, .max_payload = 1 << 20, .max_points = 400,
+                             .server = "sdfd", .server_len = 4};
+        n = sdf_proto_encode_hello_ok(frame, sizeof frame, 1, &h);
+    } else {
+        sdf_proto_mesh_entry m[3] = {{"demo", 4, 12288, 1, 1}, {"cow", 3, 5804, 1, 2},
+                                     {"k", 1, 7, 0, 0}};
+        n = sdf_proto_encode_meshes(frame, sizeof frame, 1, m, 3);
+    }
+    CHECK(n > SDF_PROTO_HEADER_SIZE, "valid payload of kind %d", kind);
+    memcpy(out, frame + SDF_PROTO_HEADER_SIZE, n - SDF_PROTO_HEADER_SIZE);
+    return n - SDF_PROTO_HEADER_SIZE;
+}
+
+/* Decode `size` bytes at p as `kind`; when accepted, every field must lie in the payload
+ * and within the caps. Returns 1 if accepted. */
+static int decode_and_check(int kind, const unsigned char *p, size_t size)
+{
+    const char *why = NULL;
+    const uint32_t max_points = 8;
+    int ok = 0;
+    if (kind == MUTATE_QUERY || kind == MUTATE_FILTERED) {
+        sdf_proto_query q;
+        if (sdf_proto_decode_query(p, size, max_points, &q, &why) == 0) {
+            ok = 1;
+            CHECK(q.count <= max_points && q.mode <= SDF_MODE_LAST &&
+                      q.sign >= SDF_SIGN_AUTO && q.sign <= SDF_SIGN_NONE &&
+                      q.name_len >= 1 && q.name_len <= SDF_PROTO_MAX_NAME &&
+                      inside(p, size, q.name, q.name_len) &&
+                      inside(p, size, q.points, 12 * (size_t)q.count) &&
+                      (!q.volume_name || (q.volume_name_len <= SDF_PROTO_MAX_NAME &&
+                                          inside(p, size, q.volume_name, q.volume_name_len))),
+                  "accepted query out of bounds (%zu bytes)", size);
+        } else {
+            CHECK(why != NULL, "a refused query says why");
+        }
+    } else if (kind == MUTATE_VOLUME) {
+        sdf_proto_volume_query q;
+        if (sdf_proto_decode_volume_query(p, size, max_points, &q, &why) == 0) {
+            ok = 1;
+            CHECK(q.count <= max_points && (q.gradient == 0 || q.gradient == 1) &&
+                      q.name_len >= 1 && q.name_len <= SDF_PROTO_MAX_NAME &&
+                      inside(p, size, q.name, q.name_len) &&
+                      inside(p, size, q.points, 12 * (size_t)q.count),
+                  "accepted volume query out of bounds (%zu bytes)", size);
+        } else {
+            CHECK(why != NULL, "a refused volume query says why");
+        }
+    } else if (kind == MUTATE_RESULT) {
+        sdf_proto_result r;
+        if (sdf_proto_decode_result(p, size, &r, &why) == 0) {
+            ok = 1;
+            CHECK(r.words == sdf_proto_words(r.mode) && r.words > 0 &&
+                      inside(p, size, r.data, 4 * (size_t)r.words * r.count),
+                  "accepted result out of bounds (%zu bytes)", size);
+        }
+    } else if (kind == MUTATE_ERROR) {
+        sdf_proto_error e;
+        if (sdf_proto_decode_error(p, size, &e, &why) == 0) {
+            ok = 1;
+            CHECK(inside(p, size, e.code, e.code_len) &&
+                      inside(p, size, e.message, e.message_len),
+                  "accepted error out of bounds (%zu bytes)", size);
+        }
+    } else if (kind == MUTATE_HELLO) {
+        sdf_proto_hello h;
+        if (sdf_proto_decode_hello_ok(p, size, &h, &why) == 0) {
+            ok = 1;
+            CHECK(inside(p, size, h.server, h.server_len), "accepted hello out of bounds");
+        }
+    } else {
+        uint32_t count;
+        if (sdf_proto_meshes_count(p, size, &count) == 0) {
+            ok = 1;
+            size_t offset = 0, last = 0;
+            sdf_proto_mesh_entry m;
+            /* Entries are at least a few bytes each: never more of them than bytes. */
+            for (uint32_t k = 0; k < count && k <= size; k++) {
+                if (sdf_proto_meshes_next(p, size, &offset, &m, &why) != 0)
+                    break;
+                CHECK(offset > last && offset <= size && inside(p, size, m.name, m.name_len),
+                      "accepted mesh entry %u out of bounds", k);
+                last = offset;
+            }
+        }
+    }
+    return ok;
+}
+
+/* Random changes to valid payloads and random garbage, each in a block of its exact size. */
+static void test_mutations(void)
+{
+    unsigned char valid[1024], work[1100];
+    size_t accepted[MUTATE_KINDS] = {0}, tried[MUTATE_KINDS] = {0};
+    for (int kind = 0; kind < MUTATE_KINDS; kind++) {
+        size_t n = valid_payload(kind, valid);
+        CHECK(decode_and_check(kind, valid, n), "the unmutated payload of kind %d", kind);
+        for (int round = 0; round < 20000; round++) {
+            size_t size = n;
+            memcpy(work, valid, n);
+            int how = (int)(next_random() % 4);
+            if (how == 3) { /* garbage of a random length */
+                size = next_random() % 300;
+                for (size_t i = 0; i < size; i++)
+                    work[i] = (unsigned char)next_random();
+            } else {
+                int changes = 1 + (int)(next_random() % 4);
+                for (int c = 0; c < changes; c++) {
+                    uint32_t v = next_random();
+                    /* lengths and counts live at the start: bias changes towards it */
+                    size_t at = next_random() % (v & 1 ? (n < 32 ? n : 32) : n);
+                    work[at] = v & 2 ? (unsigned char)(v >> 8) : v & 4 ? 0xff : 0;
+                }
+                if (how == 1) /* cut */
+                    size = next_random() % (n + 1);
+                else if (how == 2) /* extended by random bytes */
+                    for (size_t grow = 1 + next_random() % 64; grow > 0; grow--)
+                        work[size++] = (unsigned char)next_random();
+            }
+            unsigned char *block = malloc(size ? size : 1);
+            CHECK(block != NULL, "memory");
+            memcpy(block, work, size);
+            accepted[kind] += (size_t)decode_and_check(kind, block, size);
+            tried[kind]++;
+            free(block);
+        }
+        /* Some mutations keep a payload valid (a changed coordinate), most do not: both
+         * paths ran. */
+        CHECK(accepted[kind] > 0 && accepted[kind] < tried[kind],
+              "kind %d: %zu of %zu mutations accepted", kind, accepted[kind], tried[kind]);
+    }
+    for (int round = 0; round < 20000; round++) { /* headers: 16 random bytes */
+        unsigned char *h = malloc(SDF_PROTO_HEADER_SIZE);
+        CHECK(h != NULL, "memory");
+        for (int i = 0; i < SDF_PROTO_HEADER_SIZE; i++)
+            h[i] = (unsigned char)next_random();
+        if (round % 2) { /* half with the right magic and version, so lengths get judged */
+            uint32_t id = next_random(), length = next_random();
+            length >>= next_random() % 32;
+            sdf_proto_encode_header(h, h[5], id, length);
+        }
+        sdf_proto_header hd;
+        const char *why = NULL;
+        if (sdf_proto_decode_header(h, SDF_PROTO_HEADER_SIZE, 1 << 20, &hd, &why) == 0)
+            CHECK(hd.version == SDF_PROTO_VERSION && hd.length <= (1u << 20), "header caps");
+        free(h);
+    }
+}
+
 int main(void)
 {
+    test_mutations();
     test_header();
     test_query();
     test_filtered_query();
