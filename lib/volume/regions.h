@@ -67,6 +67,8 @@ typedef struct sdf__features {
     double slack;                        /* rounding slack of every half-space, world units */
     double row_pad;                      /* the scan's padding of row ranges, world units */
     const float *bound;                  /* optional: |f| on a coarse lattice, x fastest */
+    const float *bound_point;            /* its nodes' closest surface points, xyz */
+    double bound_point_error;            /* how far those floats can lie from the surface */
     size_t bound_dims[3];
     const double *bound_coord[3];        /* its node coordinates per axis */
     double bound_inv_step[3];            /* 1 / the spacing of its nodes */
@@ -77,13 +79,14 @@ typedef struct sdf__features {
 int sdf__features_init(sdf__features *f, const sdf_mesh *mesh);
 void sdf__features_free(sdf__features *f);
 
-/* How far from the surface any node of the lattice coord[a][0..dims[a]) can lie, and an
- * upper-bound field of |f| for truncating regions: exact distances on every step-th node
+/* How far from the surface any node of the lattice coord[a][0..dims[a]) can lie, and what
+ * truncates regions: exact distances and closest points on every step-th node
  * (sdf__query_points with `threads`), a node being within half the largest coarse cell's
  * diagonal of one of them. On a closed mesh signed by pseudonormals the two sides are bounded
  * apart (a point whose closest point is on a face's front lies outside). Sets reach_front,
- * reach_back, bound*, march; *bound and bound_coord[] are the caller's to free (also on
- * failure). Needs `slack` set. 0, SDF_ENOMEM or a query's code. */
+ * reach_back, bound*, march; *bound (the distances, then the points: one block) and
+ * bound_coord[] are the caller's to free (also on failure). Needs `slack` set. 0,
+ * SDF_ENOMEM or a query's code. */
 int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *const coord[3],
                         const size_t dims[3], size_t step, int threads, float **bound,
                         double *bound_coord[3]);

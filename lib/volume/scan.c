@@ -239,8 +239,9 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
                        4 * (edges + vertices + 1);
     /* The visit order with its positions and its sort's scratch, the z-spans. */
     size_t order = (4 + 12 + 8) * (features + 1) + sdf__morton_scratch_bound(features, threads);
-    /* The coarse lattice of exact distances: its points, values, axes and queries. */
-    size_t lattice = 16 * coarse + 8 * axes + sdf__query_scratch_bound(coarse, threads);
+    /* The coarse lattice of exact distances: its points, values, closest points, axes and
+     * queries. */
+    size_t lattice = 28 * coarse + 8 * axes + sdf__query_scratch_bound(coarse, threads);
     /* Node coordinates (double, float while made). */
     size_t coords = 12 * axes;
     /* One call's per-node arrays, each worker's (as slices_within and sdf__scan_fits size
