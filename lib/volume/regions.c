@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/parallel.h"
 #include "mesh/mesh.h"
 #include "query/filter.h"
 #include "query/triangle.h"
@@ -570,7 +571,24 @@ static int csr(size_t keys, size_t pairs, const uint32_t *key, const uint32_t *v
     return 0;
 }
 
-int sdf__features_init(sdf__features *s, const sdf_mesh *m)
+/* The three adjacency lists, each a counting sort of its own pairs: built side by side. */
+typedef struct csr_job {
+    size_t keys, pairs;
+    const uint32_t *key, *value;
+    uint32_t **first, **list;
+    int rc;
+} csr_job;
+
+static void csr_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    csr_job *jobs = ctx;
+    for (size_t j = begin; j < end; j++)
+        jobs[j].rc = csr(jobs[j].keys, jobs[j].pairs, jobs[j].key, jobs[j].value, jobs[j].first,
+                         jobs[j].list);
+}
+
+int sdf__features_init(sdf__features *s, const sdf_mesh *m, int threads)
 {
     memset(s, 0, sizeof *s);
     s->triangles = m->triangles;
@@ -584,32 +602,36 @@ int sdf__features_init(sdf__features *s, const sdf_mesh *m)
     s->pos = malloc((3 * s->vertices + 1) * sizeof *s->pos);
     for (size_t i = 0; s->pos && i < 3 * s->vertices; i++)
         s->pos[i] = m->positions[i];
-    uint32_t *key = malloc((t3 + 1) * sizeof *key), *val = malloc((2 * t3 + 1) * sizeof *val);
-    uint32_t *key2 = malloc((2 * t3 + 1) * sizeof *key2);
+    /* Pairs: (edge, its triangle) per corner; (vertex, neighbour) both ways per edge;
+     * (vertex, its triangle) per corner. */
+    uint32_t *edge_key = malloc((t3 + 1) * sizeof *edge_key);
+    uint32_t *corner_tri = malloc((t3 + 1) * sizeof *corner_tri);
+    uint32_t *nbr_key = malloc((2 * s->edges + 1) * sizeof *nbr_key);
+    uint32_t *nbr_val = malloc((2 * s->edges + 1) * sizeof *nbr_val);
     s->edge_end = malloc((2 * s->edges + 1) * sizeof *s->edge_end);
-    int rc = key && val && key2 && s->edge_end && s->pos ? 0 : SDF_ENOMEM;
+    int rc = edge_key && corner_tri && nbr_key && nbr_val && s->edge_end && s->pos ? 0
+                                                                                  : SDF_ENOMEM;
     if (!rc) {
         for (size_t c = 0; c < t3; c++) { /* each triangle's edges, and their ends */
             uint32_t e = m->edge_of[c];
-            key[c] = e, val[c] = (uint32_t)(c / 3);
+            edge_key[c] = e, corner_tri[c] = (uint32_t)(c / 3);
             uint32_t a = m->triangles[c], b = m->triangles[c - c % 3 + (c % 3 + 1) % 3];
             s->edge_end[2 * e] = a < b ? a : b, s->edge_end[2 * e + 1] = a < b ? b : a;
         }
-        rc = csr(s->edges, t3, key, val, &s->edge_first, &s->edge_tri);
-    }
-    if (!rc) { /* every edge is a neighbour relation both ways */
-        for (size_t e = 0; e < s->edges; e++) {
-            key2[2 * e] = s->edge_end[2 * e], val[2 * e] = s->edge_end[2 * e + 1];
-            key2[2 * e + 1] = s->edge_end[2 * e + 1], val[2 * e + 1] = s->edge_end[2 * e];
+        for (size_t e = 0; e < s->edges; e++) { /* every edge is a neighbour relation both ways */
+            nbr_key[2 * e] = s->edge_end[2 * e], nbr_val[2 * e] = s->edge_end[2 * e + 1];
+            nbr_key[2 * e + 1] = s->edge_end[2 * e + 1], nbr_val[2 * e + 1] = s->edge_end[2 * e];
         }
-        rc = csr(s->vertices, 2 * s->edges, key2, val, &s->vert_first, &s->vert_nbr);
+        csr_job jobs[3] = {
+            {s->edges, t3, edge_key, corner_tri, &s->edge_first, &s->edge_tri, 0},
+            {s->vertices, 2 * s->edges, nbr_key, nbr_val, &s->vert_first, &s->vert_nbr, 0},
+            {s->vertices, t3, m->triangles, corner_tri, &s->vtri_first, &s->vtri, 0},
+        };
+        sdf__parallel_for(3, 1, threads, csr_range, jobs);
+        for (int j = 0; j < 3 && !rc; j++)
+            rc = jobs[j].rc;
     }
-    if (!rc) {
-        for (size_t c = 0; c < t3; c++)
-            val[c] = (uint32_t)(c / 3);
-        rc = csr(s->vertices, t3, m->triangles, val, &s->vtri_first, &s->vtri);
-    }
-    free(key), free(val), free(key2);
+    free(edge_key), free(corner_tri), free(nbr_key), free(nbr_val);
     if (rc)
         sdf__features_free(s);
     return rc;

@@ -75,8 +75,9 @@ typedef struct sdf__features {
     double march;                        /* step along a region's axis when truncating */
 } sdf__features;
 
-/* Positions in double and the adjacency of a closed mesh's features. 0 or SDF_ENOMEM. */
-int sdf__features_init(sdf__features *f, const sdf_mesh *mesh);
+/* Positions in double and the adjacency of a closed mesh's features, on up to `threads`
+ * (sdf_query_options' meaning). 0 or SDF_ENOMEM. */
+int sdf__features_init(sdf__features *f, const sdf_mesh *mesh, int threads);
 void sdf__features_free(sdf__features *f);
 
 /* How far from the surface any node of the lattice coord[a][0..dims[a]) can lie, and what

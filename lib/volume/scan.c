@@ -233,10 +233,11 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
         coarse *= sdf__features_bound_nodes(info->dims[a], COARSE_STEP);
     }
     /* sdf__features_init's arrays (positions in double, edge ends, three CSR lists) and its
-     * temporaries (sort keys and values, a fill cursor), counted all at once. */
+     * temporaries (the pairs' keys and values, the three sorts' fill cursors at once),
+     * counted all at once. */
     size_t adjacency = 24 * vertices + 8 * edges + 4 * (edges + 1) + 12 * faces +
-                       2 * 4 * (vertices + 1) + 8 * edges + 12 * faces + 60 * faces +
-                       4 * (edges + vertices + 1);
+                       2 * 4 * (vertices + 1) + 8 * edges + 12 * faces + 24 * faces +
+                       16 * edges + 4 * (edges + 1) + 2 * 4 * (vertices + 1);
     /* The visit order with its positions and its sort's scratch, the z-spans. */
     size_t order = (4 + 12 + 8) * (features + 1) + sdf__morton_scratch_bound(features, threads);
     /* The coarse lattice of exact distances: its points, values, closest points, axes and
@@ -387,6 +388,19 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
 
 /* ---- set-up ------------------------------------------------------------------------------ */
 
+typedef struct feature_positions {
+    const sdf__features *feat;
+    float *at;
+} feature_positions;
+
+static void positions_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const feature_positions *fp = ctx;
+    for (size_t f = begin; f < end; f++)
+        sdf__feature_position(fp->feat, f, fp->at + 3 * f);
+}
+
 /* The visit order of the features: faces at their centroids, edges at their midpoints. */
 static int feature_order(sdf__scan *s)
 {
@@ -396,8 +410,8 @@ static int feature_order(sdf__scan *s)
         free(at);
         return SDF_ENOMEM;
     }
-    for (size_t f = 0; f < s->feat.count; f++)
-        sdf__feature_position(&s->feat, f, at + 3 * f);
+    feature_positions fp = {&s->feat, at};
+    sdf__parallel_for(s->feat.count, (size_t)1 << 14, s->query.threads, positions_range, &fp);
     int rc = sdf__morton_order((const char *)at, 3 * sizeof(float), s->feat.count,
                                s->query.threads, s->order);
     free(at);
@@ -454,7 +468,7 @@ static int scan_new(const sdf_mesh *mesh, const size_t dims[3], const float *con
     }
     s->extent = extent;
     if (!rc)
-        rc = sdf__features_init(&s->feat, mesh);
+        rc = sdf__features_init(&s->feat, mesh, opts->threads);
     /* Double rounding of a plane's value is ~1e-16 of the coordinates; node coordinates are
      * used as the exact floats they are. */
     s->feat.slack = 1e-12 * extent;
