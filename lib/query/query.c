@@ -38,12 +38,19 @@
  * refined_elephant 1M band 0.85 -> 1.24 Mq/s (1 thread) with it. */
 #define PACKET_SPREAD 3.0
 /* A batch laid out as a lattice is answered by closest-feature scan conversion (volume/scan.h;
- * the same floats) when it has at least this many points and half as many as the mesh has
- * faces, edges and vertices: below that the scan's set-up (adjacency, a coarse lattice of
- * queries, per-feature work) outweighs the packets it saves. Measured, 2 threads, grids:
- * refined_elephant 40^3 0.39 Mq/s scanned vs 0.45 by packets, 64^3 1.08 vs 0.76; fandisk
- * 40^3 2.38 vs 1.42. */
+ * the same floats) when it has at least LATTICE_MIN_POINTS points and half as many as the
+ * mesh has faces, edges and vertices: below that the scan's set-up (adjacency, a coarse
+ * lattice of queries, per-feature work) outweighs the packets it saves. Measured, 2 threads,
+ * grids: refined_elephant 40^3 0.39 Mq/s scanned vs 0.45 by packets, 64^3 1.08 vs 0.76;
+ * fandisk 40^3 2.38 vs 1.42. On a finer mesh the packets slow down as much as the set-up
+ * grows (a far point rejects more, smaller triangles), so past LATTICE_PAYS_POINTS points
+ * the scan pays whatever the mesh (2026-11-23, refined_elephant subdivided to 1.4M
+ * triangles: 50^3 0.062 scanned vs 0.047, 64^3 0.110 vs 0.050, 100^3 0.355 vs 0.060;
+ * refined_elephant itself 50^3 0.76 vs 0.85). Its scratch, ~130 bytes a feature, is kept
+ * within LATTICE_FEATURES_PER_POINT features a point of the batch. */
 #define LATTICE_MIN_POINTS 32768
+#define LATTICE_PAYS_POINTS 131072
+#define LATTICE_FEATURES_PER_POINT 32
 /* Candidate triangles one cluster of seeded points may hold (query/cluster.h); a cluster
  * that could be nearest to more takes the packets. Measured, 64-sample filtering of band
  * points, one thread: 256 sent 27 % of refined_elephant's clusters to the packets (0.0246
@@ -495,7 +502,12 @@ static int lattice_query(const batch *b, size_t count, const sdf_query_options *
     int threads = opts ? opts->threads : 0;
     const sdf_mesh *m = b->mesh;
     size_t features = m->report.triangles + m->edge_count + m->report.vertices;
-    if (count < LATTICE_MIN_POINTS || count < features / 2 ||
+    size_t enough = features / 2;
+    if (enough > LATTICE_PAYS_POINTS)
+        enough = features / LATTICE_FEATURES_PER_POINT > LATTICE_PAYS_POINTS
+                     ? features / LATTICE_FEATURES_PER_POINT
+                     : LATTICE_PAYS_POINTS;
+    if (count < LATTICE_MIN_POINTS || count < enough ||
         (opts && opts->traversal == SDF_TRAVERSAL_SINGLE) || !sdf__scan_supported(m, b->sign))
         return -1;
     size_t dims[3];
