@@ -88,12 +88,26 @@ SDF__HOT_INLINE sdf__v8f sdf__v8f_max(sdf__v8f a, sdf__v8f b)
     return sdf__v8f_select(a > b, a, b);
 }
 
-/* Is any lane of the mask set? */
-SDF__HOT_INLINE int sdf__v8i_any(sdf__v8i m)
+/* The OR of a mask's lanes, two lanes to each 64-bit half. */
+SDF__HOT_INLINE uint64_t sdf__v8i_or_pairs(sdf__v8i m)
 {
     uint64_t w[4];
     memcpy(w, &m, sizeof w);
-    return (w[0] | w[1] | w[2] | w[3]) != 0;
+    return w[0] | w[1] | w[2] | w[3];
+}
+
+/* Is any lane of the mask set? */
+SDF__HOT_INLINE int sdf__v8i_any(sdf__v8i m)
+{
+    return sdf__v8i_or_pairs(m) != 0;
+}
+
+/* The OR of a vector's lanes (packets tag each group's lanes with the group's bit and reduce
+ * once for all groups: a reduction per group took a tenth of the traversal). */
+SDF__HOT_INLINE unsigned sdf__v8i_or_lanes(sdf__v8i v)
+{
+    uint64_t x = sdf__v8i_or_pairs(v);
+    return (unsigned)(x | x >> 32);
 }
 
 /* Lane-wise square root (vsqrtps where the vectorizer sees it: -fno-math-errno). */

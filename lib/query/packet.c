@@ -31,16 +31,6 @@
 #define LANE_GROUPS (SDF__PACKET / LANE_GROUP)
 _Static_assert(SDF__PACKET % LANE_GROUP == 0, "a packet is whole groups");
 
-/* The OR of a vector's lanes (one reduction for all groups' bits: a reduction per group
- * took a tenth of the traversal). */
-SDF__HOT_INLINE unsigned lanes_or(sdf__v8i v)
-{
-    uint64_t w[4];
-    memcpy(w, &v, sizeof w);
-    uint64_t x = w[0] | w[1] | w[2] | w[3];
-    return (unsigned)(x | x >> 32);
-}
-
 /* Bit g set: some lane of group g lies within its limit of leaf cylinder c. */
 SDF__HOT_INLINE unsigned groups_near_disc(const sdf__packet *pk, const float *limit2,
                                           const sdf__tree_disc *c, unsigned groups)
@@ -54,7 +44,7 @@ SDF__HOT_INLINE unsigned groups_near_disc(const sdf__packet *pk, const float *li
                                             sdf__v8f_load(pk->z + o));
         bits |= (d2 <= sdf__v8f_load(limit2 + o)) & (1 << g);
     }
-    return lanes_or(bits);
+    return sdf__v8i_or_lanes(bits);
 }
 
 /* Bit g set: some lane of group g lies within its limit of the box [lo, hi]. */
@@ -68,7 +58,7 @@ SDF__HOT_INLINE unsigned groups_near_box(const sdf__packet *pk, const float *lim
                                            sdf__v8f_load(pk->y + o), sdf__v8f_load(pk->z + o));
         bits |= (d2 <= sdf__v8f_load(limit2 + o)) & (1 << g);
     }
-    return lanes_or(bits);
+    return sdf__v8i_or_lanes(bits);
 }
 
 /* Each lane's candidates: the triangles whose float distance was within the tie margin of
@@ -143,7 +133,7 @@ SDF__HOT_INLINE void visit_leaf(const sdf__tree *tree, const sdf__tree_node *nod
             dist2[g] = sdf__triangle8_dist2(&f, px, py, pz);
             bits |= (dist2[g] <= sdf__v8f_load(limit2 + o)) & (1 << g);
         }
-        for (unsigned pass = lanes_or(bits); pass; pass &= pass - 1) {
+        for (unsigned pass = sdf__v8i_or_lanes(bits); pass; pass &= pass - 1) {
             const int g = __builtin_ctz(pass), o = g * LANE_GROUP;
             sdf__v8i within = dist2[g] <= sdf__v8f_load(limit2 + o);
             float d2[LANE_GROUP];
