@@ -110,6 +110,36 @@ SDF__HOT_INLINE unsigned sdf__v8i_or_lanes(sdf__v8i v)
     return (unsigned)(x | x >> 32);
 }
 
+/* One layer of a sorting network on eight keys: lane i and lane partner[i] trade places when
+ * out of order; `first` marks the lower lane of each pair (unpaired lanes are their own
+ * partner and keep their key). Branchless, so unpredictable orders cost no mispredictions. */
+SDF__HOT_INLINE sdf__v8i sdf__v8i_sort_layer(sdf__v8i v, sdf__v8i partner, sdf__v8i first)
+{
+    sdf__v8i w = __builtin_shuffle(v, partner);
+    sdf__v8i less = v < w;
+    sdf__v8i lo = (v & less) | (w & ~less), hi = (w & less) | (v & ~less);
+    return (lo & first) | (hi & ~first);
+}
+
+/* The eight keys in ascending order (Batcher's odd-even merge sort: 19 exchanges in six
+ * layers; checked exhaustively on 0/1 inputs, which suffices for a sorting network). */
+SDF__HOT_INLINE sdf__v8i sdf__v8i_sort(sdf__v8i v)
+{
+    v = sdf__v8i_sort_layer(v, (sdf__v8i){1, 0, 3, 2, 5, 4, 7, 6},
+                            (sdf__v8i){-1, 0, -1, 0, -1, 0, -1, 0});
+    v = sdf__v8i_sort_layer(v, (sdf__v8i){2, 3, 0, 1, 6, 7, 4, 5},
+                            (sdf__v8i){-1, -1, 0, 0, -1, -1, 0, 0});
+    v = sdf__v8i_sort_layer(v, (sdf__v8i){0, 2, 1, 3, 4, 6, 5, 7},
+                            (sdf__v8i){0, -1, 0, 0, 0, -1, 0, 0});
+    v = sdf__v8i_sort_layer(v, (sdf__v8i){4, 5, 6, 7, 0, 1, 2, 3},
+                            (sdf__v8i){-1, -1, -1, -1, 0, 0, 0, 0});
+    v = sdf__v8i_sort_layer(v, (sdf__v8i){0, 1, 4, 5, 2, 3, 6, 7},
+                            (sdf__v8i){0, 0, -1, -1, 0, 0, 0, 0});
+    v = sdf__v8i_sort_layer(v, (sdf__v8i){0, 2, 1, 4, 3, 6, 5, 7},
+                            (sdf__v8i){0, -1, 0, -1, 0, -1, 0, 0});
+    return v;
+}
+
 /* Lane-wise square root (vsqrtps where the vectorizer sees it: -fno-math-errno). */
 SDF__HOT_INLINE sdf__v8f sdf__v8f_sqrt(sdf__v8f a)
 {
