@@ -208,6 +208,14 @@ static int not_a_number(json *j, const char *what)
     return syntax(j, "expected a number");
 }
 
+/* The message for a nested point that is not three numbers, in what[64]: formatted only
+ * when one fails (once per coordinate, it cost more than parsing the numbers). */
+static const char *not_three(const json *j, char what[64])
+{
+    snprintf(what, 64, "point %zu is not an array of 3 numbers", j->count / 3);
+    return what;
+}
+
 /* One element of a "points" array: [x, y, z] when nested, else one number. */
 static int point_element(json *j, int nested)
 {
@@ -225,16 +233,16 @@ static int point_element(json *j, int nested)
     if (j->p >= j->end || *j->p != '[')
         return not_a_number(j, "\"points\" must hold only [x, y, z] arrays or only numbers");
     j->p++;
+    char what[64]; /* the message, formatted only on failure */
     for (int k = 0; k < 3; k++) {
-        char what[64];
-        snprintf(what, sizeof what, "point %zu is not an array of 3 numbers", j->count / 3);
         if (k && expect(j, ','))
-            return j->p < j->end && *j->p == ']' ? fail(j->err, j->err_cap, SDF_EINVAL, "%s", what)
-                                                 : SDF_ESYNTAX;
+            return j->p < j->end && *j->p == ']'
+                       ? fail(j->err, j->err_cap, SDF_EINVAL, "%s", not_three(j, what))
+                       : SDF_ESYNTAX;
         const char *at = j->p;
         if (number(j, &v)) {
             j->p = at;
-            return not_a_number(j, what);
+            return not_a_number(j, not_three(j, what));
         }
         if ((rc = push_coordinate(j, v)))
             return rc;

@@ -5,8 +5,9 @@
  * server's time on fandisk). Both directions here are exact where it matters:
  *  - parsing gives the same double as strtod: numbers of at most 19 significant digits and a
  *    decimal exponent within +-22 whose digits fit 2^53 take Clinger's fast path (one exact
- *    multiplication or division by an exact power of ten, correctly rounded); everything else
- *    goes to strtod;
+ *    multiplication or division by an exact power of ten, correctly rounded); longer digits
+ *    (to 19, as the 17 of Python's json) with an exponent within +-19 are scaled exactly in
+ *    128-bit integers and rounded once; everything else goes to strtod;
  *  - printing writes 9 significant digits (as %.9g does), computed in double: the last digit
  *    may differ from printf's by one, but any such text is within 1.5e-8 relative of the
  *    float, less than half its spacing (>= 2.98e-8), so it reads back as the same float

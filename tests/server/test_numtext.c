@@ -4,6 +4,7 @@
  *    edge values; the text is valid JSON and within SDFD_FLOAT_TEXT_MAX;
  *  - every parsed number is the double strtod gives, ending where strtod ends, for numbers
  *    printed in many formats and for hand-picked hard cases. */
+#include <inttypes.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -125,9 +126,42 @@ static void test_parse(void)
     }
 }
 
+/* Long mantissas (16-19 digits) with exponents within +-19, which take the 128-bit path,
+ * and floats printed as Python's json prints them (17 digits, via a double). */
+static void test_parse_long(void)
+{
+    char text[64];
+    int failures = check_failures;
+    for (int i = 0; i < 1000000 && check_failures - failures < 5; i++) {
+        uint64_t m = next(), digits = 16 + next() % 4;
+        uint64_t limit = 1;
+        for (uint64_t d = 0; d < digits; d++)
+            limit *= 10;
+        m %= limit;
+        int e = (int)(next() % 39) - 19;
+        if (i % 3 == 0) {
+            snprintf(text, sizeof text, "%" PRIu64 "e%d,", m, e);
+        } else if (i % 3 == 1) { /* a decimal point inside the digits */
+            int n = snprintf(text, sizeof text, "%" PRIu64, m), at = 1 + (int)(next() % (uint64_t)n);
+            memmove(text + at + 1, text + at, (size_t)(n - at + 1));
+            text[at] = '.';
+            strcat(text, "]");
+        } else {
+            uint32_t bits = (uint32_t)next();
+            float f;
+            memcpy(&f, &bits, sizeof f);
+            if (!isfinite(f))
+                continue;
+            snprintf(text, sizeof text, "%.17g}", (double)f);
+        }
+        check_parse(text);
+    }
+}
+
 int main(void)
 {
     test_format();
     test_parse();
+    test_parse_long();
     return check_finish("test_numtext");
 }
