@@ -306,19 +306,22 @@ int sdf__analyse(const float *positions, const uint32_t *triangles, size_t trian
     size_t vertex_count = 0;
     for (size_t i = 0; i < 3 * triangle_count; i++)
         vertex_count = triangles[i] >= vertex_count ? (size_t)triangles[i] + 1 : vertex_count;
+    size_t chunks = (vertex_count + GROUP_CHUNK - 1) / GROUP_CHUNK;
     size_t *start = calloc(vertex_count + 2, sizeof *start);
     half_edge *filed = malloc((3 * triangle_count + 1) * sizeof *filed);
     uint32_t *edge_of = malloc((3 * triangle_count + 1) * sizeof *edge_of);
+    group_chunk *chunk = calloc(chunks + 1, sizeof *chunk);
     /* At most one edge per half-edge; trimmed once the edges are counted. */
     sdf__edge_faces found = {0};
     if (faces) {
         found.start = malloc((3 * triangle_count + 1) * sizeof *found.start);
         found.face = malloc((3 * triangle_count + 1) * sizeof *found.face);
     }
-    if (!start || !filed || !edge_of || (faces && (!found.start || !found.face))) {
+    if (!start || !filed || !edge_of || !chunk || (faces && (!found.start || !found.face))) {
         free(start);
         free(filed);
         free(edge_of);
+        free(chunk);
         sdf__edge_faces_free(&found);
         return SDF_ENOMEM;
     }
@@ -346,16 +349,7 @@ int sdf__analyse(const float *positions, const uint32_t *triangles, size_t trian
     /* Now start[v] is the first slot of vertex v, start[v + 1] its end. Group each vertex's
      * half-edges into edges on all CPUs: chunks of vertices count theirs, then number them
      * from the count before the chunk, so ids are the same on any number of threads. */
-    size_t chunks = (vertex_count + GROUP_CHUNK - 1) / GROUP_CHUNK;
-    group_job job = {triangles, filed, start, edge_of, faces ? &found : NULL,
-                     calloc(chunks + 1, sizeof *job.chunk), 0};
-    if (!job.chunk) {
-        free(start);
-        free(filed);
-        free(edge_of);
-        sdf__edge_faces_free(&found);
-        return SDF_ENOMEM;
-    }
+    group_job job = {triangles, filed, start, edge_of, faces ? &found : NULL, chunk, 0};
     sdf__parallel_for(vertex_count, GROUP_CHUNK, 0, group_range, &job);
     size_t edges = 0, boundary = 0, nonmanifold = 0, misoriented = 0;
     for (size_t c = 0; c < chunks; c++) {
