@@ -274,8 +274,10 @@ void sdfd_batcher_destroy(sdfd_batcher *b)
 
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index)
 {
+    /* The library's own check, made here so that one request's bad point cannot fail a
+     * batch it shares with others (NaN fails the comparison too). */
     for (size_t i = 0; i < 3 * job->count; i++) {
-        if (!isfinite(job->points[i])) {
+        if (!(fabsf(job->points[i]) <= SDF_MAX_COORDINATE)) {
             if (bad_index)
                 *bad_index = i / 3;
             return SDF_ENONFINITE;

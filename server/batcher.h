@@ -51,7 +51,8 @@ int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, size
 void sdfd_batcher_destroy(sdfd_batcher *b);
 
 /* Queue a job. Returns 0 (done will be called), or an error and done is NOT called:
- * SDF_ENONFINITE (*bad_index set), SDF_EBUSY (queue full), SDF_EUNAVAILABLE (shutting down). */
+ * SDF_ENONFINITE (*bad_index set: NaN, Inf or beyond SDF_MAX_COORDINATE), SDF_EBUSY (queue
+ * full), SDF_EUNAVAILABLE (shutting down). */
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
 
 /* Check a filtered query of `count` points before submitting it, so one bad request never

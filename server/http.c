@@ -377,7 +377,8 @@ static enum MHD_Result start_query(request *req)
         req->work = WORK_NONE;
         MHD_resume_connection(req->conn);
         if (rc == SDF_ENONFINITE)
-            return sdfd_http_error(req, rc, "point %zu has a NaN or infinite coordinate", bad);
+            return sdfd_http_error(req, rc, "point %zu has a coordinate that is NaN, Inf or "
+                                   "beyond +-1e18", bad);
         if (rc == SDF_EBUSY)
             return sdfd_http_error(req, rc, "more than %zu points are waiting; retry later",
                                    srv->cfg.max_queued_points);

@@ -1,7 +1,6 @@
 /* builder.c - checked growable arrays for the parsers (see builder.h). */
 #include "mesh/builder.h"
 
-#include <float.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -79,10 +78,10 @@ int sdf__builder_add_vertex(sdf__builder *b, double x, double y, double z)
 {
     double c[3] = {x, y, z};
     for (int i = 0; i < 3; i++) {
-        if (!isfinite(c[i]) || fabs(c[i]) > FLT_MAX)
+        if (!(fabs(c[i]) <= SDF_MAX_COORDINATE)) /* NaN fails too */
             return sdf__builder_fail(b, SDF_ENONFINITE,
-                                     "vertex %zu has a coordinate that is not a finite float (%g)",
-                                     b->vertex_count, c[i]);
+                                     "vertex %zu has a coordinate that is not finite or beyond "
+                                     "+-1e18 (%g)", b->vertex_count, c[i]);
     }
     int rc = ensure_vertices(b, 1);
     if (rc)

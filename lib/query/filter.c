@@ -569,7 +569,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
         sdf_query_result res = {.distance = s.sample_f, .gradient = s.sample_grad};
         rc = sdf__query_seeded(mesh, s.sample_p, s.sample_bound, s.sample_sign, s.sample_run, at,
                                &inner, &res);
-        if (rc) /* finite points displaced by finite offsets: only memory can fail here */
+        if (rc) /* out of memory, or a kernel so wide that samples pass SDF_MAX_COORDINATE */
             break;
         for (size_t j = 0; j < m; j++) {
             const point_plan *pl = &plan[j];
@@ -622,6 +622,9 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     free(plan);
     sdf__samples_free(&samples);
     free_scratch(&s);
+    if (rc == SDF_ENONFINITE) /* the points themselves were checked above */
+        return sdf__diag_set(diag, rc, 0, -1,
+                             "the kernel displaces samples beyond +-1e18: make it narrower");
     if (rc)
         return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
     return 0;

@@ -96,7 +96,8 @@ static const float *point_at(const batch *b, size_t i)
     return (const float *)(b->points + i * b->stride);
 }
 
-/* Validate the common arguments; find the first non-finite point. */
+/* Validate the common arguments; find the first point that is not finite or lies beyond
+ * SDF_MAX_COORDINATE (fabsf(NaN) fails the comparison too). */
 static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
                        const sdf_query_options *opts, batch *b, size_t *bad_index)
 {
@@ -115,7 +116,8 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
     *b = (batch){.mesh = mesh, .points = (const char *)points, .stride = stride, .sign = sign};
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
-        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
+        if (!(fabsf(p[0]) <= SDF_MAX_COORDINATE && fabsf(p[1]) <= SDF_MAX_COORDINATE &&
+              fabsf(p[2]) <= SDF_MAX_COORDINATE)) {
             if (bad_index)
                 *bad_index = i;
             return SDF_ENONFINITE;
@@ -134,6 +136,13 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
     const sdf_mesh *m = b->mesh;
     switch (b->sign) {
     case SDF_SIGN_PSEUDONORMAL: {
+        /* A closed mesh's inside lies within its box, so outside the box the sign needs no
+         * closest feature, which double precision cannot single out for points ~1e16 times
+         * the mesh's size away (every feature then lies at the same rounded distance). */
+        const float *lo = m->report.bbox_min, *hi = m->report.bbox_max;
+        if (m->report.closed && (p[0] <= lo[0] || p[0] >= hi[0] || p[1] <= lo[1] ||
+                                 p[1] >= hi[1] || p[2] <= lo[2] || p[2] >= hi[2]))
+            return 1.0f;
         double s = 0;
         for (int i = 0; i < 3; i++)
             s += (p[i] - hit->point[i]) * normal[i];

@@ -68,10 +68,11 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
     } else {
         for (int a = 0; a < 3; a++) {
             lo[a] = o->lo[a], hi[a] = o->hi[a];
-            if (!(isfinite(lo[a]) && isfinite(hi[a]) && lo[a] < hi[a]))
+            if (!(fabs(lo[a]) <= SDF_MAX_COORDINATE && fabs(hi[a]) <= SDF_MAX_COORDINATE &&
+                  lo[a] < hi[a]))
                 return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
-                                     "bounds must be finite with lo < hi on every axis (%c)",
-                                     "xyz"[a]);
+                                     "bounds must be finite, within +-1e18, with lo < hi on "
+                                     "every axis (%c)", "xyz"[a]);
         }
     }
     for (int a = 0; a < 3; a++) {

@@ -255,6 +255,9 @@ static void test_malformed(void)
            -1, "finite");
     REJECT("OBJ beyond float", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n", SDF_FORMAT_OBJ,
            SDF_ENONFINITE, 2, -1, NULL);
+    /* Within float, but past SDF_MAX_COORDINATE, where Embree's builder fails its asserts. */
+    REJECT("OBJ beyond 1e18", "v 0 0 0\nv 0 -2e18 0\nv 0 1 0\nf 1 2 3\n", SDF_FORMAT_OBJ,
+           SDF_ENONFINITE, 2, -1, "beyond +-1e18 (-2e+18)");
     REJECT("OBJ two-corner face", "v 0 0 0\nv 1 0 0\nf 1 2\n", SDF_FORMAT_OBJ, SDF_EPARSE, 3, -1,
            "at least 3");
     REJECT("OBJ short vertex", "v 0 0\n", SDF_FORMAT_OBJ, SDF_EPARSE, 1, -1, "3 coordinates");

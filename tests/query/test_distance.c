@@ -282,6 +282,43 @@ static void test_bad_points(sdf_mesh *mesh)
     CHECK(sdf_query(mesh, NULL, 0, NULL, &res) == 0, "empty batch refused");
 }
 
+/* Points up to SDF_MAX_COORDINATE away from a closed mesh ~3 units across: every path and
+ * sign method says outside (at ~1e16 double precision cannot tell the mesh's features apart,
+ * and before the box rule the pseudonormal of whichever one won said "inside" half the
+ * time), with the distance |p - c| to float rounding; beyond it, points are refused (Embree
+ * aborts on rays from there), also in every sign method. */
+static void test_far_points(sdf_mesh *mesh)
+{
+    const float far[] = {1e6f, 1e12f, 1e15f, 1e16f, 1e17f, 1e18f};
+    for (size_t k = 0; k < sizeof far / sizeof *far; k++) {
+        float m = far[k];
+        float p[15] = {m, 0, 0, -m, 0.5f, 0, 0, m, 0, 0.3f * m, -m, 0.7f * m, 0, 0, -m};
+        for (int sign = SDF_SIGN_AUTO; sign <= SDF_SIGN_RAYCAST; sign++)
+            for (int t = SDF_TRAVERSAL_PACKETS; t <= SDF_TRAVERSAL_SINGLE; t++) {
+                float d[5];
+                sdf_query_result res = {.distance = d};
+                sdf_query_options o = {.sign = (sdf_sign_method)sign,
+                                       .traversal = (sdf_traversal)t};
+                CHECK(sdf_query(mesh, p, 5, &o, &res) == 0, "far points refused at %g", m);
+                for (int i = 0; i < 5; i++) {
+                    const float *q = p + 3 * i;
+                    double r = sqrt((double)q[0] * q[0] + (double)q[1] * q[1] +
+                                    (double)q[2] * q[2]);
+                    CHECK(d[i] > 0 && fabs(d[i] - r) <= 4 + 1e-6 * r,
+                          "%g away, sign %d, traversal %d, point %d: %g", m, sign, t, i, d[i]);
+                }
+            }
+    }
+    float beyond[9] = {0, 0, 0, 1, 2, 3, 0, -1.5e18f, 0};
+    for (int sign = SDF_SIGN_AUTO; sign <= SDF_SIGN_NONE; sign++) {
+        float d[3];
+        sdf_query_result res = {.distance = d};
+        sdf_query_options o = {.sign = (sdf_sign_method)sign};
+        CHECK(sdf_query(mesh, beyond, 3, &o, &res) == SDF_ENONFINITE && res.bad_index == 2,
+              "a point beyond 1e18 accepted by sign method %d", sign);
+    }
+}
+
 int main(void)
 {
     const char *files[] = {"fandisk.off", "knot1.off", "cow.off", "elephant-with-holes.off",
@@ -300,6 +337,7 @@ int main(void)
     test_many_ties();
     test_threads_and_stride(demo);
     test_bad_points(demo);
+    test_far_points(demo);
     sdf_mesh_release(demo);
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
     test_concurrent_callers(demo);

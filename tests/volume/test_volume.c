@@ -533,6 +533,7 @@ static void test_progress_and_options(const sdf_mesh *mesh)
         {{.encoding = SDF_ENCODING_PACKED32}, SDF_EINVAL, "first-order"},
         {{.lo = {0, 0, 0}, .hi = {1, -1, 1}}, SDF_EINVAL, "lo < hi"},
         {{.lo = {0, 0, 0}, .hi = {1, NAN, 1}}, SDF_EINVAL, "finite"},
+        {{.lo = {0, -2e18, 0}, .hi = {1, 1, 1}}, SDF_EINVAL, "within +-1e18"},
         {{.margin = -1}, SDF_EINVAL, "margin"},
         {{.query.sign = (sdf_sign_method)9}, SDF_EINVAL, "sign"},
     };

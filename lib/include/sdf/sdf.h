@@ -43,7 +43,7 @@ extern "C" {
     X(ETRUNC, -6, 422, "truncated data")                                                  \
     X(ELIMIT, -7, 413, "size limit exceeded")                                             \
     X(EEMPTY, -8, 422, "mesh has no triangles")                                           \
-    X(ENONFINITE, -9, 422, "non-finite coordinate (NaN or Inf)")                          \
+    X(ENONFINITE, -9, 422, "coordinate is NaN, Inf or beyond +-1e18")                     \
     X(EINDEX, -10, 422, "index out of range")                                             \
     X(EBVH, -11, 500, "BVH library (Embree) error")                                       \
     X(ENOTFOUND, -12, 404, "not found")                                                   \
@@ -107,6 +107,11 @@ typedef enum sdf_sign_method {
 /* "auto", "pseudonormal", "winding", "raycast", "none" -> method; SDF_EINVAL otherwise. */
 int sdf_sign_from_name(const char *name, sdf_sign_method *out);
 const char *sdf_sign_name(sdf_sign_method method);
+
+/* The largest coordinate magnitude of a mesh vertex or a query point. Beyond it Embree's
+ * builder and rays fail their own checks (its limit is 1.8e18), squared float distances
+ * could overflow, and double precision no longer tells a small mesh's features apart. */
+#define SDF_MAX_COORDINATE 1e18
 
 #define SDF_DEFAULT_MAX_TRIANGLES ((size_t)1 << 24)      /* 16.7 M */
 #define SDF_DEFAULT_MAX_FILE_BYTES ((size_t)1 << 31)     /* 2 GiB  */
@@ -205,12 +210,12 @@ typedef struct sdf_query_result {
     float *closest;      /* [3n] closest point on the mesh */
     uint32_t *triangle;  /* [n] id of the triangle holding the closest point */
     float *barycentric;  /* [3n] weights of that triangle's vertices 0, 1, 2 at the point */
-    size_t bad_index;    /* out: the first non-finite point when SDF_ENONFINITE is returned */
+    size_t bad_index;    /* out: the first bad point when SDF_ENONFINITE is returned */
 } sdf_query_result;
 
 /* Answer `count` point queries. `points` holds xyz float triples `point_stride` bytes apart.
- * Returns SDF_ENONFINITE (and sets out->bad_index) if any coordinate is NaN or Inf, before
- * writing any output; SDF_EINVAL for a bad argument.
+ * Returns SDF_ENONFINITE (and sets out->bad_index) if any coordinate is NaN, Inf or beyond
+ * +-SDF_MAX_COORDINATE, before writing any output; SDF_EINVAL for a bad argument.
  * Results do not depend on the thread count. Thread-safe on a shared mesh. */
 int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
               const sdf_query_options *opts, sdf_query_result *out);
