@@ -195,7 +195,12 @@ static int push_coordinate(json *j, double v)
             return fail(j->err, j->err_cap, SDF_ENOMEM, "out of memory for points");
         j->points = p, j->cap = cap;
     }
-    j->points[j->count++] = (float)v;
+    float f = (float)v;
+    if (!isfinite(f)) /* finite JSON (the grammar has no NaN or Inf) beyond float32's range */
+        return fail(j->err, j->err_cap, SDF_ENONFINITE,
+                    "point %zu: coordinate %g is beyond float32's range (|x| < 3.4e38)",
+                    j->count / 3, v);
+    j->points[j->count++] = f;
     return 0;
 }
 

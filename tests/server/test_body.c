@@ -140,6 +140,40 @@ static void test_errors(void)
     free(t.s);
 }
 
+/* JSON numbers beyond float32's range are refused as such, not turned into infinities
+ * (which the batcher would then call NaN or Inf); the largest float and numbers that
+ * round down to it or to zero are fine. */
+static void test_float_range(void)
+{
+    static const struct {
+        const char *body;
+        int rc;
+        const char *says;
+    } cases[] = {
+        {"{\"points\": [[0, 0, 0], [1, 1e39, 0]]}", SDF_ENONFINITE,
+         "point 1: coordinate 1e+39 is beyond float32's range"},
+        {"{\"points\": [0, 0, 0, 1, 2, -3.5e38]}", SDF_ENONFINITE,
+         "point 1: coordinate -3.5e+38 is beyond float32's range"},
+        {"{\"points\": [[3.4028234e38, -3.4028234e38, 1e-50]]}", 0, ""},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        text t = {0};
+        put(&t, cases[i].body);
+        float *got;
+        size_t count;
+        char err[256] = "";
+        sdfd_query_params params;
+        int rc = parse(&t, 10, &got, &count, err, sizeof err, &params);
+        CHECK(rc == cases[i].rc && strstr(err, cases[i].says), "%s: %d '%s'", cases[i].body,
+              rc, err);
+        if (!rc) {
+            CHECK(count == 1 && got[0] == 3.4028234e38f && got[2] == 0, "largest float");
+            free(got);
+        }
+        free(t.s);
+    }
+}
+
 /* The split lands in a long string after a short array. */
 static void test_split_outside(void)
 {
@@ -223,6 +257,7 @@ int main(void)
     test_valid(0);
     test_errors();
     test_split_outside();
+    test_float_range();
     test_reply(SDF_MODE_GRADIENT);
     test_reply(SDF_MODE_CLOSEST);
     return check_finish("body");
