@@ -150,6 +150,11 @@ static int decimal_exponent(double a)
 size_t sdfd_format_float(float f, char *out)
 {
     char *o = out;
+    if (!isfinite(f)) { /* JSON has no Inf or NaN; a first-order volume's plane extended
+                         * ~1e38 away can pass float32. The loops below would never end. */
+        memcpy(o, "null", 4);
+        return 4;
+    }
     if (f == 0) {
         memcpy(o, signbit(f) ? "-0.0" : "0", signbit(f) ? 4 : 1);
         return signbit(f) ? 4 : 1;

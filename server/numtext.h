@@ -26,8 +26,8 @@
  * for strtod. Returns the end of the number, or s if there is none. */
 const char *sdfd_parse_number(const char *s, double *value);
 
-/* Write finite f as JSON text (no terminator); returns its length. -0 is written "-0.0" so
- * it does not read back as the integer 0. */
+/* Write f as JSON text (no terminator); returns its length. -0 is written "-0.0" so it does
+ * not read back as the integer 0; Inf and NaN, which JSON lacks, are written null. */
 size_t sdfd_format_float(float f, char *out);
 
 #endif

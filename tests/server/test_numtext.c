@@ -158,9 +158,22 @@ static void test_parse_long(void)
     }
 }
 
+/* JSON has no Inf or NaN: they come out null (the formatter used to loop forever on them). */
+static void test_format_nonfinite(void)
+{
+    const float odd[] = {INFINITY, -INFINITY, NAN, -NAN};
+    for (size_t i = 0; i < sizeof odd / sizeof *odd; i++) {
+        char text[SDFD_FLOAT_TEXT_MAX + 1];
+        size_t n = sdfd_format_float(odd[i], text);
+        text[n] = 0;
+        CHECK(!strcmp(text, "null"), "%g written as '%s'", (double)odd[i], text);
+    }
+}
+
 int main(void)
 {
     test_format();
+    test_format_nonfinite();
     test_parse();
     test_parse_long();
     return check_finish("test_numtext");

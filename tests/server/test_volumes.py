@@ -153,6 +153,20 @@ class Volumes(unittest.TestCase):
         self.assertFalse(np.array_equal(a, b))
         self.assertLess(np.abs(a - b).max(), 0.1 * np.abs(a).max())
 
+    def test_plane_extended_past_float(self):
+        # A first-order volume extends its boundary planes: ~3e38 away that passes float32.
+        # The octet form carries the infinity; JSON, which has none, says null (its
+        # formatter used to loop forever on it, hanging the request).
+        self.bake(volume="far1", resolution=8, order=1)
+        far = [[3e38, 3e38, 3e38], [0, 0, 0]]
+        octet = self.c.query_volume("far1", far, form="octet")["distance"]
+        self.assertTrue(np.isinf(octet[0]) and np.isfinite(octet[1]), octet)
+        text = self.c._request("POST", "/v1/volumes/far1/query", json.dumps({"points": far}),
+                               {"Content-Type": "application/json"})[1]
+        self.assertTrue(text.startswith(b'{"distance":[null,'), text)
+        self.assertEqual(np.float32(json.loads(text)["distance"][1]), octet[1])
+        self.c.delete_volume("far1")
+
     def test_cancel_and_forget(self):
         # The filtered field is baked by queries (~18 M here, near the server's per-request
         # cap; about a second in a release build): cancelled as soon as it runs.
