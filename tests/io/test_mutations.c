@@ -7,7 +7,8 @@
  * (the sanitizer build runs this too, which is where those show), no code outside the
  * documented ones, and no diag without a message. The damage is deterministic (a fixed
  * seed), so a failure reproduces; MUTATIONS_ROUNDS=N in the environment runs N rounds per
- * seed input instead of the default, for longer hunts. */
+ * seed input instead of the default, for longer hunts, and MUTATIONS_DUMP=FILE writes each
+ * damaged input there before it is read (after a crash, FILE holds the culprit). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -15,6 +16,7 @@
 
 #include "../common/check.h"
 #include "../common/files.h"
+#include "../common/workload.h"
 #include "../server/body.h"
 #include "proto.h"
 
@@ -22,15 +24,9 @@
 
 /* ---- damage ------------------------------------------------------------------------------ */
 
-static uint64_t rng_state = 0x5eed5eedu;
+static sdf_rng rng = {0x5eed5eedu};
 
-static uint64_t next_random(void)
-{
-    uint64_t z = (rng_state += 0x9e3779b97f4a7c15u);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9u;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebu;
-    return z ^ (z >> 31);
-}
+static uint64_t next_random(void) { return sdf_rng_next(&rng); }
 
 static size_t below(size_t n) { return n ? (size_t)(next_random() % n) : 0; }
 
@@ -229,6 +225,7 @@ static void hammer(const char *what, const void *seed, size_t n, reader_fn read,
     CHECK(buf != NULL, "out of memory");
     read(seed, n, ctx); /* the seed itself first */
     int r = rounds();
+    const char *dump = getenv("MUTATIONS_DUMP");
     for (int i = 0; i < r; i++) {
         size_t len = damage(seed, n, buf, cap);
         /* Most readers get exact-size buffers from the server: so do they here, so that the
@@ -236,7 +233,6 @@ static void hammer(const char *what, const void *seed, size_t n, reader_fn read,
         unsigned char *exact = malloc(len ? len : 1);
         CHECK(exact != NULL, "out of memory");
         memcpy(exact, buf, len);
-        const char *dump = getenv("MUTATIONS_DUMP"); /* the input about to be read, for a crash */
         FILE *f = dump ? fopen(dump, "wb") : NULL;
         if (f) {
             fwrite(exact, 1, len, f);
@@ -256,6 +252,8 @@ static void mesh_file(const char *name, sdf_format format)
     size_t n;
     char *data = read_whole_file(data_path(name), &n);
     CHECK(data != NULL, "cannot read %s", name);
+    if (!data)
+        return;
     hammer(name, data, n, read_mesh, &format);
     if (format != SDF_FORMAT_AUTO) { /* and sniffed */
         sdf_format any = SDF_FORMAT_AUTO;
