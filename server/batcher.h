@@ -54,6 +54,8 @@ void sdfd_batcher_destroy(sdfd_batcher *b);
  * SDF_ENONFINITE (*bad_index set: NaN, Inf or beyond SDF_MAX_COORDINATE), SDF_EBUSY (queue
  * full), SDF_EUNAVAILABLE (shutting down). */
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
+/* What both protocols tell a client whose point *bad_index was refused (printf, %zu). */
+#define SDFD_BAD_POINT_MESSAGE "point %zu has a coordinate that is NaN, Inf or beyond +-1e18"
 
 /* Check a filtered query of `count` points before submitting it, so one bad request never
  * fails a batch: its parameters (SDF_EINVAL with the library's message in `msg`) and its cost,

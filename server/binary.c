@@ -250,8 +250,7 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
     if (rc) {
         char message[96];
         if (rc == SDF_ENONFINITE)
-            snprintf(message, sizeof message,
-                     "point %zu has a coordinate that is NaN, Inf or beyond +-1e18", bad);
+            snprintf(message, sizeof message, SDFD_BAD_POINT_MESSAGE, bad);
         else if (rc == SDF_EBUSY)
             snprintf(message, sizeof message, "more than %zu points are waiting; retry later",
                      srv->cfg.max_queued_points);

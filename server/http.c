@@ -377,8 +377,7 @@ static enum MHD_Result start_query(request *req)
         req->work = WORK_NONE;
         MHD_resume_connection(req->conn);
         if (rc == SDF_ENONFINITE)
-            return sdfd_http_error(req, rc, "point %zu has a coordinate that is NaN, Inf or "
-                                   "beyond +-1e18", bad);
+            return sdfd_http_error(req, rc, SDFD_BAD_POINT_MESSAGE, bad);
         if (rc == SDF_EBUSY)
             return sdfd_http_error(req, rc, "more than %zu points are waiting; retry later",
                                    srv->cfg.max_queued_points);
