@@ -157,43 +157,78 @@ static void scatter(const sdfd_batcher *b, sdfd_job *j, size_t offset)
     }
 }
 
-static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t points)
+_Static_assert(sizeof((sdfd_job *)0)->message >= sizeof((sdf_diag *)0)->message,
+               "a job holds the library's whole message");
+
+/* Run jobs [list..] (requests of them, points in all) as one library call; its results land
+ * in the scratch arrays in list order. Returns 0 or an SDF_E* code with `message` set. */
+static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t points,
+                       char *message, size_t cap)
 {
-    double start = sdfd_now();
-    int rc = ensure_scratch(b, points);
-    if (!rc) {
-        const float *p = list->points;
-        if (requests > 1) { /* gather: one contiguous batch */
-            size_t at = 0;
-            for (sdfd_job *j = list; j; j = j->next) {
-                memcpy(b->points + 3 * at, j->points, 3 * j->count * sizeof(float));
-                at += j->count;
-            }
-            p = b->points;
-        }
-        sdf_proto_mode mode = list->mode;
-        sdf_query_options opts = {.sign = mode == SDF_MODE_DISTANCE ? SDF_SIGN_NONE : list->sign,
-                                  .threads = b->threads};
-        int with_gradient = mode == SDF_MODE_GRADIENT || mode == SDF_MODE_FILTERED_GRADIENT;
-        sdf_query_result res = {.distance = b->distance,
-                                .gradient = with_gradient ? b->vec3 : NULL,
-                                .closest = mode == SDF_MODE_CLOSEST ? b->vec3 : NULL,
-                                .triangle = mode == SDF_MODE_CLOSEST ? b->triangle : NULL};
-        if (sdf_proto_mode_filtered(mode)) /* parameters were validated at submission */
-            rc = sdf_query_filtered(list->mesh, p, points, &opts, &list->filter, &res, NULL);
-        else
-            rc = sdf_query(list->mesh, p, points, &opts, &res);
+    message[0] = '\0';
+    if (ensure_scratch(b, points)) {
+        snprintf(message, cap, "out of memory for a batch of %zu points", points);
+        return SDF_ENOMEM;
     }
-    sdfd_metrics_batch(b->metrics, requests, points, sdfd_now() - start);
+    const float *p = list->points;
+    if (requests > 1) { /* gather: one contiguous batch */
+        size_t at = 0;
+        for (sdfd_job *j = list; j; j = j->next) {
+            memcpy(b->points + 3 * at, j->points, 3 * j->count * sizeof(float));
+            at += j->count;
+        }
+        p = b->points;
+    }
+    sdf_proto_mode mode = list->mode;
+    sdf_query_options opts = {.sign = mode == SDF_MODE_DISTANCE ? SDF_SIGN_NONE : list->sign,
+                              .threads = b->threads};
+    int with_gradient = mode == SDF_MODE_GRADIENT || mode == SDF_MODE_FILTERED_GRADIENT;
+    sdf_query_result res = {.distance = b->distance,
+                            .gradient = with_gradient ? b->vec3 : NULL,
+                            .closest = mode == SDF_MODE_CLOSEST ? b->vec3 : NULL,
+                            .triangle = mode == SDF_MODE_CLOSEST ? b->triangle : NULL};
+    sdf_diag diag = {0};
+    int rc = sdf_proto_mode_filtered(mode) /* parameters were validated at submission */
+                 ? sdf_query_filtered(list->mesh, p, points, &opts, &list->filter, &res, &diag)
+                 : sdf_query(list->mesh, p, points, &opts, &res);
+    if (rc)
+        snprintf(message, cap, "%s", diag.message[0] ? diag.message : sdf_strerror(rc));
+    return rc;
+}
+
+/* Answer the jobs of one query_batch call and hand each to its `done`. */
+static void deliver(sdfd_batcher *b, sdfd_job *list, int rc, const char *message)
+{
     size_t offset = 0;
     for (sdfd_job *j = list, *next; j; j = next) {
         next = j->next; /* done() may free the job */
         j->status = rc;
+        snprintf(j->message, sizeof j->message, "%s", rc ? message : "");
         if (!rc)
             scatter(b, j, offset);
         offset += j->count;
         sdfd_metrics_queue_depth(b->metrics, -1);
         j->done(j);
+    }
+}
+
+static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t points)
+{
+    double start = sdfd_now();
+    char message[sizeof list->message];
+    int rc = query_batch(b, list, requests, points, message, sizeof message);
+    sdfd_metrics_batch(b->metrics, requests, points, sdfd_now() - start);
+    if (rc && requests > 1) {
+        /* One request's points or the batch's size failed them all: each on its own, so
+         * only the one that cannot be answered hears of it. */
+        for (sdfd_job *j = list, *next; j; j = next) {
+            next = j->next;
+            j->next = NULL;
+            rc = query_batch(b, j, 1, j->count, message, sizeof message);
+            deliver(b, j, rc, message);
+        }
+    } else {
+        deliver(b, list, rc, message);
     }
 }
 

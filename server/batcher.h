@@ -10,7 +10,10 @@
  * dispatcher thread. Under load the queue fills while a batch computes, so batches grow
  * without any waiting; the window only matters when the server is idle.
  *
- * Points are checked (finite) at submission, so one bad request can never fail a batch. */
+ * Points are checked (finite) at submission, and a shared batch that fails all the same (a
+ * filtered kernel that displaces one request's samples out of range, memory for the whole
+ * batch) is run again request by request, so each gets its own answer and one request's
+ * trouble never fails another's. */
 #ifndef SDFD_BATCHER_H
 #define SDFD_BATCHER_H
 
@@ -36,6 +39,8 @@ struct sdfd_job {
     void *user;
     /* out */
     int status;              /* 0 or an SDF_E* code */
+    char message[256];       /* with a status: what went wrong, for the client (the size
+                                of sdf_diag's message) */
     /* private */
     sdfd_job *next;
     double enqueued;

@@ -144,7 +144,7 @@ static void query_done(sdfd_job *job)
     size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
                  4 * sdf_proto_words(job->mode) * job->count;
     if (job->status) {
-        send_error(c, bj->request_id, job->status, sdf_strerror(job->status));
+        send_error(c, bj->request_id, job->status, job->message);
         free(bj->frame);
     } else {
         enqueue(c, bj->frame, len);

@@ -403,8 +403,7 @@ enum MHD_Result sdfd_http_results(request *req)
 static enum MHD_Result reply_query(request *req)
 {
     if (req->job.status)
-        return sdfd_http_error(req, req->job.status, "query failed: %s",
-                               sdf_strerror(req->job.status));
+        return sdfd_http_error(req, req->job.status, "query failed: %s", req->job.message);
     return sdfd_http_results(req);
 }
 

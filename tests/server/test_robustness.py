@@ -341,6 +341,38 @@ class Concurrency(unittest.TestCase):
                   f"{int(batches - single)} held more than one", file=sys.stderr)
 
 
+    def test_failed_batch_fails_only_its_culprit(self):
+        # A filtered kernel of width ~1e17 (cap 1e17) displaces the samples of a point at
+        # 9.9e17 beyond the +-1e18 the library accepts, while points near the demo mesh keep
+        # theirs in place: with the same parameters, all three requests share one batch.
+        with Server("--batch-window-us", "300000") as s:
+            f = {"cap": 1e17}
+            good = np.array([[3.35, 0, 0], [0.5, 0.2, 0.1]], np.float32)
+            bad = np.array([[9.9e17, 0, 0]], np.float32)
+            c = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            alone = c.query("demo", good, mode="filtered", filter=f)["distance"]
+            got = c.query_many([("demo", good), ("demo", bad), ("demo", good)],
+                               mode="filtered", filter=f)
+            c.close()
+            self.assertIsInstance(got[1], sdfclient.SdfError)
+            self.assertEqual((got[1].status, got[1].code), (422, "ENONFINITE"))
+            self.assertIn("make it narrower", got[1].message)  # the library's own reason
+            for k in (0, 2):
+                self.assertNotIsInstance(got[k], sdfclient.SdfError, got[k])
+                self.assertEqual(got[k]["distance"].tobytes(), alone.tobytes())
+            text = sdfclient.Client(s.url).metrics()
+            shared = metric(text, "sdfd_batch_requests_count") - \
+                metric(text, "sdfd_batch_requests_bucket", 'le="1"')
+            self.assertGreater(shared, 0, "the three requests did not share a batch")
+            # Over HTTP, the refusal carries the same reason.
+            status, data = raw_http(s.ports["http"], "POST", "/v1/meshes/demo/query",
+                                    json.dumps({"points": bad.tolist(), "mode": "filtered",
+                                                "filter": f}).encode(),
+                                    {"Content-Type": "application/json"})
+            self.assertEqual(status, 422)
+            self.assertIn("make it narrower", data["error"]["message"])
+
+
 class Shutdown(unittest.TestCase):
     def test_sigterm_answers_everything_in_flight(self):
         s = Server()
