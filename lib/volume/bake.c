@@ -63,8 +63,14 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
             margin = DEFAULT_MARGIN_OF_DIAGONAL * r.diagonal;
         if (!(isfinite(margin) && margin >= 0))
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "margin must be a length >= 0");
-        for (int a = 0; a < 3; a++)
+        for (int a = 0; a < 3; a++) {
             lo[a] = r.bbox_min[a] - margin, hi[a] = r.bbox_max[a] + margin;
+            if (!(fabs(lo[a]) <= SDF_MAX_COORDINATE && fabs(hi[a]) <= SDF_MAX_COORDINATE))
+                return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                     "the default bounds (the mesh's box grown by a margin of "
+                                     "%g) pass +-1e18 on %c; give bounds, or a smaller margin",
+                                     margin, "xyz"[a]);
+        }
     } else {
         for (int a = 0; a < 3; a++) {
             lo[a] = o->lo[a], hi[a] = o->hi[a];
