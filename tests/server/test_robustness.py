@@ -340,7 +340,6 @@ class Concurrency(unittest.TestCase):
             print(f"\n  {int(batches)} batches for {64 * 8 * 2} requests; "
                   f"{int(batches - single)} held more than one", file=sys.stderr)
 
-
     def test_failed_batch_fails_only_its_culprit(self):
         # A filtered kernel of width ~1e17 (cap 1e17) displaces the samples of a point at
         # 9.9e17 beyond the +-1e18 the library accepts, while points near the demo mesh keep
