@@ -160,10 +160,10 @@ static void scatter(const sdfd_batcher *b, sdfd_job *j, size_t offset)
 _Static_assert(sizeof((sdfd_job *)0)->message >= sizeof((sdf_diag *)0)->message,
                "a job holds the library's whole message");
 
-/* Run jobs [list..] (requests of them, points in all) as one library call; its results land
- * in the scratch arrays in list order. Returns 0 or an SDF_E* code with `message` set. */
-static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t points,
-                       char *message, size_t cap)
+/* Run the jobs linked from `list` (points in all) as one library call; its results land in
+ * the scratch arrays in list order. Returns 0 or an SDF_E* code with `message` set. */
+static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t points, char *message,
+                       size_t cap)
 {
     message[0] = '\0';
     if (ensure_scratch(b, points)) {
@@ -171,7 +171,7 @@ static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t 
         return SDF_ENOMEM;
     }
     const float *p = list->points;
-    if (requests > 1) { /* gather: one contiguous batch */
+    if (list->next) { /* several jobs: gathered into one contiguous batch */
         size_t at = 0;
         for (sdfd_job *j = list; j; j = j->next) {
             memcpy(b->points + 3 * at, j->points, 3 * j->count * sizeof(float));
@@ -216,7 +216,7 @@ static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t p
 {
     double start = sdfd_now();
     char message[sizeof list->message];
-    int rc = query_batch(b, list, requests, points, message, sizeof message);
+    int rc = query_batch(b, list, points, message, sizeof message);
     sdfd_metrics_batch(b->metrics, requests, points, sdfd_now() - start);
     if (rc && requests > 1) {
         /* One request's points or the batch's size failed them all: each on its own, so
@@ -224,7 +224,7 @@ static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t p
         for (sdfd_job *j = list, *next; j; j = next) {
             next = j->next;
             j->next = NULL;
-            rc = query_batch(b, j, 1, j->count, message, sizeof message);
+            rc = query_batch(b, j, j->count, message, sizeof message);
             deliver(b, j, rc, message);
         }
     } else {
