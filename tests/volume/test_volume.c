@@ -545,6 +545,23 @@ static void test_progress_and_options(const sdf_mesh *mesh)
         CHECK(rc == bad[i].code && v == NULL && strstr(diag.message, bad[i].says),
               "bad option %zu: rc %d, message '%s'", i, rc, diag.message);
     }
+    /* A mesh that reaches almost to +-1e18 is accepted, but its box grown by the default
+       5 % margin is not: the bake is refused before it starts, not failed half-way. */
+    const float far = 0.99e18f;
+    const float tetra_v[4 * 3] = {-far, -far, -far, far, -far, -far, -far, far, -far,
+                                  -far, -far, far};
+    const uint32_t tetra_t[4 * 3] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    sdf_mesh *huge = NULL;
+    CHECK(sdf_mesh_create(tetra_v, 4, tetra_t, 4, NULL, &huge, NULL) == 0, "a mesh near 1e18");
+    if (huge) {
+        sdf_bake_options defaults = {.dims = {4, 4, 4}};
+        sdf_diag diag = {0};
+        v = (sdf_volume *)1;
+        int rc = sdf_volume_bake(huge, &defaults, &v, &diag);
+        CHECK(rc == SDF_EINVAL && v == NULL && strstr(diag.message, "default bounds"),
+              "default bounds past 1e18: rc %d, message '%s'", rc, diag.message);
+        sdf_mesh_release(huge);
+    }
     sdf_filter_options wide = {.kernel = SDF_KERNEL_BUMP, .cap = 0.01, .b = 0.5};
     sdf_bake_options fo = {.dims = {8, 8, 8}, .filter = &wide};
     sdf_diag diag;
