@@ -62,11 +62,12 @@ void sdf__fat_prepare(const sdf__scan_call *st, const sdf__region *r, sdf__fat_r
     }
 }
 
-/* First order: the region's feature at each fine sample of node idx that the region holds,
- * kept where nearer than the sample's best so far (signed by the pseudonormal). A plane that
- * holds every sample is not tested per sample. */
-SDF__HOT_INLINE void fat_node(const sdf__scan_call *st, const sdf__region *r, sdf__fat_region *fr,
-                              float *best, size_t n, const size_t idx[3])
+/* First order: the region's feature at each fine sample of node idx, into cand (squared
+ * distances, negative where the pseudonormal says inside; INFINITY at samples the region
+ * does not hold). 0 when it holds none. A plane that holds every sample is not tested per
+ * sample. */
+SDF__HOT_INLINE int fat_node(const sdf__scan_call *st, const sdf__region *r, sdf__fat_region *fr,
+                             float *cand, const size_t idx[3])
 {
     size_t m = SDF__POW3(st->fine_w);
     double d[3];
@@ -77,12 +78,11 @@ SDF__HOT_INLINE void fat_node(const sdf__scan_call *st, const sdf__region *r, sd
     for (int p = 0; p < r->planes; p++) {
         value[p] = sdf__dot3(r->plane[p], d) - fr->plane_c[p];
         if (value[p] + fr->plane_lo[p] > 0)
-            return; /* no sample in the region */
+            return 0; /* no sample in the region */
         if (value[p] + fr->plane_hi[p] > 0)
             straddling[count++] = p;
     }
     double side = sdf__dot3(r->sign_dir, d);
-    float *cand = fr->cand;
     if (r->kind == SDF__REGION_FACE) {
         double h0 = sdf__dot3(r->dir, d);
         for (size_t j = 0; j < m; j++) {
@@ -120,9 +120,42 @@ SDF__HOT_INLINE void fat_node(const sdf__scan_call *st, const sdf__region *r, sd
         for (size_t j = 0; j < m; j++) /* branchless, vectorised */
             cand[j] = v + along[j] > 0 ? INFINITY : cand[j];
     }
-    float *out = best + n * m;
-    for (size_t j = 0; j < m; j++) /* branchless, vectorised */
-        out[j] = fabsf(cand[j]) < fabsf(out[j]) ? cand[j] : out[j];
+    return 1;
+}
+
+/* First order: the waiting nodes' candidates (see pending_visit) kept where nearer than their
+ * samples' bests. */
+SDF__HOT_INLINE void offer_fat_pending(float *best, const sdf__fat_region *fr, int held, size_t m)
+{
+    for (int k = 0; k < held; k++) {
+        float *out = best + fr->pending_node[k] * m;
+        const float *cand = fr->pending[k];
+        for (size_t j = 0; j < m; j++) /* branchless, vectorised */
+            out[j] = fabsf(cand[j]) < fabsf(out[j]) ? cand[j] : out[j];
+    }
+}
+
+/* Zero order: the region's visits wait here (first order: in its sdf__fat_region), their
+ * nodes prefetched, and are offered to the nodes' bests SDF__PENDING_VISITS at a time. The
+ * bests are a worker's whole copy of the call's nodes, tens of MiB, and each visit's load
+ * missed the cache in turn while the region's geometry waited on it (a third of the scan's
+ * time, refined_elephant 128^3); apart, the loads overlap each other and the slicing. A
+ * region holds each node once, so the order of its offers does not matter. */
+typedef struct pending_visit {
+    size_t node;
+    double d2;
+    int8_t sure;
+} pending_visit;
+
+SDF__HOT_INLINE void offer_pending(sdf__node_best *best, const pending_visit *pending, int held,
+                                   uint32_t feature)
+{
+    for (int k = 0; k < held; k++) {
+        sdf__node_best *nb = &best[pending[k].node];
+        double d2 = pending[k].d2;
+        if (d2 < nb->d2 || (d2 == nb->d2 && feature < nb->winner))
+            nb->d2 = d2, nb->winner = feature, nb->sure = pending[k].sure;
+    }
 }
 
 /* A slice's cross-section fits this many lattice points or fewer: test each one against the
@@ -199,6 +232,8 @@ SDF__SIMD_CLONES void sdf__scan_region(const sdf__scan_call *st, const sdf__regi
     }
     size_t stride[3] = {1, s->dims[0], s->dims[0] * s->dims[1]};
     size_t base = st->k0 * stride[2];
+    pending_visit pending[SDF__PENDING_VISITS];
+    int held = 0;
     const double *o = r->origin;
     for (size_t sa = from[A]; sa <= to[A]; sa++) {
         double ca = s->coord[A][sa];
@@ -300,15 +335,19 @@ SDF__SIMD_CLONES void sdf__scan_region(const sdf__scan_call *st, const sdf__regi
                     node_sure &= cc >= lo_sure && cc <= hi_sure;
                 }
                 if (st->fine_w) {
-                    size_t idx[3];
+                    size_t idx[3], n = row + u * stride[C];
                     idx[A] = sa, idx[B] = sb, idx[C] = u;
-                    if (u < v1) { /* the next node's bests: rows run along any axis, at
-                                   * a stride the hardware's prefetcher does not follow */
-                        const float *next = best_samples + (row + (u + 1) * stride[C]) * fr_samples;
-                        __builtin_prefetch(next);
-                        __builtin_prefetch(next + 16);
+                    if (fat_node(st, r, fr, fr->pending[held], idx)) {
+                        const char *at = (const char *)(best_samples + n * fr_samples);
+                        for (size_t b = 0; b < fr_samples * sizeof(float); b += 64)
+                            __builtin_prefetch(at + b, 1);
+                        __builtin_prefetch(at + fr_samples * sizeof(float) - 1, 1);
+                        fr->pending_node[held++] = n;
+                        if (held == SDF__PENDING_VISITS) {
+                            offer_fat_pending(best_samples, fr, held, fr_samples);
+                            held = 0;
+                        }
                     }
-                    fat_node(st, r, fr, best_samples, row + u * stride[C], idx);
                     continue;
                 }
                 double t = cc - o[C], d2;
@@ -322,14 +361,19 @@ SDF__SIMD_CLONES void sdf__scan_region(const sdf__scan_call *st, const sdf__regi
                     d2 = r0 + t * t;
                 }
                 size_t n = row + u * stride[C];
-                sdf__node_best *nb = &best[n];
-                if (d2 < nb->d2 || (d2 == nb->d2 && feature < nb->winner)) {
-                    double side = s0 + s1 * t;
-                    nb->d2 = d2, nb->winner = feature;
-                    nb->sure = (int8_t)(!node_sure || fabs(side) <= sign_by ? 0
-                                        : side > 0 ? 1 : -1);
+                __builtin_prefetch(&best[n], 1);
+                double side = s0 + s1 * t;
+                pending[held++] = (pending_visit){
+                    n, d2, (int8_t)(!node_sure || fabs(side) <= sign_by ? 0 : side > 0 ? 1 : -1)};
+                if (held == SDF__PENDING_VISITS) {
+                    offer_pending(best, pending, held, feature);
+                    held = 0;
                 }
             }
         }
     }
+    if (st->fine_w)
+        offer_fat_pending(best_samples, fr, held, fr_samples);
+    else
+        offer_pending(best, pending, held, feature);
 }

@@ -19,6 +19,7 @@
 
 #define SDF__SCAN_MAX_W (2 * 4 + 1) /* first order: the fine grid's width, H <= 4 */
 #define SDF__SCAN_MAX_SAMPLES (SDF__SCAN_MAX_W * SDF__SCAN_MAX_W * SDF__SCAN_MAX_W)
+#define SDF__PENDING_VISITS 16 /* a region's node visits held back at a time (raster.c) */
 #define SDF__POW3(w) ((size_t)(w) * (size_t)(w) * (size_t)(w))
 
 struct sdf__scan {
@@ -93,7 +94,9 @@ struct sdf__fat_region {
     /* n . delta_j of plane p, made the first time p straddles a node's fine grid. */
     uint8_t plane_ready[SDF__REGION_PLANES];
     double plane_delta[SDF__REGION_PLANES][SDF__SCAN_MAX_SAMPLES];
-    float cand[SDF__SCAN_MAX_SAMPLES];
+    /* Nodes whose candidates wait for their bests to arrive in the cache (raster.c). */
+    size_t pending_node[SDF__PENDING_VISITS];
+    float pending[SDF__PENDING_VISITS][SDF__SCAN_MAX_SAMPLES];
 };
 
 /* First order: the region's tables of the fine offsets, before its nodes are visited. */

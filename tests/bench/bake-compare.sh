@@ -6,11 +6,14 @@
 #    with voxels as large as our largest node spacing and a half width that covers the whole
 #    box (the largest |distance| in it, in voxels, plus one): our nodes per second over its
 #    active voxels per second (target: >= 5x).
-# usage: tests/bench/bake-compare.sh [BUILD_DIR (build)] [DIM (128)] [MESH ...]
+# Each bake, ours and OpenVDB's, runs REPEAT times (default 3) and keeps its fastest: this
+# machine's timings wander by 10-20 % from run to run.
+# usage: [REPEAT=N] tests/bench/bake-compare.sh [BUILD_DIR (build)] [DIM (128)] [MESH ...]
 set -eu
 cd "$(dirname "$0")/../.."
 build=${1:-build}
 dim=${2:-128}
+repeat=${REPEAT:-3}
 if [ "$#" -ge 2 ]; then shift 2; else shift "$#"; fi # dash exits on a failed shift
 meshes=${*:-"../shared/meshes/fandisk.off ../shared/meshes/refined_elephant.off"}
 [ -f "$build/build.ninja" ] || meson setup "$build" --buildtype=release >/dev/null
@@ -23,7 +26,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 for mesh in $meshes; do
     name=$(basename "$mesh" .off)
-    "$build/tests/bench/bake-bench" "$mesh" "$dim" > "$tmp/ours.json"
+    "$build/tests/bench/bake-bench" "$mesh" "$dim" 0 "repeat=$repeat" > "$tmp/ours.json"
     "$build/tests/bench/sdf-volume" bake "$mesh" "$tmp/v.npy" --format npy --resolution "$dim" \
         > "$tmp/meta.json"
     set -- $(/usr/bin/python3 - "$tmp" <<'PY'
@@ -36,7 +39,7 @@ half = math.ceil(float(np.abs(np.load(tmp + "/v.npy")).max()) / voxel) + 1
 print(voxel, half)
 PY
 )
-    /usr/bin/python3 tests/bench/vdb_bake.py "$mesh" "$1" "$2" > "$tmp/vdb.json"
+    /usr/bin/python3 tests/bench/vdb_bake.py "$mesh" "$1" "$2" "$repeat" > "$tmp/vdb.json"
     /usr/bin/python3 - "$tmp" "$name" "$dim" <<'PY'
 import json, sys
 tmp, name, dim = sys.argv[1], sys.argv[2], int(sys.argv[3])
