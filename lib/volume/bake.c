@@ -110,6 +110,16 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                  "Delta (fine_spacing) must be in (0, 0.5] cells, not %g",
                                  in->fine_spacing);
+        /* The fitting grids of the corner nodes reach H Delta cells past the bounds: checked
+         * here, so such a bake is refused before it starts rather than failing half-way. */
+        for (int a = 0; a < 3; a++) {
+            double reach = in->fine_half * in->fine_spacing * in->spacing[a];
+            if (!(lo[a] - reach >= -SDF_MAX_COORDINATE && hi[a] + reach <= SDF_MAX_COORDINATE))
+                return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                     "the first-order fitting grids (H Delta = %g cells) reach "
+                                     "past +-1e18 on %c; give bounds further inside",
+                                     in->fine_half * in->fine_spacing, "xyz"[a]);
+        }
     }
     if (in->encoding == SDF_ENCODING_PACKED32)
         in->packed_range = 1; /* placeholder for the check; set from the data when baked */

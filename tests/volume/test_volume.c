@@ -536,6 +536,7 @@ static void test_progress_and_options(const sdf_mesh *mesh)
         {{.lo = {0, -2e18, 0}, .hi = {1, 1, 1}}, SDF_EINVAL, "within +-1e18"},
         {{.margin = -1}, SDF_EINVAL, "margin"},
         {{.margin = 2e18}, SDF_EINVAL, "default bounds"}, /* refused here, not mid-bake */
+        {{.lo = {-1e18, 0, 0}, .hi = {1e18, 1, 1}, .order = 1}, SDF_EINVAL, "fitting grids"},
         {{.query.sign = (sdf_sign_method)9}, SDF_EINVAL, "sign"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
