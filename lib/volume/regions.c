@@ -106,7 +106,7 @@ static double truncate_reach(const sdf__features *s, const double base[3], const
     double widened = offset + s->bound_point_error + s->slack, best = reach;
     /* A coarse cell of the finest axis a step, but no more than s->march_steps steps: bounds
      * far longer on one axis than another (a box 2e6 by 1 by 1 around a unit mesh) made
-     * millions of steps a region, and the bake ran for hours. Longer steps only cut a
+     * millions of steps a region, a 64^3 bake for minutes. Longer steps only cut a
      * region later, which is always safe. */
     double step = sdf__max2(s->march, reach / s->march_steps);
     for (double t = 0; t < best; t += step) {
