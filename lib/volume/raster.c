@@ -338,6 +338,8 @@ SDF__SIMD_CLONES void sdf__scan_region(const sdf__scan_call *st, const sdf__regi
                     size_t idx[3], n = row + u * stride[C];
                     idx[A] = sa, idx[B] = sb, idx[C] = u;
                     if (fat_node(st, r, fr, fr->pending[held], idx)) {
+                        /* Every cache line of the node's samples: the lines from its
+                         * start, and its last byte's, as it need not start on a line. */
                         const char *at = (const char *)(best_samples + n * fr_samples);
                         for (size_t b = 0; b < fr_samples * sizeof(float); b += 64)
                             __builtin_prefetch(at + b, 1);

@@ -104,11 +104,14 @@ static double truncate_reach(const sdf__features *s, const double base[3], const
         return reach;
     /* The points are floats near the surface: widen by how far they may lie from it. */
     double widened = offset + s->bound_point_error + s->slack, best = reach;
-    /* A coarse cell of the finest axis a step, but no more than s->march_steps steps: bounds
-     * far longer on one axis than another (a box 2e6 by 1 by 1 around a unit mesh) made
-     * millions of steps a region, a 64^3 bake for minutes. Longer steps only cut a
-     * region later, which is always safe. */
-    double step = sdf__max2(s->march, reach / s->march_steps);
+    /* A coarse cell of the finest axis a step, but no more steps than twice the coarse
+     * lattice's nodes along its three axes: bounds far longer on one axis than another (a
+     * box 2e6 by 1 by 1 around a unit mesh) made millions of steps a region, a 64^3 bake
+     * for minutes. A cube's regions (at most its diagonal long, ~28 coarse cells at 17 nodes
+     * per axis) still step a cell at a time. Longer steps only cut a region later, which is
+     * always safe. */
+    double most_steps = 2.0 * (double)(s->bound_dims[0] + s->bound_dims[1] + s->bound_dims[2]);
+    double step = sdf__max2(s->march, reach / most_steps);
     for (double t = 0; t < best; t += step) {
         size_t at = 0, scale = 1;
         for (int a = 0; a < 3; a++) { /* the nearest coarse node */
@@ -540,9 +543,6 @@ int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *co
      * better; with closest points, half a cell or coarse nodes every 4th or 6th node instead
      * of every 8th were within noise). */
     f->march = (double)step * finest;
-    /* Twice the coarse nodes along the three axes: a cube's regions (at most its diagonal
-     * long, ~28 coarse cells at 17 nodes per axis) still step a cell at a time. */
-    f->march_steps = 2.0 * (double)(n[0] + n[1] + n[2]);
     /* Widened past the float rounding of the coarse distances. */
     double widen = sqrt(half_diag2) * (1 + 1e-6) + f->slack;
     f->reach_front = (sided ? outside : sdf__max2(outside, inside)) * (1 + 1e-6) + widen;

@@ -73,7 +73,6 @@ typedef struct sdf__features {
     const double *bound_coord[3];        /* its node coordinates per axis */
     double bound_inv_step[3];            /* 1 / the spacing of its nodes */
     double march;                        /* step along a region's axis when truncating */
-    double march_steps;                  /* most steps of one truncation */
 } sdf__features;
 
 /* Positions in double and the adjacency of a closed mesh's features, on up to `threads`
