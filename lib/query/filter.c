@@ -145,10 +145,24 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
         out->cap = DEFAULT_CAP_OF_DIAGONAL * (r.diagonal > 0 ? r.diagonal : 1);
     if (!positive(out->cap))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "cap (f_c) must be a positive number");
-    if (out->a == 0)
+    /* The kernel widths default to the cap's scale; a cap so small or large that they would
+     * overflow or vanish is the cap's fault, and the message says so. */
+    if (out->a == 0) {
         out->a = 8 / (out->cap * out->cap);
-    if (out->b == 0)
+        if (!positive(out->a))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "cap (f_c) = %g is out of range: the Gaussian's default a = 8 / "
+                                 "f_c^2 is %g; choose another cap or give a",
+                                 out->cap, out->a);
+    }
+    if (out->b == 0) {
         out->b = 8 * out->cap / 9;
+        if (!positive(out->b))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "cap (f_c) = %g is out of range: the bump's default width b = "
+                                 "8 f_c / 9 is %g; choose another cap or give b",
+                                 out->cap, out->b);
+    }
     if (!positive(out->a))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "the Gaussian's a must be a positive number");
     if (!positive(out->b))

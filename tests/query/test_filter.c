@@ -428,6 +428,10 @@ static void test_bad_parameters(const sdf_mesh *m, double diag)
     expect_refused(m, (sdf_filter_options){.samples = SDF_FILTER_MAX_SAMPLES + 1}, "samples");
     expect_refused(m, (sdf_filter_options){.cap = -1}, "cap");
     expect_refused(m, (sdf_filter_options){.a = NAN}, "a must");
+    /* Caps whose default widths overflow or vanish are named as the cause. */
+    expect_refused(m, (sdf_filter_options){.cap = 1e-300}, "cap (f_c) = 1e-300 is out of range");
+    expect_refused(m, (sdf_filter_options){.cap = 1e300}, "cap (f_c) = 1e+300 is out of range");
+    expect_refused(m, (sdf_filter_options){.cap = 1e308, .a = 1}, "default width b");
     expect_refused(m, (sdf_filter_options){.kernel = (sdf_kernel)7}, "kernel");
     expect_refused(m, (sdf_filter_options){.smooth = {.shape = SDF_VOLUME_SPHERE}}, "radius");
     expect_refused(m, (sdf_filter_options){.smooth = {.shape = SDF_VOLUME_BOX, .hi = {1, 1, 0}}},
