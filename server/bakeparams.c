@@ -21,12 +21,18 @@ static int number(const cJSON *item, const char *key, double *out, char *err, si
     return 0;
 }
 
+/* A whole number within [lo, hi], a window that only keeps it a long: the library states
+ * each value's real limits. */
 static int integer(const cJSON *item, const char *key, double lo, double hi, long *out, char *err,
                    size_t cap)
 {
     double v;
-    if (number(item, key, &v, err, cap) || v != floor(v) || v < lo || v > hi)
-        return fail(err, cap, "'%s' must be a whole number in range", key);
+    if (number(item, key, &v, err, cap) || v != floor(v))
+        return fail(err, cap, "'%s' must be a whole number", key);
+    if (v < lo || v > hi) {
+        snprintf(err, cap, "'%s' is %g, out of range (%g..%g)", key, v, lo, hi);
+        return SDF_EINVAL;
+    }
     *out = (long)v;
     return 0;
 }
@@ -64,7 +70,7 @@ static int resolution(const cJSON *item, sdf_bake_options *o, char *err, size_t 
 {
     long n;
     if (cJSON_IsNumber(item)) {
-        if (integer(item, "resolution", 1, 1e9, &n, err, cap))
+        if (integer(item, "resolution", 2, SDF_VOLUME_MAX_DIM, &n, err, cap))
             return SDF_EINVAL;
         o->dims[0] = o->dims[1] = o->dims[2] = (size_t)n;
         return 0;
@@ -72,7 +78,8 @@ static int resolution(const cJSON *item, sdf_bake_options *o, char *err, size_t 
     if (!cJSON_IsArray(item) || cJSON_GetArraySize(item) != 3)
         return fail(err, cap, "'%s' must be a whole number or an array of 3", "resolution");
     for (int a = 0; a < 3; a++) {
-        if (integer(cJSON_GetArrayItem(item, a), "resolution", 1, 1e9, &n, err, cap))
+        if (integer(cJSON_GetArrayItem(item, a), "resolution", 2, SDF_VOLUME_MAX_DIM, &n, err,
+                    cap))
             return SDF_EINVAL;
         o->dims[a] = (size_t)n;
     }

@@ -192,7 +192,10 @@ class Volumes(unittest.TestCase):
         self.assertEqual(e.exception.status, 404)
 
     def test_bad_requests(self):
-        bad = [({"resolution": 1}, 422, "resolution x"),
+        bad = [({"resolution": 1}, 422, "'resolution' is 1, out of range (2..4096)"),
+               ({"resolution": 0}, 422, "'resolution' is 0, out of range (2..4096)"),
+               ({"resolution": [8, 8, 5000]}, 422, "'resolution' is 5000, out of range"),
+               ({"order": 1e12}, 422, "'order' is 1e+12, out of range"),
                ({"resolution": [8, 8]}, 422, "resolution"),
                ({"resolution": 8.5}, 422, "resolution"),
                ({"order": 2}, 422, "order"),
