@@ -62,8 +62,13 @@ static int bounds(const cJSON *item, sdf_bake_options *o, char *err, size_t cap)
     const cJSON *hi = cJSON_GetObjectItemCaseSensitive(item, "max");
     if (!cJSON_IsObject(item) || !lo || !hi || cJSON_GetArraySize(item) != 2)
         return fail(err, cap, "'%s' must be {\"min\": [x, y, z], \"max\": [x, y, z]}", "bounds");
-    return triple(lo, "bounds.min", o->lo, err, cap) || triple(hi, "bounds.max", o->hi, err, cap)
-               ? SDF_EINVAL : 0;
+    if (triple(lo, "bounds.min", o->lo, err, cap) || triple(hi, "bounds.max", o->hi, err, cap))
+        return SDF_EINVAL;
+    /* All zero would read as "no bounds" to the library (sdf_bake_options). */
+    for (int a = 0; a < 3; a++)
+        if (!(o->lo[a] < o->hi[a]))
+            return fail(err, cap, "'%s' must have min < max on every axis", "bounds");
+    return 0;
 }
 
 static int resolution(const cJSON *item, sdf_bake_options *o, char *err, size_t cap)
@@ -102,8 +107,11 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
     }
     if (!strcmp(key, "bounds"))
         return bounds(item, o, err, cap);
-    if (!strcmp(key, "margin"))
-        return number(item, key, &o->margin, err, cap);
+    if (!strcmp(key, "margin")) {
+        int rc = number(item, key, &o->margin, err, cap);
+        out->mesh_box = !rc && o->margin == 0;
+        return rc;
+    }
     if (!strcmp(key, "resolution"))
         return resolution(item, o, err, cap);
     if (!strcmp(key, "order")) {
@@ -188,6 +196,8 @@ int sdfd_bake_from_json(const char *text, size_t len, sdfd_bake_request *out,
         rc = fail(err, cap, "a '%s' object needs \"field\": \"filtered\" (or no field)", "filter");
     if (!rc && field == 1)
         out->filtered = 1; /* the filter's defaults */
+    if (out->options.lo[0] < out->options.hi[0])
+        out->mesh_box = 0; /* bounds given: the margin does not apply */
     cJSON_Delete(root);
     return rc;
 }

@@ -54,9 +54,10 @@ static int store(sdf_filter_options *f, const struct field *fd, double number, c
             return bad(err, cap, "filter kernel must be \"gaussian\" or \"bump\", not \"%.40s\"",
                        text);
         return 0;
-    case NUMBER:
-        if (!isfinite(number))
-            return bad(err, cap, "filter %s must be a finite number", fd->name);
+    case NUMBER: /* cap, a, b, medial: the library reads 0 as "the default", so it is
+                  * refused here rather than silently replaced */
+        if (!isfinite(number) || !(number > 0))
+            return bad(err, cap, "filter %s must be a positive finite number", fd->name);
         *(double *)at = number;
         return 0;
     case COUNT:
@@ -142,8 +143,8 @@ static int json_smooth(const cJSON *o, sdf_filter_options *f, char *volume_mesh,
             f->smooth.shape = SDF_VOLUME_MESH;
             shapes++;
         } else if (!strcmp(k, "depth") || !strcmp(k, "scale")) {
-            if (!cJSON_IsNumber(item) || !isfinite(item->valuedouble))
-                return bad(err, cap, "smooth %s must be a finite number", k);
+            if (!cJSON_IsNumber(item) || !isfinite(item->valuedouble) || !(item->valuedouble > 0))
+                return bad(err, cap, "smooth %s must be a positive finite number", k);
             *(k[0] == 'd' ? &f->smooth.depth : &f->smooth.scale) = item->valuedouble;
         } else {
             return bad(err, cap, "unknown smooth parameter \"%.40s\" (sphere, box, mesh, depth, "
@@ -229,8 +230,9 @@ static int string_smooth(const char *(*lookup)(void *ctx, const char *name), voi
     const char *values[2] = {depth, scale};
     double *dst[2] = {&f->smooth.depth, &f->smooth.scale};
     for (int i = 0; i < 2; i++)
-        if (values[i] && list_numbers(values[i], dst[i], 1))
-            return bad(err, cap, "smooth_%s must be a number", i ? "scale" : "depth");
+        if (values[i] && (list_numbers(values[i], dst[i], 1) || !(*dst[i] > 0)))
+            return bad(err, cap, "smooth_%s must be a positive finite number",
+                       i ? "scale" : "depth");
     return 0;
 }
 

@@ -57,6 +57,12 @@ enum MHD_Result sdfd_http_bake(request *req)
         }
         bake.filter.smooth.mesh = bake.smoothing_mesh;
     }
+    if (bake.mesh_box) { /* "margin": 0: the corner nodes on the mesh's own box */
+        sdf_mesh_report report;
+        sdf_mesh_get_report(mesh, &report);
+        for (int a = 0; a < 3; a++)
+            bake.options.lo[a] = report.bbox_min[a], bake.options.hi[a] = report.bbox_max[a];
+    }
     const char *volume = names.volume[0] ? names.volume : req->name;
     char id[24];
     /* The job takes over both mesh references, also when it fails to start. */

@@ -90,6 +90,8 @@ typedef struct sdfd_bake_request {
     int filtered;
     sdf_filter_options filter;
     sdf_mesh *smoothing_mesh;     /* retained reference handed over, or NULL */
+    int mesh_box;                 /* "margin": 0 with no bounds: the mesh's own box (the
+                                     library reads a zero margin as its default) */
 } sdfd_bake_request;
 
 /* Start a job baking `mesh` (a retained reference handed over, like req->smoothing_mesh,

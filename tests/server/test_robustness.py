@@ -224,6 +224,21 @@ class BadInput(unittest.TestCase):
                     filter={"kernel": "bump", "cap": 0.01, "b": 0.5})
         self.assertEqual((e.exception.status, e.exception.code), (422, "EINVAL"))
         self.assertIn("8 f_c / 9", e.exception.message)
+        # Over HTTP an explicit 0 would read as "the default" to the library, so it is refused
+        # (the binary protocol's fixed FILTER block documents 0 as "the default").
+        http = sdfclient.Client(self.server.url)
+        for f, says, forms in [({"cap": 0}, "cap must be a positive", ("json", "octet")),
+                               ({"a": -1}, "a must be a positive", ("json", "octet", "binary")),
+                               ({"smooth": {"sphere": [0, 0, 0, 1], "scale": 0}},
+                                "scale must be a positive", ("json", "octet"))]:
+            for form in forms:
+                with self.assertRaises(sdfclient.SdfError, msg=f"{f} {form}") as e:
+                    (b.query("demo", np.zeros((2, 3)), mode="filtered", filter=f) if form == "binary"
+                     else http.query("demo", np.zeros((2, 3)), mode="filtered", filter=f,
+                                     form=form))
+                self.assertEqual((e.exception.status, e.exception.code), (422, "EINVAL"))
+                self.assertIn(says, e.exception.message)
+        http.close()
         with self.assertRaises(sdfclient.SdfError) as e:
             b.query("demo", np.zeros((2, 3)), mode="filtered", filter={"smooth": {"mesh": "nope"}})
         self.assertEqual((e.exception.status, e.exception.code), (404, "ENOTFOUND"))

@@ -191,6 +191,20 @@ class Volumes(unittest.TestCase):
             self.c.job(job["id"])
         self.assertEqual(e.exception.status, 404)
 
+    def test_zero_margin_is_the_mesh_box(self):
+        # The library reads a zero margin as its default (5 % of the diagonal); asked for
+        # explicitly, it means the mesh's own box.
+        box = self.c.mesh("fandisk")["bbox"]
+        self.assertEqual(self.bake(volume="box0", resolution=9, margin=0)["state"], "done")
+        meta = self.c.volume("box0")
+        far = [meta["origin"][a] + 8 * meta["spacing"][a] for a in range(3)]
+        np.testing.assert_allclose(meta["origin"], box["min"], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(far, box["max"], rtol=0, atol=1e-6)
+        self.assertEqual(self.bake(volume="box1", resolution=9)["state"], "done")
+        self.assertLess(self.c.volume("box1")["origin"][0], box["min"][0] - 0.01)
+        for name in ("box0", "box1"):
+            self.c.delete_volume(name)
+
     def test_bad_requests(self):
         bad = [({"resolution": 1}, 422, "'resolution' is 1, out of range (2..4096)"),
                ({"resolution": 0}, 422, "'resolution' is 0, out of range (2..4096)"),
@@ -204,7 +218,13 @@ class Volumes(unittest.TestCase):
                ({"encoding": "packed32"}, 422, "first-order"),
                ({"encoding": "png"}, 422, "encoding"),
                ({"order": 1, "normalize": "all"}, 422, "normalize"),
-               ({"bounds": {"min": [0, 0, 0], "max": [1, -1, 1]}}, 422, "lo < hi"),
+               ({"bounds": {"min": [0, 0, 0], "max": [1, -1, 1]}}, 422, "min < max"),
+               # all zero would read as "no bounds" to the library
+               ({"bounds": {"min": [0, 0, 0], "max": [0, 0, 0]}}, 422, "min < max"),
+               # 0 would read as "the default" to the library
+               ({"filter": {"cap": 0}}, 422, "cap must be a positive"),
+               ({"filter": {"smooth": {"sphere": [0, 0, 0, 1], "depth": 0}}}, 422,
+                "depth must be a positive"),
                ({"bounds": [0, 1]}, 422, "bounds"),
                ({"resolutoin": 8}, 422, "unknown key 'resolutoin'"),
                ({"field": "smooth"}, 422, "field"),
