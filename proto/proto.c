@@ -144,9 +144,19 @@ static void put_f64(unsigned char *p, double v)
     put64(p, bits);
 }
 
-/* Decode the fixed part of a FILTER block (the volume name, if any, follows it). */
-static void decode_filter(const unsigned char *p, sdf_proto_query *q)
+/* Decode the fixed part of a FILTER block (the volume name, if any, follows it). Bits and
+ * bytes the protocol reserves must be 0, so that a later version's meaning for them is never
+ * silently ignored: SDF_EINVAL with *reason, else 0. */
+static int decode_filter(const unsigned char *p, sdf_proto_query *q, const char **reason)
 {
+    if (p[1] & ~(FILTER_GRID | FILTER_UNSIGNED | FILTER_WIDE_BUMP | FILTER_SAMPLE_GRADIENT))
+        return fail(reason, SDF_EINVAL, "FILTER flags: only bits 0-3 are defined; the rest must "
+                                        "be 0");
+    if (get32(p + 108) != 0)
+        return fail(reason, SDF_EINVAL, "FILTER bytes 108-111 are reserved and must be 0");
+    if (p[2] != SDF_VOLUME_MESH && p[3] != 0)
+        return fail(reason, SDF_EINVAL, "FILTER volume mesh name length must be 0 unless the "
+                                        "smoothing volume is a mesh (3)");
     sdf_filter_options *f = &q->filter;
     *f = (sdf_filter_options){0};
     f->kernel = (sdf_kernel)p[0];
@@ -177,6 +187,7 @@ static void decode_filter(const unsigned char *p, sdf_proto_query *q)
         memcpy(f->smooth.lo, x, sizeof f->smooth.lo);
         memcpy(f->smooth.hi, x + 3, sizeof f->smooth.hi);
     }
+    return 0;
 }
 
 static void encode_filter(unsigned char *p, const sdf_proto_query *q)
@@ -245,7 +256,9 @@ int sdf_proto_decode_query(const void *payload, size_t size, uint32_t max_points
     if (sdf_proto_mode_filtered(q->mode)) {
         if (size < at + SDF_PROTO_FILTER_SIZE)
             return fail(reason, SDF_EPROTO, "QUERY payload is too short for its FILTER block");
-        decode_filter(p + at, q);
+        int rc = decode_filter(p + at, q, reason);
+        if (rc)
+            return rc;
         if (q->filter.smooth.shape == SDF_VOLUME_MESH) {
             if (q->volume_name_len == 0)
                 return fail(reason, SDF_EPROTO, "smoothing mesh name length must be 1..255");

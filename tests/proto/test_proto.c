@@ -106,6 +106,19 @@ static void test_filtered_query(void)
           "filter round trip");
     for (size_t len = 0; len < n - 16; len++)
         CHECK(sdf_proto_decode_query(frame + 16, len, 10, &back, &why) != 0, "prefix %zu", len);
+    /* Reserved bits and bytes must be 0: a later version's meaning is never ignored. */
+    unsigned char *block = frame + 16 + 8 + 4;
+    const struct { size_t at; unsigned char bit; const char *says; } reserved[] = {
+        {1, 0x10, "flags"}, {1, 0x80, "flags"}, {108, 1, "reserved"}, {111, 0x40, "reserved"},
+        {3, 1, "name length"}};
+    for (size_t r = 0; r < sizeof reserved / sizeof reserved[0]; r++) {
+        block[reserved[r].at] ^= reserved[r].bit;
+        CHECK(sdf_proto_decode_query(frame + 16, n - 16, 10, &back, &why) == SDF_EINVAL &&
+                  strstr(why, reserved[r].says),
+              "reserved byte %zu bit %#x accepted", reserved[r].at, reserved[r].bit);
+        block[reserved[r].at] ^= reserved[r].bit;
+    }
+    CHECK(sdf_proto_decode_query(frame + 16, n - 16, 10, &back, &why) == 0, "restored: %s", why);
     CHECK(sdf_proto_words(SDF_MODE_FILTERED) == 1 && sdf_proto_words(SDF_MODE_FILTERED_GRADIENT) == 4,
           "filtered words");
 
