@@ -27,6 +27,8 @@ static cJSON *job_json(const sdfd_job_status *s)
     cJSON_AddStringToObject(o, "mesh", s->mesh);
     cJSON_AddStringToObject(o, "volume", s->volume);
     cJSON_AddNumberToObject(o, "seconds", s->seconds);
+    if (s->cancel_requested) /* until it reaches its next step and ends canceled */
+        cJSON_AddBoolToObject(o, "cancel_requested", 1);
     if (s->state == SDFD_JOB_FAILED) {
         cJSON *err = cJSON_AddObjectToObject(o, "error");
         cJSON_AddStringToObject(err, "code", sdf_errname(s->error));
@@ -89,11 +91,7 @@ enum MHD_Result sdfd_http_job(request *req)
                       : sdfd_volumes_job(srv->volumes, req->name, &s);
     if (rc)
         return sdfd_http_error(req, rc, "no job '%s'", req->name);
-    cJSON *o = job_json(&s);
-    if (deleting)
-        cJSON_AddBoolToObject(o, "cancel_requested",
-                              s.state == SDFD_JOB_QUEUED || s.state == SDFD_JOB_RUNNING);
-    return sdfd_http_json(req, 200, o);
+    return sdfd_http_json(req, 200, job_json(&s));
 }
 
 enum MHD_Result sdfd_http_jobs(request *req)

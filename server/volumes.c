@@ -248,8 +248,10 @@ static void snapshot(job *j, sdfd_job_status *out)
 {
     *out = j->status;
     out->progress = atomic_load(&j->progress);
-    if (j->status.state == SDFD_JOB_QUEUED || j->status.state == SDFD_JOB_RUNNING)
+    int unfinished = j->status.state == SDFD_JOB_QUEUED || j->status.state == SDFD_JOB_RUNNING;
+    if (unfinished)
         out->seconds = sdfd_now() - j->started;
+    out->cancel_requested = unfinished && atomic_load(&j->cancel);
 }
 
 /* Under the lock: is j the oldest job still waiting for a slot (and not canceled)? The list

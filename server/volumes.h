@@ -81,6 +81,7 @@ typedef struct sdfd_job_status {
     double seconds;               /* queued + running so far, or in all when finished */
     int error;                    /* FAILED: the SDF_E* code */
     char message[256];            /* FAILED: why */
+    int cancel_requested;         /* QUEUED or RUNNING, canceled: it ends at its next step */
 } sdfd_job_status;
 
 /* A bake request: what sdf_volume_bake needs, with the filter (and its smoothing mesh)

@@ -178,10 +178,14 @@ class Volumes(unittest.TestCase):
         s = self.c.cancel(job["id"])
         self.assertTrue(s["cancel_requested"])
         deadline = time.time() + 30
-        while self.c.job(job["id"])["state"] in ("queued", "running") and time.time() < deadline:
-            time.sleep(0.05)
-        s = self.c.job(job["id"])
+        while True:  # until it ends, every look says the cancel is pending
+            s = self.c.job(job["id"])
+            if s["state"] not in ("queued", "running") or time.time() > deadline:
+                break
+            self.assertTrue(s.get("cancel_requested"), s)
+            time.sleep(0.01)
         self.assertEqual(s["state"], "canceled")
+        self.assertNotIn("cancel_requested", s)
         with self.assertRaises(sdfclient.SdfError) as e:
             self.c.volume("big")
         self.assertEqual(e.exception.status, 404)
