@@ -13,35 +13,35 @@ typedef struct setting {
     const char *flag, *env, *meta, *help;
     enum kind kind;
     size_t offset;
-    unsigned long long max; /* numbers: largest accepted value */
+    unsigned long long min, max; /* numbers: the values accepted */
 } setting;
 
 #define AT(field) offsetof(sdfd_config, field)
 
 static const setting settings[] = {
-    {"--http", "SDFD_HTTP", "HOST:PORT", "HTTP address (default 127.0.0.1:8080)", STRING, AT(http_addr), 0},
-    {"--bin", "SDFD_BIN", "HOST:PORT", "binary protocol address (default 127.0.0.1:9090)", STRING, AT(bin_addr), 0},
-    {"--mesh", "SDFD_MESH", "NAME=PATH", "load a mesh (repeatable; the variable takes NAME=PATH,...)", MESH, 0, 0},
-    {"--mesh-dir", "SDFD_MESH_DIR", "DIR", "load every .obj/.ply/.stl/.off in DIR, named by file stem", STRING, AT(mesh_dir), 0},
-    {"--threads", "SDFD_THREADS", "N", "geometry worker threads (default 0 = all CPUs)", INT, AT(threads), 256},
-    {"--token", "SDFD_TOKEN", "T", "require 'Authorization: Bearer T' for PUT/DELETE", STRING, AT(token), 0},
-    {"--auth-queries", "SDFD_AUTH_QUERIES", "", "require the token for queries too", BOOL, AT(auth_queries), 1},
-    {"--max-body-bytes", "SDFD_MAX_BODY_BYTES", "N", "largest request body (default 268435456)", SIZE, AT(max_body_bytes), 1ull << 34},
-    {"--max-points", "SDFD_MAX_POINTS", "N", "most points in one request (default 4194304)", SIZE, AT(max_points), 1u << 30},
-    {"--max-connections", "SDFD_MAX_CONNECTIONS", "N", "open connections per listener (default 512)", UINT, AT(max_connections), 65536},
-    {"--max-per-ip", "SDFD_MAX_PER_IP", "N", "open connections per client address (default 256)", UINT, AT(max_per_ip), 65536},
-    {"--timeout", "SDFD_TIMEOUT", "SECONDS", "close connections idle this long (default 30)", UINT, AT(timeout_seconds), 86400},
-    {"--max-meshes", "SDFD_MAX_MESHES", "N", "most meshes loaded at once (default 64)", SIZE, AT(max_meshes), 1u << 20},
-    {"--max-triangles", "SDFD_MAX_TRIANGLES", "N", "most triangles over all meshes (default 50000000)", SIZE, AT(max_total_triangles), 1ull << 32},
-    {"--batch-window-us", "SDFD_BATCH_WINDOW_US", "US", "wait this long to coalesce requests (default 200)", UINT, AT(batch_window_us), 1000000},
-    {"--batch-max-points", "SDFD_BATCH_MAX_POINTS", "N", "... or until this many points wait (default 262144)", SIZE, AT(batch_max_points), 1u << 30},
-    {"--max-queued-points", "SDFD_MAX_QUEUED_POINTS", "N", "refuse new queries (429) while this many points wait (default 16777216)", SIZE, AT(max_queued_points), 1ull << 34},
-    {"--max-volumes", "SDFD_MAX_VOLUMES", "N", "most baked volumes kept at once (default 64)", SIZE, AT(max_volumes), 1u << 20},
-    {"--max-volume-bytes", "SDFD_MAX_VOLUME_BYTES", "N", "bytes of all baked volumes and bakes in progress (default 4294967296)", SIZE, AT(max_volume_bytes), 1ull << 40},
-    {"--max-bake-queries", "SDFD_MAX_BAKE_QUERIES", "N", "distance queries one bake may cost (default 1073741824)", SIZE, AT(max_bake_queries), 1ull << 40},
-    {"--max-bakes", "SDFD_MAX_BAKES", "N", "bakes running at once; more wait queued (default 1)", UINT, AT(max_bakes), 64},
-    {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1u << 16},
-    {"--drain-seconds", "SDFD_DRAIN_SECONDS", "SECONDS", "on SIGTERM, let in-flight requests finish this long (default 30)", UINT, AT(drain_seconds), 3600},
+    {"--http", "SDFD_HTTP", "HOST:PORT", "HTTP address (default 127.0.0.1:8080)", STRING, AT(http_addr), 0, 0},
+    {"--bin", "SDFD_BIN", "HOST:PORT", "binary protocol address (default 127.0.0.1:9090)", STRING, AT(bin_addr), 0, 0},
+    {"--mesh", "SDFD_MESH", "NAME=PATH", "load a mesh (repeatable; the variable takes NAME=PATH,...)", MESH, 0, 0, 0},
+    {"--mesh-dir", "SDFD_MESH_DIR", "DIR", "load every .obj/.ply/.stl/.off in DIR, named by file stem", STRING, AT(mesh_dir), 0, 0},
+    {"--threads", "SDFD_THREADS", "N", "geometry worker threads (default 0 = all CPUs)", INT, AT(threads), 0, 256},
+    {"--token", "SDFD_TOKEN", "T", "require 'Authorization: Bearer T' for PUT/DELETE", STRING, AT(token), 0, 0},
+    {"--auth-queries", "SDFD_AUTH_QUERIES", "", "require the token for queries too", BOOL, AT(auth_queries), 0, 1},
+    {"--max-body-bytes", "SDFD_MAX_BODY_BYTES", "N", "largest request body (default 268435456)", SIZE, AT(max_body_bytes), 1, 1ull << 34},
+    {"--max-points", "SDFD_MAX_POINTS", "N", "most points in one request (default 4194304)", SIZE, AT(max_points), 1, 1u << 30},
+    {"--max-connections", "SDFD_MAX_CONNECTIONS", "N", "open connections per listener (default 512)", UINT, AT(max_connections), 1, 65536},
+    {"--max-per-ip", "SDFD_MAX_PER_IP", "N", "open connections per client address (default 256)", UINT, AT(max_per_ip), 1, 65536},
+    {"--timeout", "SDFD_TIMEOUT", "SECONDS", "close connections idle this long (default 30)", UINT, AT(timeout_seconds), 1, 86400},
+    {"--max-meshes", "SDFD_MAX_MESHES", "N", "most meshes loaded at once (default 64)", SIZE, AT(max_meshes), 1, 1u << 20},
+    {"--max-triangles", "SDFD_MAX_TRIANGLES", "N", "most triangles over all meshes (default 50000000)", SIZE, AT(max_total_triangles), 0, 1ull << 32},
+    {"--batch-window-us", "SDFD_BATCH_WINDOW_US", "US", "wait this long to coalesce requests (default 200)", UINT, AT(batch_window_us), 0, 1000000},
+    {"--batch-max-points", "SDFD_BATCH_MAX_POINTS", "N", "... or until this many points wait (default 262144)", SIZE, AT(batch_max_points), 0, 1u << 30},
+    {"--max-queued-points", "SDFD_MAX_QUEUED_POINTS", "N", "refuse new queries (429) while this many points wait (default 16777216)", SIZE, AT(max_queued_points), 1, 1ull << 34},
+    {"--max-volumes", "SDFD_MAX_VOLUMES", "N", "most baked volumes kept at once (default 64)", SIZE, AT(max_volumes), 1, 1u << 20},
+    {"--max-volume-bytes", "SDFD_MAX_VOLUME_BYTES", "N", "bytes of all baked volumes and bakes in progress (default 4294967296)", SIZE, AT(max_volume_bytes), 0, 1ull << 40},
+    {"--max-bake-queries", "SDFD_MAX_BAKE_QUERIES", "N", "distance queries one bake may cost (default 1073741824)", SIZE, AT(max_bake_queries), 0, 1ull << 40},
+    {"--max-bakes", "SDFD_MAX_BAKES", "N", "bakes running at once; more wait queued (default 1)", UINT, AT(max_bakes), 1, 64},
+    {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1, 1u << 16},
+    {"--drain-seconds", "SDFD_DRAIN_SECONDS", "SECONDS", "on SIGTERM, let in-flight requests finish this long (default 30)", UINT, AT(drain_seconds), 0, 3600},
 };
 
 #define N_SETTINGS (sizeof settings / sizeof settings[0])
@@ -110,9 +110,13 @@ static int set_value(sdfd_config *cfg, const setting *s, const char *value, cons
     char *end;
     errno = 0;
     unsigned long long v = strtoull(value ? value : "", &end, 10);
-    if (s->kind == BOOL || !value || !*value || *end || errno || value[0] == '-' || v > s->max) {
-        fprintf(stderr, "sdfd: %s: '%s' is not %s\n", origin, value ? value : "",
-                s->kind == BOOL ? "true/false/1/0" : "a whole number in range");
+    if (s->kind == BOOL) {
+        fprintf(stderr, "sdfd: %s: '%s' is not true/false/1/0\n", origin, value ? value : "");
+        return -1;
+    }
+    if (!value || !*value || *end || errno || value[0] == '-' || v < s->min || v > s->max) {
+        fprintf(stderr, "sdfd: %s: '%s' is not a whole number in %llu..%llu\n", origin,
+                value ? value : "", s->min, s->max);
         return -1;
     }
     if (s->kind == SIZE)
@@ -185,12 +189,6 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
         if (set_value(cfg, s, value, s->flag))
             return -1;
     }
-    if (cfg->max_points == 0 || cfg->max_body_bytes == 0 || cfg->max_connections == 0 ||
-        cfg->max_per_ip == 0 || cfg->max_meshes == 0 || cfg->max_queued_points == 0 ||
-        cfg->max_volumes == 0 || cfg->max_bakes == 0 || cfg->max_jobs == 0) {
-        fprintf(stderr, "sdfd: limits must be at least 1\n");
-        return -1;
-    }
     return 0;
 }
 
@@ -208,8 +206,13 @@ int sdfd_split_address(const char *addr, char *host, size_t host_cap, char *port
     memcpy(host, h, hn);
     host[hn] = '\0';
     strcpy(port, colon + 1);
-    for (const char *p = port; *p; p++)
+    unsigned long value = 0;
+    for (const char *p = port; *p; p++) {
         if (*p < '0' || *p > '9')
             return -1;
+        value = value * 10 + (unsigned long)(*p - '0');
+        if (value > 65535) /* getaddrinfo would wrap it to another port */
+            return -1;
+    }
     return 0;
 }

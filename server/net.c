@@ -13,7 +13,7 @@ int sdfd_listen(const char *addr, int *port)
 {
     char host[256], service[16];
     if (sdfd_split_address(addr, host, sizeof host, service, sizeof service)) {
-        sdfd_log("error", "config", "bad address '%s' (expected HOST:PORT)", addr);
+        sdfd_log("error", "config", "bad address '%s' (expected HOST:PORT, PORT 0..65535)", addr);
         return -1;
     }
     struct addrinfo hints = {.ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM,

@@ -274,6 +274,15 @@ class Meshes(unittest.TestCase):
                             "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0"], capture_output=True, timeout=30)
         self.assertNotEqual(r.returncode, 0)
         self.assertIn(b"nonexistent", r.stderr)
+        # Out-of-range values are refused with the range; a port past 65535 is not wrapped
+        # round to another one.
+        for args, says in [(["--timeout", "0"], b"'0' is not a whole number in 1..86400"),
+                           (["--max-jobs", "0"], b"in 1..65536"),
+                           (["--http", "127.0.0.1:70000"], b"PORT 0..65535")]:
+            r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--bin", "127.0.0.1:0",
+                                *args], capture_output=True, timeout=30)
+            self.assertNotEqual(r.returncode, 0, args)
+            self.assertIn(says, r.stderr, args)
         r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--help"], capture_output=True)
         self.assertEqual(r.returncode, 0)
         self.assertIn(b"--batch-window-us", r.stdout)
