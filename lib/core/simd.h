@@ -10,7 +10,17 @@
 #ifndef SDF_CORE_SIMD_H
 #define SDF_CORE_SIMD_H
 
-#if defined(__x86_64__) && defined(__ELF__) && \
+/* Not under ThreadSanitizer: the ifunc resolvers run while the program is relocated, before
+ * TSan's runtime is up, and its instrumentation in them crashed every binary at load (GCC
+ * 12). GCC says so by __SANITIZE_THREAD__, clang by __has_feature. */
+#if defined(__SANITIZE_THREAD__)
+#define SDF__UNDER_TSAN 1
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define SDF__UNDER_TSAN 1
+#endif
+#endif
+#if defined(__x86_64__) && defined(__ELF__) && !defined(SDF__UNDER_TSAN) && \
     ((defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 11) || \
      (defined(__clang__) && __clang_major__ >= 14))
 #define SDF__SIMD_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
