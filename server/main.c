@@ -26,6 +26,16 @@ static int load_mesh(sdfd_server *srv, const char *name, const char *path)
         sdfd_log("error", "mesh", "'%s' is not a valid mesh name (A-Z a-z 0-9 . _ -)", name);
         return -1;
     }
+    /* At start the registry holds only what the flags named: one name twice (two --mesh
+     * flags, or cube.obj beside cube.ply in --mesh-dir, read in directory order) would
+     * leave whichever came last. */
+    sdf_mesh *earlier = sdfd_registry_get(srv->registry, name, strlen(name));
+    if (earlier) {
+        sdf_mesh_release(earlier);
+        sdfd_log("error", "mesh", "two meshes are named '%s' (the second is %s): name them apart",
+                 name, path);
+        return -1;
+    }
     if (sdf_mesh_load_file(path, &opts, &mesh, &diag)) {
         sdfd_log("error", "mesh", "cannot load %s: %s", path, diag.message);
         return -1;

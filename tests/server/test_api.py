@@ -265,6 +265,21 @@ class Meshes(unittest.TestCase):
             with Server("--mesh-dir", d) as s:
                 names = sorted(m["name"] for m in sdfclient.Client(s.url).meshes())
                 self.assertEqual(names, ["cube", "knot1"])
+            # Two files of one stem would leave whichever the directory lists last: refused.
+            with open(os.path.join(DATA, "knot1.off"), "rb") as src, \
+                    open(os.path.join(d, "cube.off"), "wb") as dst:
+                dst.write(src.read())
+            r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--mesh-dir", d,
+                                "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0"],
+                               capture_output=True, timeout=30)
+            self.assertNotEqual(r.returncode, 0)
+            self.assertIn(b"two meshes are named 'cube'", r.stderr)
+        r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--mesh",
+                            f"k={os.path.join(DATA, 'knot1.off')}", "--mesh",
+                            f"k={os.path.join(DATA, 'cube.ply')}", "--http", "127.0.0.1:0",
+                            "--bin", "127.0.0.1:0"], capture_output=True, timeout=30)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn(b"two meshes are named 'k'", r.stderr)
         env = dict(os.environ, SDFD_THREADS="many")
         r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd")], env=env,
                            capture_output=True, timeout=30)
