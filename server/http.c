@@ -657,6 +657,34 @@ static void on_mhd_log(void *cls, const char *fmt, va_list ap)
     sdfd_log("warn", "http", "%s", message);
 }
 
+static int hex_digit(char c)
+{
+    return c >= '0' && c <= '9' ? c - '0'
+           : c >= 'a' && c <= 'f' ? c - 'a' + 10
+           : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                  : -1;
+}
+
+/* URL paths and arguments decoded as MHD's default does (%HH), except that %00 stays as it
+ * is: every route reads the decoded text as a C string, so a decoded NUL would cut
+ * "/v1/meshes/a%00b" to the mesh "a"; kept literal, the name is refused for its '%'. */
+static size_t unescape_url(void *cls, struct MHD_Connection *connection, char *s)
+{
+    (void)cls, (void)connection;
+    char *out = s;
+    for (const char *in = s; *in;) {
+        int hi = in[0] == '%' ? hex_digit(in[1]) : -1, lo = hi >= 0 ? hex_digit(in[2]) : -1;
+        if (lo >= 0 && (hi || lo)) {
+            *out++ = (char)(hi * 16 + lo);
+            in += 3;
+        } else {
+            *out++ = *in++;
+        }
+    }
+    *out = '\0';
+    return (size_t)(out - s);
+}
+
 int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
 {
     int port;
@@ -677,6 +705,7 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
         MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv->cfg.max_per_ip,
         MHD_OPTION_CONNECTION_TIMEOUT, srv->cfg.timeout_seconds,
         MHD_OPTION_NOTIFY_COMPLETED, on_completed, http,
+        MHD_OPTION_UNESCAPE_CALLBACK, unescape_url, NULL,
         MHD_OPTION_END);
     if (!http->daemon) {
         sdfd_log("error", "listen", "libmicrohttpd failed to start on %s", srv->cfg.http_addr);

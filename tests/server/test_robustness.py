@@ -147,6 +147,11 @@ class BadInput(unittest.TestCase):
         self.expect(405, "EMETHOD", "GET", self.Q)
         self.expect(405, "EMETHOD", "POST", "/v1/meshes")
         self.expect(422, "EINVAL", "GET", "/v1/meshes/..secret")
+        # A %00 in the path is no end of the name ("demo%00x" is not the mesh "demo"), nor of
+        # an argument; other escapes decode as ever.
+        self.expect(422, "EINVAL", "GET", "/v1/meshes/demo%00x")
+        self.expect(422, "EINVAL", "POST", self.Q + "?mode=signed%00x", b"\0" * 12, self.OCTET)
+        self.expect(200, None, "GET", "/v1/meshes/de%6Do")
         npy = {"Content-Type": "application/x-npy"}
         self.expect(415, "EFORMAT", "POST", self.Q, b"\x93NUMPY garbage", npy)
         self.expect(400, "ESYNTAX", "POST", self.Q, b"\x93NUMPY\x01\x00\x76\x00{'descr'", npy)
