@@ -20,10 +20,12 @@ enum sdf_proto_type {
     SDF_PROTO_LIST_MESHES = 0x02,
     SDF_PROTO_QUERY = 0x03,
     SDF_PROTO_VOLUME_QUERY = 0x04,
+    SDF_PROTO_AUTH = 0x05,        /* payload: the server's --token; answered by AUTH_OK */
     SDF_PROTO_ERROR = 0x7F,
     SDF_PROTO_HELLO_OK = 0x81,
     SDF_PROTO_MESHES = 0x82,
     SDF_PROTO_RESULT = 0x83,
+    SDF_PROTO_AUTH_OK = 0x85,     /* empty payload */
 };
 
 /* Query modes; the values are the wire codes. */

@@ -63,6 +63,7 @@ struct connection {
     out_frame *out_head, *out_tail;
     size_t out_bytes;           /* queued, not yet sent */
     int in_flight;
+    int authenticated;          /* sent AUTH with the --token */
     connection *next;
 };
 
@@ -400,9 +401,37 @@ static void handle_list(sdfd_binary *b, connection *c, uint32_t id)
     sdfd_registry_free_list(list, n);
 }
 
+/* AUTH: the payload is the token. A wrong one closes the connection, so guesses cost a
+ * connection each. */
+static void handle_auth(sdfd_binary *b, connection *c, uint32_t id, const unsigned char *payload,
+                        uint32_t length)
+{
+    if (!sdfd_token_matches(&b->srv->cfg, (const char *)payload, length)) {
+        send_error(c, id, SDF_EUNAUTHORIZED, "wrong token");
+        c->closing = 1;
+        return;
+    }
+    c->authenticated = 1;
+    char *frame = malloc(SDF_PROTO_HEADER_SIZE);
+    if (!frame)
+        return;
+    sdf_proto_encode_header(frame, SDF_PROTO_AUTH_OK, id, 0);
+    enqueue(c, frame, SDF_PROTO_HEADER_SIZE);
+}
+
 static void handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *h,
                          const unsigned char *payload)
 {
+    const sdfd_config *cfg = &b->srv->cfg;
+    if ((h->type == SDF_PROTO_QUERY || h->type == SDF_PROTO_VOLUME_QUERY) && cfg->token &&
+        cfg->auth_queries && !c->authenticated) {
+        send_error(c, h->request_id, SDF_EUNAUTHORIZED,
+                   "this server needs AUTH with its token before queries");
+        account(b, h->type == SDF_PROTO_QUERY ? SDFD_ROUTE_BIN_QUERY : SDFD_ROUTE_BIN_VOLUME_QUERY,
+                h->type == SDF_PROTO_QUERY ? "QUERY" : "VOLUME_QUERY", 401, 0, sdfd_now(),
+                SDF_PROTO_HEADER_SIZE + h->length, 0);
+        return;
+    }
     if (h->type == SDF_PROTO_QUERY) {
         handle_query(b, c, h->request_id, payload, h->length);
         return;
@@ -424,12 +453,17 @@ static void handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *
             free(frame);
     } else if (h->type == SDF_PROTO_LIST_MESHES) {
         handle_list(b, c, h->request_id);
+    } else if (h->type == SDF_PROTO_AUTH) {
+        handle_auth(b, c, h->request_id, payload, h->length);
+        status = c->authenticated ? 200 : 401;
     } else {
         send_error(c, h->request_id, SDF_EPROTO, "unknown message type");
         status = 400;
     }
-    const char *what = h->type == SDF_PROTO_HELLO ? "HELLO"
-                       : h->type == SDF_PROTO_LIST_MESHES ? "LIST_MESHES" : "UNKNOWN";
+    const char *what = h->type == SDF_PROTO_HELLO         ? "HELLO"
+                       : h->type == SDF_PROTO_LIST_MESHES ? "LIST_MESHES"
+                       : h->type == SDF_PROTO_AUTH        ? "AUTH"
+                                                          : "UNKNOWN";
     account(b, SDFD_ROUTE_BIN_OTHER, what, status, 0, start, SDF_PROTO_HEADER_SIZE + h->length, 0);
 }
 

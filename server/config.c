@@ -192,6 +192,17 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
     return 0;
 }
 
+int sdfd_token_matches(const sdfd_config *cfg, const char *given, size_t n)
+{
+    if (!cfg->token)
+        return 1;
+    size_t len = strlen(cfg->token);
+    unsigned char diff = n != len;
+    for (size_t i = 0; i < len; i++)
+        diff |= (unsigned char)((i < n ? given[i] : 0) ^ cfg->token[i]);
+    return diff == 0;
+}
+
 int sdfd_split_address(const char *addr, char *host, size_t host_cap, char *port, size_t port_cap)
 {
     const char *colon = strrchr(addr, ':');

@@ -202,7 +202,7 @@ static int authorized(const request *req)
         return 1;
     const char *h = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
                                                 MHD_HTTP_HEADER_AUTHORIZATION);
-    return h && !strncmp(h, "Bearer ", 7) && !strcmp(h + 7, cfg->token);
+    return h && !strncmp(h, "Bearer ", 7) && sdfd_token_matches(cfg, h + 7, strlen(h + 7));
 }
 
 /* Decide from the headers alone; returns MHD_YES with a response queued if refused. */

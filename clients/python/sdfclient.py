@@ -306,10 +306,18 @@ class BinaryClient:
 
     HEADER = struct.Struct("<4sBBHII")
 
-    def __init__(self, host="127.0.0.1", port=9090, timeout=120):
+    def __init__(self, host="127.0.0.1", port=9090, timeout=120, token=None):
+        """With `token`, the connection authenticates first (AUTH), as a server started with
+        --token and --auth-queries requires before queries."""
         self.sock = socket.create_connection((host, port), timeout=timeout)
         self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._next_id = 1
+        if token is not None:
+            self.auth(token)
+
+    def auth(self, token):
+        """AUTH: present the server's --token (a wrong one closes the connection)."""
+        self._call(0x05, token.encode())
 
     def close(self):
         self.sock.close()

@@ -256,6 +256,28 @@ class Meshes(unittest.TestCase):
                 sdfclient.Client(s.url).query("demo", np.zeros((1, 3)))
             self.assertEqual(e.exception.status, 401)
             sdfclient.Client(s.url, token="t").query("demo", np.zeros((1, 3)))
+            # The binary protocol too: queries wait for AUTH; the mesh list does not.
+            b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            self.assertEqual([m["name"] for m in b.meshes()], ["demo"])
+            for call in (lambda: b.query("demo", np.zeros((1, 3))),
+                         lambda: b.query_volume("v", np.zeros((1, 3)))):
+                with self.assertRaises(sdfclient.SdfError) as e:
+                    call()
+                self.assertEqual((e.exception.status, e.exception.code), (401, "EUNAUTHORIZED"))
+            with self.assertRaises(sdfclient.SdfError) as e:
+                b.auth("wrong")
+            self.assertEqual(e.exception.status, 401)
+            with self.assertRaises((ConnectionError, OSError)):  # a wrong token closes it
+                b.meshes()
+            b.close()
+            b = sdfclient.BinaryClient("127.0.0.1", s.bin_port, token="t")
+            self.assertEqual(len(b.query("demo", np.zeros((2, 3)))["distance"]), 2)
+            b.close()
+        with Server("--token", "t") as s:  # queries are open; AUTH is accepted all the same
+            b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            self.assertEqual(len(b.query("demo", np.zeros((1, 3)))["distance"]), 1)
+            b.auth("t")
+            b.close()
 
     def test_mesh_dir_and_flags(self):
         with tempfile.TemporaryDirectory() as d:

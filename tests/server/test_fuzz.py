@@ -1,5 +1,5 @@
 """Mutated requests against the real sdfd, from a fixed seed: valid binary frames (every
-QUERY mode, FILTER blocks, VOLUME_QUERY, HELLO, MESHES) and valid HTTP bodies (queries in
+QUERY mode, FILTER blocks, VOLUME_QUERY, HELLO, MESHES, AUTH) and valid HTTP bodies (queries in
 JSON, octet-stream and npy, bakes, volume queries and uploads) with random bytes flipped,
 inserted, dropped or cut off, and length fields replaced. Whatever arrives, the server must
 answer with a 2xx/4xx status or an ERROR frame (or close a connection it cannot follow), never
@@ -83,7 +83,7 @@ class Fuzz(unittest.TestCase):
     def frames(self):
         B = sdfclient.BinaryClient
         pts = np.random.default_rng(1).uniform(-0.5, 0.5, (5, 3)).astype(np.float32)
-        payloads = [(0x01, b"fuzz"), (0x02, b"")]
+        payloads = [(0x01, b"fuzz"), (0x02, b""), (0x05, b"token")]
         for mode in ("signed", "distance", "gradient", "closest"):
             payloads.append((0x03, B._query_payload("fandisk", pts, mode, "auto")))
         for f in ({"samples": 8}, {"samples": 4, "kernel": "bump", "cap": 0.05, "b": 0.04},
@@ -132,10 +132,10 @@ class Fuzz(unittest.TestCase):
             else:
                 raw = mutate(rng, raw)
             # A valid frame after it: answered unless the garbage closed the connection.
-            good = frames[2]
+            good = next(f for f in frames if f[0] == 0x03)
             raw += struct.pack("<4sBBHII", b"SDFP", 1, good[0], 0, 99999, len(good[1])) + good[1]
             types = self.exchange(raw)
-            self.assertTrue(set(types) <= {0x81, 0x82, 0x83, 0x7F}, types)
+            self.assertTrue(set(types) <= {0x81, 0x82, 0x83, 0x85, 0x7F}, types)
             for t in seen:
                 seen[t] += t in types
             if i % 50 == 0:
