@@ -25,7 +25,7 @@ static const setting settings[] = {
     {"--mesh-dir", "SDFD_MESH_DIR", "DIR", "load every .obj/.ply/.stl/.off in DIR, named by file stem", STRING, AT(mesh_dir), 0, 0},
     {"--threads", "SDFD_THREADS", "N", "geometry worker threads (default 0 = all CPUs)", INT, AT(threads), 0, 256},
     {"--token", "SDFD_TOKEN", "T", "require 'Authorization: Bearer T' for PUT/DELETE", STRING, AT(token), 0, 0},
-    {"--auth-queries", "SDFD_AUTH_QUERIES", "", "require the token for queries too", BOOL, AT(auth_queries), 0, 1},
+    {"--auth-queries", "SDFD_AUTH_QUERIES", "", "require the token for queries and volume downloads too", BOOL, AT(auth_queries), 0, 1},
     {"--max-body-bytes", "SDFD_MAX_BODY_BYTES", "N", "largest request body (default 268435456)", SIZE, AT(max_body_bytes), 1, 1ull << 34},
     {"--max-points", "SDFD_MAX_POINTS", "N", "most points in one request (default 4194304)", SIZE, AT(max_points), 1, 1u << 30},
     {"--max-connections", "SDFD_MAX_CONNECTIONS", "N", "open connections per listener (default 512)", UINT, AT(max_connections), 1, 65536},

@@ -197,7 +197,8 @@ static int authorized(const request *req)
     int needs = !strcmp(req->method, "PUT") || !strcmp(req->method, "DELETE") ||
                 req->route == SDFD_ROUTE_BAKE ||
                 (cfg->auth_queries &&
-                 (req->route == SDFD_ROUTE_QUERY || req->route == SDFD_ROUTE_VOLUME_QUERY));
+                 (req->route == SDFD_ROUTE_QUERY || req->route == SDFD_ROUTE_VOLUME_QUERY ||
+                  req->route == SDFD_ROUTE_VOLUME_DATA)); /* a download is every node's answer */
     if (!cfg->token || !needs)
         return 1;
     const char *h = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,

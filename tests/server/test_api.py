@@ -255,7 +255,14 @@ class Meshes(unittest.TestCase):
             with self.assertRaises(sdfclient.SdfError) as e:
                 sdfclient.Client(s.url).query("demo", np.zeros((1, 3)))
             self.assertEqual(e.exception.status, 401)
-            sdfclient.Client(s.url, token="t").query("demo", np.zeros((1, 3)))
+            admin = sdfclient.Client(s.url, token="t")
+            admin.query("demo", np.zeros((1, 3)))
+            # A volume download is every node's answer: it needs the token too.
+            admin.wait(admin.bake("demo", volume="v", resolution=4), timeout=60)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                sdfclient.Client(s.url).download("v", "raw")
+            self.assertEqual(e.exception.status, 401)
+            self.assertEqual(len(admin.download("v", "raw")), 4 * 4 ** 3)
             # The binary protocol too: queries wait for AUTH; the mesh list does not.
             b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
             self.assertEqual([m["name"] for m in b.meshes()], ["demo"])
