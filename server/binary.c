@@ -30,6 +30,7 @@
 #include "proto.h"
 
 #define MAX_IN_FLIGHT 64
+#define INPUT_BASE (64 * 1024) /* a connection's input buffer between big frames */
 #define MAX_QUEUED_OUT (64u << 20) /* unsent reply bytes before we stop reading */
 
 typedef struct out_frame {
@@ -469,6 +470,8 @@ static void handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *
 
 /* ---- connections ------------------------------------------------------------------------- */
 
+static int resize_input(sdfd_binary *b, connection *c, size_t cap);
+
 /* Parse every complete frame in the input buffer. */
 static void consume_input(sdfd_binary *b, connection *c)
 {
@@ -495,6 +498,9 @@ static void consume_input(sdfd_binary *b, connection *c)
     if (off) { /* c->in is NULL before the first read */
         memmove(c->in, c->in + off, c->in_len - off);
         c->in_len -= off;
+        /* A big frame's room goes back to the budget once it is used. */
+        if (c->in_cap > INPUT_BASE && c->in_len <= INPUT_BASE)
+            resize_input(b, c, INPUT_BASE);
     }
 }
 
@@ -502,22 +508,50 @@ static void consume_input(sdfd_binary *b, connection *c)
 static size_t input_need(const sdfd_binary *b, const connection *c)
 {
     if (c->in_len < SDF_PROTO_HEADER_SIZE)
-        return 64 * 1024;
+        return INPUT_BASE > c->in_cap ? INPUT_BASE : c->in_cap;
     sdf_proto_header h;
     if (sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL))
         return c->in_cap;
     size_t need = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
-    return need > 64 * 1024 ? need : 64 * 1024;
+    return need > INPUT_BASE ? need : INPUT_BASE;
+}
+
+/* Resize the input buffer to `cap` bytes, its growth counted against --max-buffered-bytes
+ * (0, or -1 when the budget or memory says no). */
+static int resize_input(sdfd_binary *b, connection *c, size_t cap)
+{
+    if (cap > c->in_cap && sdfd_buffer_reserve(b->srv, cap - c->in_cap))
+        return -1;
+    unsigned char *in = realloc(c->in, cap);
+    if (!in) {
+        if (cap > c->in_cap)
+            sdfd_buffer_release(b->srv, cap - c->in_cap);
+        return -1;
+    }
+    if (cap < c->in_cap)
+        sdfd_buffer_release(b->srv, c->in_cap - cap);
+    c->in = in, c->in_cap = cap;
+    return 0;
 }
 
 static int read_input(sdfd_binary *b, connection *c)
 {
     size_t need = input_need(b, c);
-    if (need > c->in_cap) {
-        unsigned char *in = realloc(c->in, need);
-        if (!in)
-            return -1;
-        c->in = in, c->in_cap = need;
+    if (need > c->in_cap && resize_input(b, c, need)) {
+        /* Too many bytes held over all connections (or no memory): this frame is refused,
+         * and the connection closed, since its payload cannot be skipped unread. */
+        sdf_proto_header h;
+        uint32_t id = c->in_len >= SDF_PROTO_HEADER_SIZE &&
+                              !sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL)
+                          ? h.request_id
+                          : 0;
+        char why[160];
+        snprintf(why, sizeof why,
+                 "the server holds too many request bytes at once (--max-buffered-bytes %zu); "
+                 "retry later", b->srv->cfg.max_buffered_bytes);
+        send_error(c, id, SDF_EBUSY, why);
+        c->closing = 1;
+        return 0;
     }
     ssize_t n = recv(c->fd, c->in + c->in_len, c->in_cap - c->in_len, 0);
     if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR))
@@ -564,6 +598,10 @@ static void close_socket(sdfd_binary *b, connection *c)
         b->conn_count--;
     }
     c->dead = 1;
+    free(c->in); /* nothing reads it any more; its room goes back to the budget */
+    c->in = NULL;
+    sdfd_buffer_release(b->srv, c->in_cap);
+    c->in_cap = c->in_len = 0;
 }
 
 static void free_connection(connection *c)

@@ -22,6 +22,7 @@ typedef struct sdfd_config {
     const char *token;            /* NULL = no authentication */
     int auth_queries;             /* queries need the token too */
     size_t max_body_bytes;
+    size_t max_buffered_bytes;    /* request bodies and binary frames held, all connections */
     size_t max_points;            /* per request */
     unsigned max_connections;
     unsigned max_per_ip;

@@ -238,8 +238,15 @@ static enum MHD_Result admit(request *req, const char *url)
     if (declared > srv->cfg.max_body_bytes)
         return sdfd_http_error(req, SDF_ELIMIT, "the body is %llu bytes, over the limit of %zu",
                                declared, srv->cfg.max_body_bytes);
-    /* The whole body in one allocation, sized by a checked length, NUL-terminated. */
+    /* The whole body in one allocation, sized by a checked length, NUL-terminated, and
+     * counted against the budget of all connections until the request completes. */
     req->declared = (size_t)declared;
+    if (sdfd_buffer_reserve(srv, req->declared + 1))
+        return sdfd_http_error(req, SDF_EBUSY,
+                               "the server holds too many request bytes at once "
+                               "(--max-buffered-bytes %zu); retry later",
+                               srv->cfg.max_buffered_bytes);
+    req->reserved = req->declared + 1;
     req->body = malloc(req->declared + 1);
     if (!req->body)
         return sdfd_http_error(req, SDF_ENOMEM, "out of memory for a %zu-byte body", req->declared);
@@ -544,7 +551,8 @@ static enum MHD_Result dispatch(request *req)
     case SDFD_ROUTE_METRICS: {
         size_t len;
         sdfd_gauges g = {.meshes_loaded = sdfd_registry_count(srv->registry),
-                         .volumes_loaded = sdfd_volumes_count(srv->volumes)};
+                         .volumes_loaded = sdfd_volumes_count(srv->volumes),
+                         .buffered_bytes = atomic_load(&srv->buffered)};
         sdfd_volumes_usage(srv->volumes, &g.volume_bytes, &g.bakes_running, &g.bakes_queued);
         char *text = sdfd_metrics_render(srv->metrics, &g, &len);
         return text ? sdfd_http_buffer(req, 200, "text/plain; version=0.0.4", text, len, NULL)
@@ -644,6 +652,7 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
         free(req->points_buf);
     free(req->reply.buffer);
     free(req->body);
+    sdfd_buffer_release(srv, req->reserved);
     atomic_fetch_sub(&srv->in_flight, 1);
     free(req);
     *state = NULL;

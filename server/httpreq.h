@@ -45,6 +45,7 @@ struct sdfd_http_request {
     /* body */
     char *body;
     size_t len, declared;
+    size_t reserved;         /* of the server's --max-buffered-bytes, released at completion */
     /* background work; `finished` is set by the worker before it resumes the connection */
     sdfd_http_wait work;
     atomic_int finished;

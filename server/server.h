@@ -22,7 +22,27 @@ typedef struct sdfd_server {
     atomic_int ready;        /* meshes loaded: /readyz 200 */
     atomic_int draining;     /* SIGTERM seen: /readyz 503, new work refused */
     atomic_long in_flight;   /* requests received and not yet answered (both protocols) */
+    atomic_size_t buffered;  /* bytes of request bodies and binary input held (both) */
 } sdfd_server;
+
+/* Reserve n bytes of the --max-buffered-bytes budget for a body or frame about to be
+ * received; 0, or -1 (nothing reserved) when it would pass the budget. Every connection's
+ * own limit (--max-body-bytes, the protocol's max_payload) still applies: this one keeps
+ * many connections together from holding more memory than the machine has. */
+static inline int sdfd_buffer_reserve(sdfd_server *srv, size_t n)
+{
+    size_t before = atomic_fetch_add(&srv->buffered, n);
+    if (before + n > srv->cfg.max_buffered_bytes || before + n < before) {
+        atomic_fetch_sub(&srv->buffered, n);
+        return -1;
+    }
+    return 0;
+}
+
+static inline void sdfd_buffer_release(sdfd_server *srv, size_t n)
+{
+    atomic_fetch_sub(&srv->buffered, n);
+}
 
 /* Open a listening TCP socket on "HOST:PORT"; returns the fd (and the bound port in *port)
  * or -1 after logging why. */

@@ -3,8 +3,9 @@ QUERY mode, FILTER blocks, VOLUME_QUERY, HELLO, MESHES, AUTH) and valid HTTP bod
 JSON, octet-stream and npy, bakes, volume queries and uploads) with random bytes flipped,
 inserted, dropped or cut off, and length fields replaced. Whatever arrives, the server must
 answer with a 2xx/4xx status or an ERROR frame (or close a connection it cannot follow), never
-crash or hang, keep answering a known query with the same bits throughout, and exit cleanly
-on SIGTERM. In the sanitizer build, any report on its stderr fails the test."""
+crash or hang, keep answering a known query with the same bits throughout, give back every
+byte of --max-buffered-bytes it held for them, and exit cleanly on SIGTERM. In the sanitizer
+build, any report on its stderr fails the test."""
 import http.client
 import io
 import json
@@ -20,7 +21,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
-from harness import DATA, Server, same_bits  # noqa: E402
+from harness import DATA, Server, metric, same_bits, wait_until  # noqa: E402
 
 SEED = 20261202
 ROUNDS = int(os.environ.get("SDF_FUZZ_ROUNDS", "400"))  # per protocol
@@ -70,6 +71,11 @@ class Fuzz(unittest.TestCase):
                    ("Sanitizer" in e["unparsed"] or "runtime error" in e["unparsed"])]
         if code != 0 or reports:
             raise AssertionError(f"sdfd exited {code}; sanitizer reports: {reports[:5]}")
+
+    def assert_nothing_held(self):
+        # Every byte of --max-buffered-bytes reserved for the damaged requests came back.
+        self.assertTrue(wait_until(lambda: metric(self.c.metrics(), "sdfd_buffered_bytes") == 0,
+                                   20), metric(self.c.metrics(), "sdfd_buffered_bytes"))
 
     def assert_alive(self):
         c = sdfclient.Client(self.server.url)
@@ -144,6 +150,7 @@ class Fuzz(unittest.TestCase):
         # The mutations reach both sides: frames still answered, and frames refused.
         self.assertGreater(seen[0x83], ROUNDS // 20, seen)
         self.assertGreater(seen[0x7F], ROUNDS // 5, seen)
+        self.assert_nothing_held()
 
     # ---- HTTP ----
 
@@ -200,6 +207,7 @@ class Fuzz(unittest.TestCase):
         self.assert_alive()
         self.assertGreater(answered, ROUNDS // 40, (answered, refused))
         self.assertGreater(refused, ROUNDS // 2, (answered, refused))
+        self.assert_nothing_held()
 
 
 if __name__ == "__main__":

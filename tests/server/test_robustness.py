@@ -288,6 +288,45 @@ class Limits(unittest.TestCase):
             self.assertEqual(len(b.query("demo", np.zeros((8, 3)))["distance"]), 8)
             b.close()
 
+    def test_bodies_held_at_once_are_bounded(self):
+        # Room for one 80 kB body at a time over all connections (each connection's own
+        # limit is 100 kB): while one is half received, a second, on HTTP or the binary
+        # protocol, gets 429; once the first is done, the same request is taken.
+        with Server("--max-body-bytes", "100000", "--max-points", "10000",
+                    "--max-buffered-bytes", "150000") as s:
+            port = int(s.url.rsplit(":", 1)[1])
+            body = b'{"points": [[0, 0, 0]]}'.ljust(80000)
+            held = socket.create_connection(("127.0.0.1", port), timeout=30)
+            held.sendall(b"POST /v1/meshes/demo/query HTTP/1.1\r\nHost: x\r\n"
+                         b"Content-Type: application/json\r\nContent-Length: 80000\r\n\r\n" +
+                         body[:1000])
+            self.assertTrue(wait_until(lambda: raw_http(port, "POST", "/v1/meshes/demo/query",
+                                                        body, {"Content-Type": "application/json"}
+                                                        )[0] == 429, 10))
+            got, data = raw_http(port, "POST", "/v1/meshes/demo/query", body,
+                                 {"Content-Type": "application/json"})
+            self.assertEqual((got, data["error"]["code"]), (429, "EBUSY"))
+            self.assertIn("--max-buffered-bytes", data["error"]["message"])
+            self.assertGreaterEqual(metric(sdfclient.Client(s.url).metrics(),
+                                           "sdfd_buffered_bytes"), 80001)
+            frame_points = np.zeros((6000, 3), np.float32)  # a 72 kB QUERY payload
+            with self.assertRaises((sdfclient.SdfError, ConnectionError)) as e:
+                sdfclient.BinaryClient("127.0.0.1", s.bin_port).query("demo", frame_points)
+            if isinstance(e.exception, sdfclient.SdfError):
+                self.assertEqual((e.exception.status, e.exception.code), (429, "EBUSY"))
+            held.sendall(body[1000:])  # the held request completes and frees its room
+            self.assertIn(b"200 OK", held.recv(4096))
+            held.close()
+            self.assertTrue(wait_until(lambda: raw_http(port, "POST", "/v1/meshes/demo/query",
+                                                        body, {"Content-Type": "application/json"}
+                                                        )[0] == 200, 10))
+            b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            self.assertEqual(len(b.query("demo", frame_points)["distance"]), 6000)
+            b.close()
+            # Every byte reserved is given back once nothing is held (no leak to block on).
+            self.assertTrue(wait_until(lambda: metric(sdfclient.Client(s.url).metrics(),
+                                                      "sdfd_buffered_bytes") == 0, 10))
+
     def test_binary_connection_limits_and_logs(self):
         with Server("--max-per-ip", "2") as s:
             a = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
