@@ -319,12 +319,15 @@ class Limits(unittest.TestCase):
             self.assertTrue(wait_until(lambda: raw_http(port, "POST", "/v1/meshes/demo/query",
                                                         body, {"Content-Type": "application/json"}
                                                         )[0] == 200, 10))
+            # Every byte reserved is given back once nothing is held (no leak to block on):
+            # a request's room is released when it completes, just after its answer is sent.
+            nothing_held = lambda: metric(sdfclient.Client(s.url).metrics(),  # noqa: E731
+                                          "sdfd_buffered_bytes") == 0
+            self.assertTrue(wait_until(nothing_held, 10))
             b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
             self.assertEqual(len(b.query("demo", frame_points)["distance"]), 6000)
             b.close()
-            # Every byte reserved is given back once nothing is held (no leak to block on).
-            self.assertTrue(wait_until(lambda: metric(sdfclient.Client(s.url).metrics(),
-                                                      "sdfd_buffered_bytes") == 0, 10))
+            self.assertTrue(wait_until(nothing_held, 10))
 
     def test_binary_connection_limits_and_logs(self):
         with Server("--max-per-ip", "2") as s:
