@@ -37,13 +37,13 @@ static const char *allowed_methods(sdfd_route route)
     switch (route) {
     case SDFD_ROUTE_MESH:
     case SDFD_ROUTE_VOLUME:
-        return "GET, PUT, DELETE";
+        return "GET, HEAD, PUT, DELETE"; /* HEAD wherever GET: MHD drops the body */
     case SDFD_ROUTE_QUERY:
     case SDFD_ROUTE_BAKE:
     case SDFD_ROUTE_VOLUME_QUERY:
         return "POST";
     case SDFD_ROUTE_JOB:
-        return "GET, DELETE";
+        return "GET, HEAD, DELETE";
     default:
         return "GET, HEAD";
     }

@@ -145,6 +145,9 @@ class BadInput(unittest.TestCase):
                     self.OCTET)
         self.expect(404, "ENOTFOUND", "GET", "/nowhere")
         self.expect(405, "EMETHOD", "GET", self.Q)
+        for path in ("/v1/meshes", "/v1/meshes/demo", "/healthz"):  # HEAD wherever GET
+            got, data = raw_http(self.port, "HEAD", path)
+            self.assertEqual((got, data), (200, b""), path)
         self.expect(405, "EMETHOD", "POST", "/v1/meshes")
         self.expect(422, "EINVAL", "GET", "/v1/meshes/..secret")
         # A %00 in the path is no end of the name ("demo%00x" is not the mesh "demo"), nor of
