@@ -190,6 +190,11 @@ int sdfd_bake_from_json(const char *text, size_t len, sdfd_bake_request *out,
     int rc = 0, field = -1;
     if (!cJSON_IsObject(root))
         rc = fail(err, cap, "the body must be a JSON %s", "object");
+    const char *twice = rc ? NULL : sdfd_json_repeated_key(root);
+    if (twice) {
+        snprintf(err, cap, "'%.40s' is given twice", twice);
+        rc = SDF_EINVAL;
+    }
     for (const cJSON *item = root->child; !rc && item; item = item->next)
         rc = one_key(item, out, names, &field, err, cap);
     if (!rc && field == 0 && out->filtered)

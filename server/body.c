@@ -367,12 +367,24 @@ static int json_object(json *j, sdfd_query_params *params, int *have_points)
     if (expect(j, '{'))
         return fail(j->err, j->err_cap, SDF_ESYNTAX, "the body must be a JSON object");
     int more = list_empty(j, '}') ? 0 : 1;
+    /* The keys we read, each at most once: JSON leaves duplicates undefined, and taking one
+     * of two "points" (or both) would answer a question nobody asked. */
+    static const char *const read_keys[] = {"points", "mode", "sign", "interpolation", "filter"};
+    unsigned seen = 0;
     while (more == 1) {
         const char *key, *s;
         size_t n, sn;
         int rc;
         if (string(j, &key, &n) || expect(j, ':'))
             return SDF_ESYNTAX;
+        for (unsigned k = 0; k < sizeof read_keys / sizeof read_keys[0]; k++) {
+            if (strlen(read_keys[k]) != n || memcmp(key, read_keys[k], n))
+                continue;
+            if (seen >> k & 1)
+                return fail(j->err, j->err_cap, SDF_EINVAL, "\"%s\" is given twice",
+                            read_keys[k]);
+            seen |= 1u << k;
+        }
         if (n == 6 && !memcmp(key, "points", 6)) {
             if ((rc = points_array(j)))
                 return rc;

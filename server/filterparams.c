@@ -121,11 +121,23 @@ static int copy_name(char *dst, const char *name, char *err, size_t cap)
     return 0;
 }
 
+const char *sdfd_json_repeated_key(const cJSON *object)
+{
+    for (const cJSON *a = object->child; a; a = a->next)
+        for (const cJSON *b = object->child; b != a; b = b->next)
+            if (a->string && b->string && !strcmp(a->string, b->string))
+                return a->string;
+    return NULL;
+}
+
 static int json_smooth(const cJSON *o, sdf_filter_options *f, char *volume_mesh, char *err,
                        size_t cap)
 {
     if (!cJSON_IsObject(o))
         return bad(err, cap, "filter smooth must be an object", NULL);
+    const char *twice = sdfd_json_repeated_key(o);
+    if (twice)
+        return bad(err, cap, "smooth \"%.40s\" is given twice", twice);
     int shapes = 0;
     for (const cJSON *item = o->child; item; item = item->next) {
         const char *k = item->string ? item->string : "";
@@ -166,7 +178,8 @@ int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
         cJSON_Delete(root);
         return bad(err, cap, "\"filter\" must be a JSON object", NULL);
     }
-    int rc = 0;
+    const char *twice = sdfd_json_repeated_key(root);
+    int rc = twice ? bad(err, cap, "filter \"%.40s\" is given twice", twice) : 0;
     for (cJSON *item = root->child; item && !rc; item = item->next) {
         const struct field *fd = item->string ? find(item->string) : NULL;
         if (item->string && !strcmp(item->string, "smooth")) {

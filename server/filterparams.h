@@ -9,14 +9,21 @@
  *   smooth_box=x0,y0,z0,x1,y1,z1 | smooth_mesh=name, smooth_depth, smooth_scale.
  * A mesh volume comes back as its name in `volume_mesh` (the caller looks it up and puts a
  * reference in out->smooth.mesh); "" when there is none.
- * Only the syntax is checked here (types, integers, unknown names); the values are the
- * library's to judge (sdfd_filter_validate), so both front ends give the same messages. */
+ * Only the syntax is checked here (types, integers, unknown names, keys given twice, and
+ * numbers > 0, as the library reads 0 as "the default"); the values are the library's to
+ * judge (sdfd_filter_validate), so both front ends give the same messages. */
 #ifndef SDFD_FILTERPARAMS_H
 #define SDFD_FILTERPARAMS_H
 
 #include <stddef.h>
 
+#include <cjson/cJSON.h>
+
 #include "sdf/sdf.h"
+
+/* The first key an object (a cJSON node) holds twice, or NULL: JSON leaves repeated keys
+ * undefined, so the parsers of filter and bake objects refuse them. */
+const char *sdfd_json_repeated_key(const cJSON *object);
 
 /* From the text of a JSON object (parsed with cJSON). 0, or SDF_EINVAL with a message. */
 #define SDFD_VOLUME_NAME_MAX 255

@@ -99,6 +99,14 @@ class BadInput(unittest.TestCase):
             (b'{"points": [0,0,0], "mode": "filtered", "filter": {"samples": 8, "min_samples": 9}}',
              422, "EINVAL"),
             (b'{"points": [' + b"0," * 3003 + b"0]}", 413, "ELIMIT"),
+            # A key we read, given twice (JSON leaves it undefined; both were taken).
+            (b'{"points": [[0,0,0]], "points": [[1,1,1]]}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "signed", "mode": "distance"}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {}, "filter": {}}', 422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"samples": 8, "samples": 9}}',
+             422, "EINVAL"),
+            (b'{"points": [0,0,0], "mode": "filtered", "filter": {"smooth": {"sphere": [0,0,0,1], '
+             b'"sphere": [0,0,0,2]}}}', 422, "EINVAL"),
         ]:
             with self.subTest(body=body[:40]):
                 self.expect(status, code, "POST", self.Q, body, self.JSON)

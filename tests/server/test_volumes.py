@@ -247,6 +247,7 @@ class Volumes(unittest.TestCase):
                 ("POST", "/v1/meshes/nope/bake", "{}", 404),
                 ("POST", "/v1/meshes/fandisk/bake", "not json", 400),
                 ("POST", "/v1/meshes/fandisk/bake", "[1]", 422),
+                ("POST", "/v1/meshes/fandisk/bake", '{"resolution": 8, "resolution": 4000}', 422),
                 ("GET", "/v1/meshes/fandisk/bake", None, 405),
                 ("GET", "/v1/jobs/nope", None, 404),
                 ("DELETE", "/v1/jobs/nope", None, 404),
