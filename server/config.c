@@ -87,6 +87,12 @@ static int set_value(sdfd_config *cfg, const setting *s, const char *value, cons
 {
     char *base = (char *)cfg + s->offset;
     if (s->kind == STRING) {
+        /* An empty value is a mistake, and a dangerous one for the token (SDFD_TOKEN= from
+         * an unset variable would guard everything with a password anyone can send). */
+        if (!value || !*value) {
+            fprintf(stderr, "sdfd: %s: the value is empty\n", origin);
+            return -1;
+        }
         *(const char **)base = value;
         return 0;
     }

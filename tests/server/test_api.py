@@ -309,6 +309,11 @@ class Meshes(unittest.TestCase):
                             "--bin", "127.0.0.1:0"], capture_output=True, timeout=30)
         self.assertNotEqual(r.returncode, 0)
         self.assertIn(b"two meshes are named 'k'", r.stderr)
+        env = dict(os.environ, SDFD_TOKEN="")  # an unset variable's expansion, say
+        r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--http", "127.0.0.1:0",
+                            "--bin", "127.0.0.1:0"], env=env, capture_output=True, timeout=30)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn(b"SDFD_TOKEN: the value is empty", r.stderr)
         env = dict(os.environ, SDFD_THREADS="many")
         r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd")], env=env,
                            capture_output=True, timeout=30)
@@ -322,7 +327,9 @@ class Meshes(unittest.TestCase):
         # round to another one.
         for args, says in [(["--timeout", "0"], b"'0' is not a whole number in 1..86400"),
                            (["--max-jobs", "0"], b"in 1..65536"),
-                           (["--http", "127.0.0.1:70000"], b"PORT 0..65535")]:
+                           (["--http", "127.0.0.1:70000"], b"PORT 0..65535"),
+                           # an empty token would be one anybody can send
+                           (["--token", ""], b"--token: the value is empty")]:
             r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--bin", "127.0.0.1:0",
                                 *args], capture_output=True, timeout=30)
             self.assertNotEqual(r.returncode, 0, args)
