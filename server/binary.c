@@ -751,8 +751,7 @@ int sdfd_binary_start(sdfd_server *srv, sdfd_binary **out)
     b->srv = srv;
     b->listen_fd = fd;
     b->wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
-    uint64_t payload = 12ull * srv->cfg.max_points + 4096;
-    b->max_payload = payload > UINT32_MAX ? UINT32_MAX : (uint32_t)payload;
+    b->max_payload = (uint32_t)sdfd_max_payload(&srv->cfg);
     fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK); /* accept4 loops until EAGAIN */
     if (b->wake_fd < 0 || pthread_create(&b->thread, NULL, poll_loop, b)) {
         close(fd);

@@ -3,9 +3,12 @@
 #include "config.h"
 
 #include <errno.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "proto.h" /* SDF_PROTO_HEADER_SIZE */
 
 enum kind { STRING, SIZE, UINT, INT, BOOL, MESH };
 
@@ -197,7 +200,23 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
         if (set_value(cfg, s, value, s->flag))
             return -1;
     }
+    /* The budget must hold the largest request it admits, or that request would be told to
+     * retry for ever: a whole body, or a binary frame of --max-points points. */
+    size_t frame = SDF_PROTO_HEADER_SIZE + sdfd_max_payload(cfg);
+    size_t largest = cfg->max_body_bytes + 1 > frame ? cfg->max_body_bytes + 1 : frame;
+    if (cfg->max_buffered_bytes < largest) {
+        fprintf(stderr, "sdfd: --max-buffered-bytes %zu cannot hold the largest request, %zu "
+                "bytes (--max-body-bytes + 1, or a binary frame of --max-points points)\n",
+                cfg->max_buffered_bytes, largest);
+        return -1;
+    }
     return 0;
+}
+
+size_t sdfd_max_payload(const sdfd_config *cfg)
+{
+    uint64_t payload = 12ull * cfg->max_points + 4096; /* a QUERY of max_points, and room */
+    return payload > UINT32_MAX ? UINT32_MAX : (size_t)payload;
 }
 
 int sdfd_token_matches(const sdfd_config *cfg, const char *given, size_t n)

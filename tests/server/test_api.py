@@ -329,7 +329,9 @@ class Meshes(unittest.TestCase):
                            (["--max-jobs", "0"], b"in 1..65536"),
                            (["--http", "127.0.0.1:70000"], b"PORT 0..65535"),
                            # an empty token would be one anybody can send
-                           (["--token", ""], b"--token: the value is empty")]:
+                           (["--token", ""], b"--token: the value is empty"),
+                           # a budget smaller than one request would have it retry for ever
+                           (["--max-buffered-bytes", "1000"], b"cannot hold the largest request")]:
             r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--bin", "127.0.0.1:0",
                                 *args], capture_output=True, timeout=30)
             self.assertNotEqual(r.returncode, 0, args)
