@@ -546,9 +546,7 @@ static int read_input(sdfd_binary *b, connection *c)
                           ? h.request_id
                           : 0;
         char why[160];
-        snprintf(why, sizeof why,
-                 "the server holds too many request bytes at once (--max-buffered-bytes %zu); "
-                 "retry later", b->srv->cfg.max_buffered_bytes);
+        snprintf(why, sizeof why, SDFD_BUFFER_BUSY_FMT, b->srv->cfg.max_buffered_bytes);
         send_error(c, id, SDF_EBUSY, why);
         c->closing = 1;
         return 0;

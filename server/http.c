@@ -242,10 +242,7 @@ static enum MHD_Result admit(request *req, const char *url)
      * counted against the budget of all connections until the request completes. */
     req->declared = (size_t)declared;
     if (sdfd_buffer_reserve(srv, req->declared + 1))
-        return sdfd_http_error(req, SDF_EBUSY,
-                               "the server holds too many request bytes at once "
-                               "(--max-buffered-bytes %zu); retry later",
-                               srv->cfg.max_buffered_bytes);
+        return sdfd_http_error(req, SDF_EBUSY, SDFD_BUFFER_BUSY_FMT, srv->cfg.max_buffered_bytes);
     req->reserved = req->declared + 1;
     req->body = malloc(req->declared + 1);
     if (!req->body)

@@ -39,6 +39,11 @@ static inline int sdfd_buffer_reserve(sdfd_server *srv, size_t n)
     return 0;
 }
 
+/* What both front ends answer (429 EBUSY) when sdfd_buffer_reserve says no; takes the
+ * budget (%zu). */
+#define SDFD_BUFFER_BUSY_FMT \
+    "the server holds too many request bytes at once (--max-buffered-bytes %zu); retry later"
+
 static inline void sdfd_buffer_release(sdfd_server *srv, size_t n)
 {
     atomic_fetch_sub(&srv->buffered, n);
