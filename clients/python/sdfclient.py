@@ -23,10 +23,17 @@ Results are dicts of numpy arrays: "distance" always (the filtered value g in th
 modes); "gradient" (modes gradient and filtered-gradient); "closest" and "triangle" (mode
 closest). Errors raise SdfError with the HTTP status, the error code (e.g. "ENOTFOUND") and
 the server's message.
+
+Client keeps one connection alive and opens a new one once the server has closed it (after
+its --timeout of idleness). A request whose connection drops before its answer arrives is
+sent once more only where that does no harm (queries, GET, PUT, DELETE); a bake is not, as it
+would start a second job: its ConnectionError reaches the caller, and jobs() tells whether
+it started.
 """
 import http.client
 import io
 import json
+import select
 import socket
 import struct
 import time
@@ -116,21 +123,34 @@ class Client:
             self._conn.close()
             self._conn = None
 
+    def _connection(self):
+        """The kept-alive connection, or a new one if the server has closed it since (its
+        --timeout for idle connections): an idle connection that reads as ready holds the
+        server's end of it."""
+        if self._conn is not None and self._conn.sock is not None:
+            if select.select([self._conn.sock], [], [], 0)[0]:
+                self.close()
+        if self._conn is None:
+            self._conn = http.client.HTTPConnection(self.host, self.port, timeout=self.timeout)
+        return self._conn
+
     def _request(self, method, path, body=None, headers=None):
         headers = dict(headers or {})
         if self.token:
             headers["Authorization"] = f"Bearer {self.token}"
-        for attempt in (0, 1):  # one retry if a kept-alive connection was closed meanwhile
-            if self._conn is None:
-                self._conn = http.client.HTTPConnection(self.host, self.port, timeout=self.timeout)
+        # A request the connection dropped is sent once more only if sending it twice does no
+        # harm: not a bake, which would start a second job when only its answer was lost.
+        repeatable = method != "POST" or path.split("?")[0].endswith("/query")
+        for attempt in (0, 1):
+            conn = self._connection()
             try:
-                self._conn.request(method, path, body=body, headers=headers)
-                resp = self._conn.getresponse()
+                conn.request(method, path, body=body, headers=headers)
+                resp = conn.getresponse()
                 data = resp.read()
                 break
             except (http.client.RemoteDisconnected, ConnectionResetError, BrokenPipeError):
                 self.close()
-                if attempt:
+                if attempt or not repeatable:
                     raise
         if resp.getheader("Connection", "").lower() == "close":
             self.close()

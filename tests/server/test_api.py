@@ -2,9 +2,12 @@
 in-process by sdf-bench (which calls sdf_query directly) and through every body form and
 the binary protocol, must give the same float32 bits. Plus mesh management, auth, and the
 documented error statuses."""
+import http.client
 import io
 import json
 import os
+import select
+import socket
 import subprocess
 import sys
 import tempfile
@@ -339,6 +342,61 @@ class Meshes(unittest.TestCase):
         r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--help"], capture_output=True)
         self.assertEqual(r.returncode, 0)
         self.assertIn(b"--batch-window-us", r.stdout)
+
+
+class ClientConnections(unittest.TestCase):
+    """The Python client's kept-alive connection: reopened once the server closes it, and a
+    request whose answer was lost sent again only where that does no harm."""
+
+    def test_connection_the_server_closed_while_idle(self):
+        with Server("--timeout", "1") as s:
+            c = sdfclient.Client(s.url)
+            self.addCleanup(c.close)
+            c.health()
+            sock = c._conn.sock
+            # The server closes the idle connection after a second; the bake that follows
+            # must go out on a new one, once, and not be lost to the old one.
+            self.assertTrue(wait_until(lambda: select.select([sock], [], [], 0)[0], 10))
+            job = c.bake("demo", volume="after_idle", resolution=8)
+            self.assertEqual(c.wait(job)["state"], "done")
+            self.assertEqual([j["id"] for j in c.jobs()], [job["id"]])
+
+    def test_lost_answer_resent_only_for_queries(self):
+        """A server that reads each request and closes without answering (as one that fell
+        over after doing the work would): a query is sent twice, a bake once."""
+        listener = socket.create_server(("127.0.0.1", 0))
+        self.addCleanup(listener.close)
+        received = []
+
+        def serve():
+            while True:
+                try:
+                    conn, _ = listener.accept()
+                except OSError:
+                    return
+                with conn:
+                    data = b""
+                    while b"\r\n\r\n" not in data:
+                        chunk = conn.recv(65536)
+                        if not chunk:
+                            break
+                        data += chunk
+                    head = data.split(b"\r\n\r\n")[0]
+                    length = [int(line.split(b":")[1]) for line in head.split(b"\r\n")
+                              if line.lower().startswith(b"content-length:")]
+                    while length and len(data) - len(head) - 4 < length[0]:
+                        data += conn.recv(65536)
+                    received.append(head.split(b" ")[1].decode())
+
+        threading.Thread(target=serve, daemon=True).start()
+        c = sdfclient.Client(f"http://127.0.0.1:{listener.getsockname()[1]}")
+        self.addCleanup(c.close)
+        with self.assertRaises((ConnectionError, http.client.HTTPException)):
+            c.bake("demo", volume="v", resolution=8)
+        self.assertEqual(received, ["/v1/meshes/demo/bake"])
+        with self.assertRaises((ConnectionError, http.client.HTTPException)):
+            c.query("demo", np.zeros((2, 3), np.float32), form="json")
+        self.assertEqual(received[1:], ["/v1/meshes/demo/query"] * 2)
 
 
 if __name__ == "__main__":
