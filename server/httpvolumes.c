@@ -130,11 +130,27 @@ enum MHD_Result sdfd_http_volumes(request *req)
     return sdfd_http_json(req, 200, root);
 }
 
-/* An uploaded EXR volume (another replica's download, say) becomes a stored volume. */
+/* An uploaded EXR volume (another replica's download, say) becomes a stored volume. Only
+ * EXR: the other formats a download gives carry no origin, spacing or encoding (npy) or
+ * keep them apart (raw's JSON), so a body that is one of them is told so by name. */
 static void load_volume(request *req)
 {
+    static const char npy_magic[] = "\x93NUMPY";
     sdf_volume *volume = NULL;
+    if (req->len >= sizeof npy_magic - 1 && !memcmp(req->body, npy_magic, sizeof npy_magic - 1)) {
+        req->work_rc = SDF_EFORMAT;
+        snprintf(req->diag.message, sizeof req->diag.message,
+                 "the body is a NumPy file; a volume upload takes the EXR file that "
+                 ".../data?format=exr gives, which carries the origin, spacing and encoding");
+        return;
+    }
     req->work_rc = sdf_volume_load_exr_memory(req->body, req->len, &volume, &req->diag);
+    if (req->work_rc == SDF_EFORMAT) {
+        sdf_diag exr = req->diag;
+        snprintf(req->diag.message, sizeof req->diag.message,
+                 "a volume upload takes the EXR file that .../data?format=exr gives: %.180s",
+                 exr.message);
+    }
     if (!req->work_rc) {
         req->work_rc = sdfd_volumes_put(req->http->srv->volumes, req->name, volume, "",
                                         &req->replaced);

@@ -120,6 +120,11 @@ class Volumes(unittest.TestCase):
         self.assertGreaterEqual(harness.metric(text, "sdfd_requests_total",
                                                'route="/v1/volumes/{name}/query",status="200"'), 1)
 
+    def upload_error(self, client, body):
+        with self.assertRaises(sdfclient.SdfError) as e:
+            client.upload_volume("bad", body)
+        return e.exception
+
     def test_copy_to_another_replica(self):
         self.bake(volume="copied", resolution=[9, 10, 11], order=1, encoding="packed32")
         exr = self.c.download("copied", "exr")
@@ -141,6 +146,13 @@ class Volumes(unittest.TestCase):
                 with self.assertRaises(sdfclient.SdfError, msg=bad[:10]) as e:
                     admin.upload_volume("bad", bad)
                 self.assertIn(e.exception.status, (415, 422))  # not EXR / not an sdfd volume
+            self.assertIn("takes the EXR file that .../data?format=exr gives: OpenEXR",
+                          self.upload_error(admin, b"not an exr").message)
+            # A download in another format is named as such, not put to the EXR reader.
+            npy_file = self.c._request("GET", "/v1/volumes/copied/data?format=npy")[1]
+            e = self.upload_error(admin, npy_file)
+            self.assertEqual((e.status, e.code), (415, "EFORMAT"))
+            self.assertIn("the body is a NumPy file", e.message)
             self.assertEqual([v["name"] for v in admin.volumes()], ["copied"])
 
     def test_filtered_bake(self):
