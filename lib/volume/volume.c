@@ -80,6 +80,13 @@ int sdf__volume_check_info(const sdf_volume_info *info, sdf_diag *diag)
         if (!isfinite(info->origin[a]) || !isfinite(info->spacing[a]) || !(info->spacing[a] > 0))
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                  "volume origin and spacing must be finite, spacing > 0");
+        /* Past these, a node's coordinate or a gradient's 1 / spacing is infinite. */
+        double far = info->origin[a] + info->spacing[a] * (double)(info->dims[a] - 1);
+        if (!isfinite(far) || !isfinite(1 / info->spacing[a]))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "volume along %c (origin %g, spacing %g, %zu nodes) reaches "
+                                 "beyond the doubles", "xyz"[a], info->origin[a],
+                                 info->spacing[a], info->dims[a]);
         nodes *= info->dims[a];
     }
     if (nodes > SDF_VOLUME_MAX_NODES)

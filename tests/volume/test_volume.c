@@ -463,6 +463,9 @@ static void test_create(void)
         {{.dims = {1, 3, 2}, .spacing = {1, 1, 1}}, SDF_EINVAL},
         {{.dims = {2, 3, 2}, .spacing = {1, 0, 1}}, SDF_EINVAL},
         {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .origin = {NAN, 0, 0}}, SDF_EINVAL},
+        {{.dims = {2, 3, 2}, .spacing = {1, 1e308, 1}}, SDF_EINVAL},  /* far corner overflows */
+        {{.dims = {2, 3, 2}, .spacing = {1, 1, 1e308}, .origin = {0, 0, 1e308}}, SDF_EINVAL},
+        {{.dims = {2, 3, 2}, .spacing = {1e-310, 1, 1}}, SDF_EINVAL}, /* 1 / spacing overflows */
         {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .order = 3}, SDF_EINVAL},
         {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .encoding = SDF_ENCODING_PACKED32}, SDF_EINVAL},
         {{.dims = {2, 3, 2}, .spacing = {1, 1, 1}, .order = 1, .encoding = SDF_ENCODING_PACKED32},

@@ -398,8 +398,9 @@ int sdf_volume_bake_scratch(const sdf_mesh *mesh, const sdf_bake_options *opts, 
                             sdf_diag *diag);
 
 /* A volume from its description and node data (copied; sdf_volume_channels(info) 32-bit
- * words per node, float or uint32 by the encoding). Checks the description; non-finite
- * floats are SDF_ENONFINITE. */
+ * words per node, float or uint32 by the encoding). Checks the description (dims 2..
+ * SDF_VOLUME_MAX_DIM, spacing > 0, every node's coordinate and 1 / spacing finite, ...):
+ * SDF_EINVAL with the reason; non-finite floats are SDF_ENONFINITE. */
 int sdf_volume_create(const sdf_volume_info *info, const void *data, sdf_volume **out,
                       sdf_diag *diag);
 
