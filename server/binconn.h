@@ -1,0 +1,69 @@
+/* binconn.h - the binary front end's connections, shared by its two halves (private to
+ * server/binary.c and server/binrequests.c).
+ *
+ * binary.c owns the sockets: it polls them, splits their bytes into frames and hands each
+ * frame to sdfd_bin_handle_frame (binrequests.c), which answers it or starts the work that
+ * will. Replies go out through a connection's queue (sdfd_bin_enqueue), from any thread. */
+#ifndef SDFD_BINCONN_H
+#define SDFD_BINCONN_H
+
+#include <pthread.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <sys/socket.h>
+
+#include "binary.h"
+#include "proto.h"
+
+typedef struct out_frame {
+    struct out_frame *next;
+    char *data;   /* frame bytes (malloc'd) */
+    size_t len, sent;
+} out_frame;
+
+typedef struct connection connection;
+
+struct connection {
+    int fd;
+    struct sockaddr_storage peer; /* for the per-address connection limit */
+    unsigned char *in;
+    size_t in_len, in_cap;
+    double last_activity;
+    int closing;                /* send what is queued, then close */
+    int dead;                   /* socket closed; waiting for in-flight jobs */
+    pthread_mutex_t lock;       /* out queue and in_flight: shared with the dispatcher */
+    out_frame *out_head, *out_tail;
+    size_t out_bytes;           /* queued, not yet sent */
+    int in_flight;
+    int authenticated;          /* sent AUTH with the --token */
+    connection *next;
+};
+
+struct sdfd_binary {
+    sdfd_server *srv;
+    int listen_fd, wake_fd;
+    pthread_t thread;
+    atomic_int stop, quiesced;
+    connection *conns;
+    size_t conn_count;
+    uint32_t max_payload;
+};
+
+/* Wake the poll loop (a reply was queued from another thread). */
+void sdfd_bin_wake(sdfd_binary *b);
+/* Queue a frame; takes ownership of data. Any thread. */
+void sdfd_bin_enqueue(connection *c, char *data, size_t len);
+/* Queue an ERROR frame answering request `id`. */
+void sdfd_bin_send_error(connection *c, uint32_t id, int err, const char *message);
+/* One request: metrics and a log line, as the HTTP side does. */
+void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int status,
+                      size_t points, double start, size_t bytes_in, size_t bytes_out);
+/* A request of connection c has been answered (or refused after it was counted). */
+void sdfd_bin_request_finished(sdfd_binary *b, connection *c);
+
+/* Answer or start one complete frame of connection c (binrequests.c); the payload is valid
+ * only during the call. */
+void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *h,
+                           const unsigned char *payload);
+
+#endif
