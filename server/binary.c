@@ -8,7 +8,8 @@
  * at most 64 queries per connection are in flight and at most 64 MiB of replies wait unsent,
  * beyond which the connection is not read (TCP backpressure on a client that does not
  * read); a connection idle mid-frame for the timeout is closed; a framing error gets one
- * ERROR frame and the connection closes after it is sent. A connection that goes away with
+ * ERROR frame and the connection closes after it is sent; a frame with no room under
+ * --max-buffered-bytes gets an ERROR and is read and dropped, and the connection goes on. A connection that goes away with
  * queries in flight is freed when the last of them completes. */
 #define _GNU_SOURCE /* accept4 */
 #include "binconn.h"
@@ -155,29 +156,48 @@ static int resize_input(sdfd_binary *b, connection *c, size_t cap)
     return 0;
 }
 
+/* Too many bytes held over all connections (or no memory) for the frame whose header
+ * starts the input buffer (input_need grows the buffer only past a valid header, and every
+ * byte after it is this frame's): it is refused, and the rest of it read and dropped as it
+ * arrives, so the connection goes on with the next frame and the client reads its ERROR. */
+static void refuse_for_room(sdfd_binary *b, connection *c)
+{
+    sdf_proto_header h;
+    sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL);
+    char why[160];
+    snprintf(why, sizeof why, SDFD_BUFFER_BUSY_FMT, b->srv->cfg.max_buffered_bytes);
+    sdfd_bin_send_error(c, h.request_id, SDF_EBUSY, why);
+    size_t frame = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
+    sdfd_bin_account(b,
+                     h.type == SDF_PROTO_QUERY          ? SDFD_ROUTE_BIN_QUERY
+                     : h.type == SDF_PROTO_VOLUME_QUERY ? SDFD_ROUTE_BIN_VOLUME_QUERY
+                                                        : SDFD_ROUTE_BIN_OTHER,
+                     h.type == SDF_PROTO_QUERY          ? "QUERY"
+                     : h.type == SDF_PROTO_VOLUME_QUERY ? "VOLUME_QUERY"
+                                                        : "OTHER",
+                     sdf_http_status(SDF_EBUSY), 0, sdfd_now(), frame, 0);
+    c->skip = frame - c->in_len;
+    c->in_len = 0;
+}
+
 static int read_input(sdfd_binary *b, connection *c)
 {
     size_t need = input_need(b, c);
-    if (need > c->in_cap && resize_input(b, c, need)) {
-        /* Too many bytes held over all connections (or no memory): this frame is refused,
-         * and the connection closed, since its payload cannot be skipped unread. */
-        sdf_proto_header h;
-        uint32_t id = c->in_len >= SDF_PROTO_HEADER_SIZE &&
-                              !sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL)
-                          ? h.request_id
-                          : 0;
-        char why[160];
-        snprintf(why, sizeof why, SDFD_BUFFER_BUSY_FMT, b->srv->cfg.max_buffered_bytes);
-        sdfd_bin_send_error(c, id, SDF_EBUSY, why);
-        c->closing = 1;
+    if (!c->skip && need > c->in_cap && resize_input(b, c, need)) {
+        refuse_for_room(b, c);
         return 0;
     }
-    ssize_t n = recv(c->fd, c->in + c->in_len, c->in_cap - c->in_len, 0);
+    size_t room = c->skip ? (c->skip < c->in_cap ? c->skip : c->in_cap) : c->in_cap - c->in_len;
+    ssize_t n = recv(c->fd, c->in + c->in_len, room, 0);
     if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR))
         return -1;
     if (n > 0) {
-        c->in_len += (size_t)n;
         c->last_activity = sdfd_now();
+        if (c->skip) { /* a refused frame's bytes, dropped */
+            c->skip -= (size_t)n;
+            return 0;
+        }
+        c->in_len += (size_t)n;
         consume_input(b, c);
     }
     return 0;
@@ -349,7 +369,7 @@ static void *poll_loop(void *arg)
             pthread_mutex_lock(&c->lock);
             int drained = !c->out_head && c->in_flight == 0;
             pthread_mutex_unlock(&c->lock);
-            int stalled = c->in_len > 0 && now - c->last_activity > timeout;
+            int stalled = (c->in_len > 0 || c->skip) && now - c->last_activity > timeout;
             if (fail || stalled || (c->closing && drained))
                 close_socket(b, c);
         }

@@ -28,6 +28,7 @@ struct connection {
     struct sockaddr_storage peer; /* for the per-address connection limit */
     unsigned char *in;
     size_t in_len, in_cap;
+    size_t skip;                /* bytes of a refused frame still to read and drop */
     double last_activity;
     int closing;                /* send what is queued, then close */
     int dead;                   /* socket closed; waiting for in-flight jobs */
