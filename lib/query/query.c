@@ -85,7 +85,7 @@ typedef struct batch {
     sdf_query_result *out;
     float *winding;
     const uint32_t *order; /* packet traversal: visit order */
-    const float *visit_xyz; /* packet traversal: the points copied in visit order, or NULL */
+    float *visit_xyz;       /* packet traversal: the points copied in visit order, or NULL */
     int visit_out;          /* packet traversal: `out` is indexed by visit position */
     sdf_query_result *final; /* with visit_out: the caller's outputs, filled at the end */
     const double *bound;   /* sdf__query_seeded: each point's distance bound */
@@ -593,7 +593,7 @@ static void copy_in_visit_order(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     const batch *b = ctx;
-    float *out = (float *)b->visit_xyz;
+    float *out = b->visit_xyz;
     for (size_t i = begin; i < end; i++) {
         const float *p = point_at(b, b->order[i]);
         out[3 * i] = p[0], out[3 * i + 1] = p[1], out[3 * i + 2] = p[2];
