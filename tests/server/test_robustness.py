@@ -329,8 +329,12 @@ class Limits(unittest.TestCase):
             self.assertEqual((e.exception.status, e.exception.code), (429, "EBUSY"))
             self.assertIn("--max-buffered-bytes", e.exception.message)
             self.assertEqual(len(refused.query("demo", frame_points[:10])["distance"]), 10)
+            # Pipelined behind a refused frame, the next frame is read from where it ends.
+            busy, small = refused.query_many([("demo", frame_points), ("demo", frame_points[:7])])
+            self.assertEqual((busy.status, busy.code), (429, "EBUSY"))
+            self.assertEqual(len(small["distance"]), 7)
             self.assertEqual(metric(sdfclient.Client(s.url).metrics(), "sdfd_requests_total",
-                                    'route="bin:query",status="429"'), 1)
+                                    'route="bin:query",status="429"'), 2)
             held.sendall(body[1000:])  # the held request completes and frees its room
             self.assertIn(b"200 OK", held.recv(4096))
             held.close()
