@@ -1,12 +1,12 @@
 /* check.c - counters and helpers behind check.h. */
 #include "check.h"
 
-int check_failures;
-int check_count;
+_Atomic int check_failures;
+_Atomic int check_count;
 
 int check_finish(const char *name)
 {
-    printf("%s: %d checks, %d failed\n", name, check_count, check_failures);
+    printf("%s: %d checks, %d failed\n", name, (int)check_count, (int)check_failures);
     return check_failures ? 1 : 0;
 }
 

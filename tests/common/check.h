@@ -8,8 +8,10 @@
 
 #include "sdf/sdf.h"
 
-extern int check_failures;
-extern int check_count;
+/* Atomic: tests call CHECK from several threads at once (test_distance's concurrent
+ * callers), which ThreadSanitizer rightly reported as a race on plain ints. */
+extern _Atomic int check_failures;
+extern _Atomic int check_count;
 
 #define CHECK(cond, ...)                                                                   \
     do {                                                                                   \
