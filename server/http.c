@@ -21,6 +21,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include "body.h"
@@ -725,11 +726,18 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
     return 0;
 }
 
+/* MHD stops accepting and hands the listening socket back. It is shut down at once, so new
+ * connections are refused while the rest drains, but closed only after MHD's threads have
+ * stopped: closed here, its number could be reused while a worker still held it in its
+ * epoll set (ThreadSanitizer reported the close racing a worker's epoll_ctl). */
 void sdfd_http_quiesce(sdfd_http *http)
 {
     int fd = MHD_quiesce_daemon(http->daemon);
-    if (fd >= 0)
-        close(fd);
+    if (fd >= 0) {
+        shutdown(fd, SHUT_RDWR);
+        http->listen_fd = fd;
+        http->quiesced = 1;
+    }
 }
 
 void sdfd_http_stop(sdfd_http *http)
@@ -737,5 +745,7 @@ void sdfd_http_stop(sdfd_http *http)
     if (!http)
         return;
     MHD_stop_daemon(http->daemon);
+    if (http->quiesced)
+        close(http->listen_fd);
     free(http);
 }

@@ -15,6 +15,7 @@ struct sdfd_http {
     sdfd_server *srv;
     struct MHD_Daemon *daemon;
     int listen_fd;
+    int quiesced; /* listen_fd handed back by MHD_quiesce_daemon: ours to close */
 };
 
 /* Work a request waits for: a batcher job, or a thread of its own running `run` (uploads,

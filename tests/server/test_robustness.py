@@ -494,6 +494,8 @@ class Shutdown(unittest.TestCase):
         self.assertEqual(status, 503, "/readyz on an open connection while draining")
         with self.assertRaises(OSError):  # no new connections
             socket.create_connection(("127.0.0.1", s.bin_port), timeout=2).recv(1)
+        with self.assertRaises(ConnectionRefusedError):  # HTTP's socket is shut: refused at once
+            socket.create_connection(("127.0.0.1", s.ports["http"]), timeout=2)
         for t in threads:
             t.join(120)
         self.assertEqual(errors, [])
