@@ -51,7 +51,9 @@ class Server:
         return self.ports["binary"]
 
     def stop(self, sig=signal.SIGTERM, timeout=60):
-        """Signal the server and wait; returns its exit code."""
+        """Signal the server and wait; returns its exit code. A sanitizer report anywhere in
+        its log (the sanitizer builds: a leak, an overflow, undefined behaviour, a race)
+        fails the test that ran it, whatever the code."""
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
         try:
@@ -60,7 +62,18 @@ class Server:
             self.proc.kill()
             code = self.proc.wait()
         self._reader.join(5)
+        reports = self.sanitizer_reports()
+        if reports:
+            raise AssertionError("sdfd's sanitizer reported:\n" + "".join(reports[:80]))
         return code
+
+    def sanitizer_reports(self):
+        """Its log's lines from the first sanitizer report on (they are not JSON)."""
+        lines = [e["unparsed"] for e in self.logs if "unparsed" in e]
+        for i, line in enumerate(lines):
+            if "Sanitizer" in line or "runtime error" in line:
+                return lines[i:]
+        return []
 
     def __enter__(self):
         return self

@@ -66,11 +66,9 @@ class Fuzz(unittest.TestCase):
     @classmethod
     def tearDownClass(cls):
         cls.c.close()
-        code = cls.server.stop()
-        reports = [e["unparsed"] for e in cls.server.logs if "unparsed" in e and
-                   ("Sanitizer" in e["unparsed"] or "runtime error" in e["unparsed"])]
-        if code != 0 or reports:
-            raise AssertionError(f"sdfd exited {code}; sanitizer reports: {reports[:5]}")
+        code = cls.server.stop()  # raises on a sanitizer report (harness.py)
+        if code != 0:
+            raise AssertionError(f"sdfd exited {code}")
 
     def assert_nothing_held(self):
         # Every byte of --max-buffered-bytes reserved for the damaged requests came back.
