@@ -58,6 +58,7 @@
 #define CLUSTER_CANDIDATES 1024
 #define SEEDED_CHUNK 1024 /* seeded points per work item */
 #define VISIT_COPY_CHUNK 65536 /* points per work item of the copy in visit order */
+#define COPY_AHEAD 32          /* the copies' reads (and writes) prefetched this far ahead */
 
 static const char *const sign_names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
 
@@ -595,6 +596,8 @@ static void copy_in_visit_order(void *ctx, size_t begin, size_t end, int worker)
     const batch *b = ctx;
     float *out = b->visit_xyz;
     for (size_t i = begin; i < end; i++) {
+        if (i + COPY_AHEAD < end)
+            __builtin_prefetch(point_at(b, b->order[i + COPY_AHEAD]));
         const float *p = point_at(b, b->order[i]);
         out[3 * i] = p[0], out[3 * i + 1] = p[1], out[3 * i + 2] = p[2];
     }
@@ -633,8 +636,11 @@ static void scatter_answers(void *ctx, size_t begin, size_t end, int worker)
     const sdf_query_result *from = b->out, *to = b->final;
     const uint32_t *order = b->order;
     if (to->distance)
-        for (size_t i = begin; i < end; i++)
+        for (size_t i = begin; i < end; i++) {
+            if (i + COPY_AHEAD < end)
+                __builtin_prefetch(to->distance + order[i + COPY_AHEAD], 1);
             to->distance[order[i]] = from->distance[i];
+        }
     if (to->triangle)
         for (size_t i = begin; i < end; i++)
             to->triangle[order[i]] = from->triangle[i];
