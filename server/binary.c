@@ -156,16 +156,27 @@ static int resize_input(sdfd_binary *b, connection *c, size_t cap)
     return 0;
 }
 
-/* Too many bytes held over all connections (or no memory) for the frame whose header
- * starts the input buffer (input_need grows the buffer only past a valid header, and every
- * byte after it is this frame's): it is refused, and the rest of it read and dropped as it
- * arrives, so the connection goes on with the next frame and the client reads its ERROR. */
+/* Too many bytes held over all connections (or no memory) for the input buffer. Past a
+ * frame's header (every byte after it is that frame's) the frame is refused, and the rest
+ * of it read and dropped as it arrives, so the connection goes on with the next frame and
+ * the client reads its ERROR. Before one (a new connection's first buffer) there is no
+ * frame to skip: the connection gets the ERROR (request id 0) and is closed, what it has
+ * sent so far read and dropped first, as closing on unread bytes would reset the
+ * connection and could lose the ERROR. */
 static void refuse_for_room(sdfd_binary *b, connection *c)
 {
-    sdf_proto_header h;
-    sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL);
     char why[160];
     snprintf(why, sizeof why, SDFD_BUFFER_BUSY_FMT, b->srv->cfg.max_buffered_bytes);
+    sdf_proto_header h;
+    if (c->in_len < SDF_PROTO_HEADER_SIZE ||
+        sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL)) {
+        unsigned char sink[4096];
+        for (int reads = 0; reads < 16 && recv(c->fd, sink, sizeof sink, 0) > 0; reads++)
+            ;
+        sdfd_bin_send_error(c, 0, SDF_EBUSY, why);
+        c->closing = 1;
+        return;
+    }
     sdfd_bin_send_error(c, h.request_id, SDF_EBUSY, why);
     size_t frame = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
     sdfd_bin_account(b,

@@ -367,7 +367,11 @@ class BinaryClient:
             status, n = struct.unpack_from("<HH", payload)
             code = payload[4:4 + n].decode()
             (m,) = struct.unpack_from("<H", payload, 4 + n)
-            return rid, type_, SdfError(status, code, payload[6 + n:6 + n + m].decode())
+            error = SdfError(status, code, payload[6 + n:6 + n + m].decode())
+            if rid == 0:  # about the connection itself (PROTOCOL.md), which sdfd now closes
+                self.close()
+                raise error
+            return rid, type_, error
         return rid, type_, payload
 
     def _call(self, type_, payload=b""):

@@ -363,6 +363,50 @@ class Limits(unittest.TestCase):
             b.close()
             self.assertTrue(wait_until(nothing_held, 10))
 
+    def test_binary_connections_share_the_budget(self):
+        # Each binary connection holds a 64 KiB input buffer once it has read: two fit in
+        # 150 kB, a third's first read does not. It gets an ERROR and is closed (there is no
+        # frame yet to skip), and once another connection closes, room is back.
+        with Server("--max-body-bytes", "100000", "--max-points", "10000",
+                    "--max-buffered-bytes", "150000") as s:
+            a = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            self.addCleanup(b.close)
+            a.hello(), b.hello()
+            third = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+            self.addCleanup(third.close)
+            with self.assertRaises(sdfclient.SdfError) as e:
+                third.hello()
+            self.assertEqual((e.exception.status, e.exception.code), (429, "EBUSY"))
+            # On the wire: one ERROR with request id 0, then sdfd closes the connection.
+            raw = socket.create_connection(("127.0.0.1", s.bin_port), timeout=10)
+            self.addCleanup(raw.close)
+            raw.sendall(sdfclient.BinaryClient.HEADER.pack(b"SDFP", 1, 0x01, 0, 7, 0))
+            reply = b""
+            while True:
+                chunk = raw.recv(4096)
+                if not chunk:
+                    break
+                reply += chunk
+            _, _, kind, _, rid, length = sdfclient.BinaryClient.HEADER.unpack_from(reply)
+            self.assertEqual((kind, rid, len(reply)), (0x7F, 0, 16 + length))
+            a.close()
+            self.assertTrue(wait_until(lambda: self._hello_on_a_new_connection(s.bin_port), 10))
+            self.assertEqual(len(b.query("demo", np.zeros((5, 3), np.float32))["distance"]), 5)
+
+    @staticmethod
+    def _hello_on_a_new_connection(port):
+        client = sdfclient.BinaryClient("127.0.0.1", port)
+        try:
+            client.hello()
+            return True
+        except sdfclient.SdfError as e:
+            if e.code != "EBUSY":
+                raise
+            return False  # the closed connection's room is not back yet
+        finally:
+            client.close()
+
     def test_binary_connection_limits_and_logs(self):
         with Server("--max-per-ip", "2") as s:
             a = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
