@@ -9,8 +9,9 @@
  * beyond which the connection is not read (TCP backpressure on a client that does not
  * read); a connection idle mid-frame for the timeout is closed; a framing error gets one
  * ERROR frame and the connection closes after it is sent; a frame with no room under
- * --max-buffered-bytes gets an ERROR and is read and dropped, and the connection goes on. A connection that goes away with
- * queries in flight is freed when the last of them completes. */
+ * --max-buffered-bytes gets an ERROR and is read and dropped, and the connection goes on.
+ * A connection that goes away with queries in flight is freed when the last of them
+ * completes. */
 #define _GNU_SOURCE /* accept4 */
 #include "binconn.h"
 
@@ -179,14 +180,10 @@ static void refuse_for_room(sdfd_binary *b, connection *c)
     }
     sdfd_bin_send_error(c, h.request_id, SDF_EBUSY, why);
     size_t frame = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
-    sdfd_bin_account(b,
-                     h.type == SDF_PROTO_QUERY          ? SDFD_ROUTE_BIN_QUERY
-                     : h.type == SDF_PROTO_VOLUME_QUERY ? SDFD_ROUTE_BIN_VOLUME_QUERY
-                                                        : SDFD_ROUTE_BIN_OTHER,
-                     h.type == SDF_PROTO_QUERY          ? "QUERY"
-                     : h.type == SDF_PROTO_VOLUME_QUERY ? "VOLUME_QUERY"
-                                                        : "OTHER",
-                     sdf_http_status(SDF_EBUSY), 0, sdfd_now(), frame, 0);
+    sdfd_route route;
+    const char *what;
+    sdfd_bin_frame_kind(h.type, &route, &what);
+    sdfd_bin_account(b, route, what, sdf_http_status(SDF_EBUSY), 0, sdfd_now(), frame, 0);
     c->skip = frame - c->in_len;
     c->in_len = 0;
 }

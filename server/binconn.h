@@ -62,6 +62,9 @@ void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int st
 /* A request of connection c has been answered (or refused after it was counted). */
 void sdfd_bin_request_finished(sdfd_binary *b, connection *c);
 
+/* A frame type's route and name, as its requests are counted and logged. */
+void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what);
+
 /* Answer or start one complete frame of connection c (binrequests.c); the payload is valid
  * only during the call. */
 void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *h,

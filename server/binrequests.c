@@ -38,8 +38,8 @@ static void query_done(sdfd_job *job)
     } else {
         sdfd_bin_enqueue(c, bj->frame, len);
     }
-    sdfd_bin_account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", status, job->count, bj->start, bj->bytes_in,
-            job->status ? 0 : len);
+    sdfd_bin_account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", status, job->count, bj->start,
+                     bj->bytes_in, job->status ? 0 : len);
     sdf_mesh_release(job->mesh);
     sdf_mesh_release(bj->volume);
     free(bj->points);
@@ -192,8 +192,9 @@ static void *run_volume_query(void *arg)
     } else {
         sdfd_bin_enqueue(c, vj->frame, len);
     }
-    sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", rc ? sdf_http_status(rc) : 200,
-            vj->count, vj->start, vj->bytes_in, rc ? 0 : len);
+    sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY",
+                     rc ? sdf_http_status(rc) : 200, vj->count, vj->start, vj->bytes_in,
+                     rc ? 0 : len);
     sdfd_volume_release(vj->stored);
     free(vj->points);
     free(vj);
@@ -213,9 +214,10 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
     char message[300];
     int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)srv->cfg.max_points, &q, &why);
     if (rc || atomic_load(&srv->draining)) {
-        sdfd_bin_send_error(c, id, rc ? rc : SDF_EUNAVAILABLE, rc ? why : "the server is shutting down");
+        sdfd_bin_send_error(c, id, rc ? rc : SDF_EUNAVAILABLE,
+                            rc ? why : "the server is shutting down");
         sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY",
-                sdf_http_status(rc ? rc : SDF_EUNAVAILABLE), 0, start, bytes_in, 0);
+                         sdf_http_status(rc ? rc : SDF_EUNAVAILABLE), 0, start, bytes_in, 0);
         return;
     }
     snprintf(message, sizeof message, "%.*s", (int)q.name_len, q.name);
@@ -224,7 +226,8 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
         free(vj);
         snprintf(message, sizeof message, "no volume named '%.*s'", (int)q.name_len, q.name);
         sdfd_bin_send_error(c, id, SDF_ENOTFOUND, message);
-        sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", 404, 0, start, bytes_in, 0);
+        sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", 404, 0, start, bytes_in,
+                         0);
         return;
     }
     if (vj) {
@@ -258,9 +261,10 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
             sdfd_volume_release(vj->stored);
             free(vj->frame), free(vj->points), free(vj);
         }
-        sdfd_bin_send_error(c, id, rc, rc == SDF_ENOMEM ? "out of memory" : "cannot start a worker thread");
-        sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", sdf_http_status(rc), 0, start,
-                bytes_in, 0);
+        sdfd_bin_send_error(c, id, rc,
+                            rc == SDF_ENOMEM ? "out of memory" : "cannot start a worker thread");
+        sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", sdf_http_status(rc), 0,
+                         start, bytes_in, 0);
         return;
     }
     sdfd_metrics_points(srv->metrics, q.count);
@@ -309,17 +313,32 @@ static void handle_auth(sdfd_binary *b, connection *c, uint32_t id, const unsign
 
 /* ---- dispatch ---------------------------------------------------------------------------- */
 
+void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what)
+{
+    *route = type == SDF_PROTO_QUERY          ? SDFD_ROUTE_BIN_QUERY
+             : type == SDF_PROTO_VOLUME_QUERY ? SDFD_ROUTE_BIN_VOLUME_QUERY
+                                              : SDFD_ROUTE_BIN_OTHER;
+    *what = type == SDF_PROTO_QUERY          ? "QUERY"
+            : type == SDF_PROTO_VOLUME_QUERY ? "VOLUME_QUERY"
+            : type == SDF_PROTO_HELLO        ? "HELLO"
+            : type == SDF_PROTO_LIST_MESHES  ? "LIST_MESHES"
+            : type == SDF_PROTO_AUTH         ? "AUTH"
+                                             : "UNKNOWN";
+}
+
 void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *h,
                            const unsigned char *payload)
 {
     const sdfd_config *cfg = &b->srv->cfg;
+    sdfd_route route;
+    const char *what;
+    sdfd_bin_frame_kind(h->type, &route, &what);
     if ((h->type == SDF_PROTO_QUERY || h->type == SDF_PROTO_VOLUME_QUERY) && cfg->token &&
         cfg->auth_queries && !c->authenticated) {
         sdfd_bin_send_error(c, h->request_id, SDF_EUNAUTHORIZED,
-                   "this server needs AUTH with its token before queries");
-        sdfd_bin_account(b, h->type == SDF_PROTO_QUERY ? SDFD_ROUTE_BIN_QUERY : SDFD_ROUTE_BIN_VOLUME_QUERY,
-                h->type == SDF_PROTO_QUERY ? "QUERY" : "VOLUME_QUERY", 401, 0, sdfd_now(),
-                SDF_PROTO_HEADER_SIZE + h->length, 0);
+                            "this server needs AUTH with its token before queries");
+        sdfd_bin_account(b, route, what, 401, 0, sdfd_now(), SDF_PROTO_HEADER_SIZE + h->length,
+                         0);
         return;
     }
     if (h->type == SDF_PROTO_QUERY) {
@@ -350,9 +369,5 @@ void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header
         sdfd_bin_send_error(c, h->request_id, SDF_EPROTO, "unknown message type");
         status = 400;
     }
-    const char *what = h->type == SDF_PROTO_HELLO         ? "HELLO"
-                       : h->type == SDF_PROTO_LIST_MESHES ? "LIST_MESHES"
-                       : h->type == SDF_PROTO_AUTH        ? "AUTH"
-                                                          : "UNKNOWN";
-    sdfd_bin_account(b, SDFD_ROUTE_BIN_OTHER, what, status, 0, start, SDF_PROTO_HEADER_SIZE + h->length, 0);
+    sdfd_bin_account(b, route, what, status, 0, start, SDF_PROTO_HEADER_SIZE + h->length, 0);
 }

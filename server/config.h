@@ -44,16 +44,16 @@ typedef struct sdfd_config {
  * -1 after printing a clear message to stderr (exit non-zero). */
 int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv);
 
-/* Split "HOST:PORT" ("[::1]:8080" for IPv6) into host and port; 0 or -1. */
-/* Is `given` (n bytes) the --token (1 when there is none)? In a time that depends on the
- * token's length only, never on where the first difference lies, which a client could
- * otherwise time byte by byte. */
 /* The largest binary payload the server reads: a QUERY of --max-points points, with room for
  * its prefix, name and FILTER block (binary.c's max_payload, announced in HELLO_OK). */
 size_t sdfd_max_payload(const sdfd_config *cfg);
 
+/* Is `given` (n bytes) the --token (1 when there is none)? In a time that depends on the
+ * token's length only, never on where the first difference lies, which a client could
+ * otherwise time byte by byte. */
 int sdfd_token_matches(const sdfd_config *cfg, const char *given, size_t n);
 
+/* Split "HOST:PORT" ("[::1]:8080" for IPv6) into host and port; 0 or -1. */
 int sdfd_split_address(const char *addr, char *host, size_t host_cap, char *port, size_t port_cap);
 
 #endif

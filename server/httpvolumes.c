@@ -131,8 +131,8 @@ enum MHD_Result sdfd_http_volumes(request *req)
 }
 
 /* An uploaded EXR volume (another replica's download, say) becomes a stored volume. Only
- * EXR: the other formats a download gives carry no origin, spacing or encoding (npy) or
- * keep them apart (raw's JSON), so a body that is one of them is told so by name. */
+ * EXR: an npy download carries no origin, spacing or encoding, so a body that is one (its
+ * magic, lib/io/npy.c's) is told so by name; anything else gets the EXR reader's reason. */
 static void load_volume(request *req)
 {
     static const char npy_magic[] = "\x93NUMPY";
