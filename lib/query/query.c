@@ -87,8 +87,8 @@ typedef struct batch {
     float *winding;
     const uint32_t *order; /* packet traversal: visit order */
     float *visit_xyz;       /* packet traversal: the points copied in visit order, or NULL */
-    int visit_out;          /* packet traversal: `out` is indexed by visit position */
-    sdf_query_result *final; /* with visit_out: the caller's outputs, filled at the end */
+    sdf_query_result *final; /* packet traversal: the caller's outputs, filled at the end
+                                from `out`, which is then indexed by visit position; or NULL */
     const double *bound;   /* sdf__query_seeded: each point's distance bound */
     const int8_t *sign_hint; /* sdf__query_seeded: a sign known in advance (+-1), or 0 */
     const uint8_t *run_start; /* sdf__query_seeded: 1 where a run of nearby points begins */
@@ -243,7 +243,7 @@ static void single_points(const batch *b, size_t first, int n, const double *bou
         size_t pos = first + (size_t)i;
         const float *p = visit_point(b, pos);
         closest_by_tree(m, p, bound2 ? bound2[i] : INFINITY, &hits[i]);
-        finish(b, b->visit_out ? pos : b->order[pos], p, &hits[i], NAN);
+        finish(b, b->final ? pos : b->order[pos], p, &hits[i], NAN);
     }
 }
 
@@ -335,7 +335,7 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
             const float *p = visit_point(b, k + (size_t)i);
             /* Answers land in request order, scattered by the Morton order: ask for the line
              * now, so finish() does not wait on it (fandisk band, one thread: +5-20 %). */
-            if (b->out->distance && !b->visit_out)
+            if (b->out->distance && !b->final)
                 __builtin_prefetch(b->out->distance + b->order[k + (size_t)i], 1);
             pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
             double dx = p[0] - prev[0], dy = p[1] - prev[1], dz = p[2] - prev[2];
@@ -348,7 +348,7 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
         if (spread > PACKET_SPREAD * (prev_d + m->tree.leaf_size)) {
             single_points(b, k, pk.n, pk.bound2, hits);
         } else {
-            if (b->visit_out)
+            if (b->final)
                 answer_packet(b, &pk, NULL, k, hits);
             else
                 answer_packet(b, &pk, b->order + k, 0, hits);
@@ -627,7 +627,7 @@ static void *alloc_like(const sdf_query_result *like, size_t count, sdf_query_re
     return block;
 }
 
-/* Answers written in visit order (batch.visit_out) into the caller's arrays, in the batch's
+/* Answers written in visit order (batch.final set) into the caller's arrays, in the batch's
  * order. */
 static void scatter_answers(void *ctx, size_t begin, size_t end, int worker)
 {
@@ -675,7 +675,6 @@ static int query_points(const batch *b0, size_t count, const sdf_query_options *
         if (visit_block) {
             b.final = b.out;
             b.out = &visit_out;
-            b.visit_out = 1;
         }
         sdf__parallel_for(count, chunk, threads, packet_range, &b);
         if (visit_block)
