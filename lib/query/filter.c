@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/bigmem.h"
 #include "core/diag.h"
 #include "query/morton.h"
 #include "query/packet.h"
@@ -327,9 +328,10 @@ static const float *sample_gradient(const scratch *s, size_t k)
 
 static void free_scratch(scratch *s)
 {
-    free(s->centre_f), free(s->centre_grad), free(s->volume_f), free(s->volume_grad);
-    free(s->sample_p), free(s->sample_f), free(s->sample_grad), free(s->sample_bound);
-    free(s->sample_sign), free(s->sample_run);
+    sdf__big_free(s->centre_f), sdf__big_free(s->centre_grad);
+    sdf__big_free(s->volume_f), sdf__big_free(s->volume_grad);
+    sdf__big_free(s->sample_p), sdf__big_free(s->sample_f), sdf__big_free(s->sample_grad);
+    sdf__big_free(s->sample_bound), sdf__big_free(s->sample_sign), sdf__big_free(s->sample_run);
 }
 
 /* What one point's filtered value needs: its kernel size and, with adaptive quality, how
@@ -462,12 +464,16 @@ size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int 
     size_t per_point = n + (f->min_samples ? STENCIL : 0);
     size_t block = BLOCK_SAMPLES / per_point > 0 ? BLOCK_SAMPLES / per_point : 1;
     size_t per_block = block * per_point;
-    size_t per_sample = 3 * sizeof(float) + sizeof(float) + (gradient ? 3 * sizeof(float) : 0) +
-                        sizeof(double) + sizeof(int8_t) + sizeof(uint8_t);
+    size_t centre = 2 * (sdf__big_size((count + 1) * sizeof(float)) +
+                         sdf__big_size((3 * count + 1) * sizeof(float)));
+    size_t samples = sdf__big_size(3 * per_block * sizeof(float)) +
+                     sdf__big_size(per_block * sizeof(float)) +
+                     (gradient ? sdf__big_size(3 * per_block * sizeof(float)) : 0) +
+                     sdf__big_size(per_block * sizeof(double)) +
+                     2 * sdf__big_size(per_block * sizeof(uint8_t));
     size_t inner = sdf__query_scratch_bound(count > per_block ? count : per_block, threads);
-    return 2 * 4 * sizeof(float) * (count + 1) + n * 4 * sizeof(double) +
-           per_block * per_sample + block * sizeof(point_plan) + 4 * (count + 1) +
-           sdf__morton_scratch_bound(count, threads) + inner;
+    return centre + n * 4 * sizeof(double) + samples + block * sizeof(point_plan) +
+           4 * (count + 1) + sdf__morton_scratch_bound(count, threads) + inner;
 }
 
 int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
@@ -490,8 +496,8 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     sdf_mesh_report report;
     sdf_mesh_get_report(mesh, &report);
     s.closed = report.closed;
-    s.centre_f = malloc((count + 1) * sizeof(float));
-    s.centre_grad = malloc((3 * count + 1) * sizeof(float));
+    s.centre_f = sdf__big_alloc((count + 1) * sizeof(float));
+    s.centre_grad = sdf__big_alloc((3 * count + 1) * sizeof(float));
     if (!s.centre_f || !s.centre_grad) {
         free_scratch(&s);
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for %zu points", count);
@@ -507,8 +513,8 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
         return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
     }
     if (f.smooth.shape == SDF_VOLUME_MESH) { /* f_s and grad f_s from the volume's mesh */
-        s.volume_f = malloc((count + 1) * sizeof(float));
-        s.volume_grad = malloc((3 * count + 1) * sizeof(float));
+        s.volume_f = sdf__big_alloc((count + 1) * sizeof(float));
+        s.volume_grad = sdf__big_alloc((3 * count + 1) * sizeof(float));
         sdf_query_result vol = {.distance = s.volume_f, .gradient = s.volume_grad};
         sdf_query_options vol_opts = centre_opts;
         vol_opts.sign = SDF_SIGN_AUTO;
@@ -529,12 +535,12 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     size_t block = BLOCK_SAMPLES / per_point;
     block = block < 1 ? 1 : block;
     size_t per_block = block * per_point;
-    s.sample_p = malloc(3 * per_block * sizeof(float));
-    s.sample_f = malloc(per_block * sizeof(float));
-    s.sample_grad = out->gradient ? malloc(3 * per_block * sizeof(float)) : NULL;
-    s.sample_bound = malloc(per_block * sizeof(double));
-    s.sample_sign = malloc(per_block * sizeof(int8_t));
-    s.sample_run = malloc(per_block * sizeof(uint8_t));
+    s.sample_p = sdf__big_alloc(3 * per_block * sizeof(float));
+    s.sample_f = sdf__big_alloc(per_block * sizeof(float));
+    s.sample_grad = out->gradient ? sdf__big_alloc(3 * per_block * sizeof(float)) : NULL;
+    s.sample_bound = sdf__big_alloc(per_block * sizeof(double));
+    s.sample_sign = sdf__big_alloc(per_block * sizeof(int8_t));
+    s.sample_run = sdf__big_alloc(per_block * sizeof(uint8_t));
     point_plan *plan = malloc(block * sizeof *plan);
     if (!s.sample_p || !s.sample_f || (out->gradient && !s.sample_grad) || !s.sample_bound ||
         !s.sample_sign || !s.sample_run || !plan) {

@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/bigmem.h"
 #include "core/parallel.h"
 #include "sdf/sdf.h"
 
@@ -188,7 +189,7 @@ size_t sdf__morton_scratch_bound(size_t count, int threads)
 {
     unsigned shift;
     size_t parts = parts_for(count, threads, &shift);
-    return 2 * count * sizeof(uint64_t) + (parts + parts * parts) * BUCKETS * sizeof(uint32_t) +
+    return sdf__big_size(2 * count * sizeof(uint64_t)) + (parts + parts * parts) * BUCKETS * sizeof(uint32_t) +
            2 * parts * 3 * sizeof(float);
 }
 
@@ -201,7 +202,7 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, int threa
         return 0;
     morton_sort s = {.points = points, .stride = stride, .count = count, .order = order};
     s.parts = parts_for(count, threads, &s.part_shift);
-    uint64_t *keys = malloc(2 * count * sizeof *keys);
+    uint64_t *keys = sdf__big_alloc(2 * count * sizeof *keys);
     s.src = keys;
     s.cursor = calloc(s.parts * BUCKETS, sizeof *s.cursor);
     s.next = malloc(s.parts * s.parts * BUCKETS * sizeof *s.next);
@@ -232,7 +233,7 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, int threa
             s.dst = t;
         }
     }
-    free(keys);
+    sdf__big_free(keys);
     free(s.cursor), free(s.next), free(s.part_lo), free(s.part_hi);
     return rc;
 }

@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "bvh/embree.h"
+#include "core/bigmem.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
 #include "query/cluster.h"
@@ -367,9 +368,9 @@ static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_opti
 {
     if ((opts && opts->traversal == SDF_TRAVERSAL_SINGLE) || count < 2 || count > UINT32_MAX)
         return NULL;
-    uint32_t *order = malloc(count * sizeof *order);
+    uint32_t *order = sdf__big_alloc(count * sizeof *order);
     if (order && sdf__morton_order(b->points, b->stride, count, opts ? opts->threads : 0, order)) {
-        free(order);
+        sdf__big_free(order);
         order = NULL;
     }
     return order;
@@ -434,7 +435,8 @@ size_t sdf__query_scratch_bound(size_t count, int threads)
      * axes (at most 12 a point), the points and answers in visit order (12, and at most 44:
      * every output), and every worker's cluster scratch (seeded queries). */
     size_t workers = (size_t)sdf__effective_threads(threads, SIZE_MAX, 1);
-    return 72 * (count + 1) + sdf__morton_scratch_bound(count, threads) +
+    return sdf__big_size(4 * count) + 12 * (count + 1) + sdf__big_size(12 * count) +
+           sdf__big_size(44 * count + 4) + sdf__morton_scratch_bound(count, threads) +
            workers * sdf__cluster_bytes(CLUSTER_CANDIDATES);
 }
 
@@ -610,7 +612,7 @@ static void *alloc_like(const sdf_query_result *like, size_t count, sdf_query_re
     size_t words = (like->distance ? 1 : 0) + (like->gradient ? 3 : 0) +
                    (like->closest ? 3 : 0) + (like->triangle ? 1 : 0) +
                    (like->barycentric ? 3 : 0);
-    uint32_t *block = malloc(words * count * sizeof *block + 1), *at = block;
+    uint32_t *block = sdf__big_alloc(words * count * sizeof *block + 1), *at = block;
     if (!block)
         return NULL;
     *out = (sdf_query_result){0};
@@ -665,7 +667,7 @@ static int query_points(const batch *b0, size_t count, const sdf_query_options *
         b.order = order;
         /* Without these copies the points are read, and the answers written, through the
          * order: the same answers. */
-        float *visit_xyz = malloc(count * 3 * sizeof *visit_xyz);
+        float *visit_xyz = sdf__big_alloc(count * 3 * sizeof *visit_xyz);
         if (visit_xyz) {
             b.visit_xyz = visit_xyz;
             sdf__parallel_for(count, VISIT_COPY_CHUNK, threads, copy_in_visit_order, &b);
@@ -679,9 +681,9 @@ static int query_points(const batch *b0, size_t count, const sdf_query_options *
         sdf__parallel_for(count, chunk, threads, packet_range, &b);
         if (visit_block)
             sdf__parallel_for(count, VISIT_COPY_CHUNK, threads, scatter_answers, &b);
-        free(visit_block);
-        free(visit_xyz);
-        free(order);
+        sdf__big_free(visit_block);
+        sdf__big_free(visit_xyz);
+        sdf__big_free(order);
     } else { /* single traversal, or no memory for the order: same answers */
         if (opts && opts->traversal == SDF_TRAVERSAL_SINGLE) {
             int rc = sdf__bvh_ready(b.mesh->bvh); /* Embree's scene, built on first use */

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/bigmem.h"
 #include "core/diag.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
@@ -384,8 +385,9 @@ static void store_planes(sdf_volume *v, const float *plane)
 
 static void free_slab(slab *s)
 {
-    free(s->node_pos), free(s->node_f), free(s->sample_pos), free(s->sample_f);
-    free(s->bound), free(s->hint), free(s->run_start);
+    sdf__big_free(s->node_pos), sdf__big_free(s->node_f), sdf__big_free(s->sample_pos);
+    sdf__big_free(s->sample_f), sdf__big_free(s->bound), sdf__big_free(s->hint);
+    sdf__big_free(s->run_start);
 }
 
 /* The bake's distances: the span of f at the nodes (for packing) and, for first order, the
@@ -513,14 +515,14 @@ static int query_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options
     if (per_slab > v->nodes)
         per_slab = v->nodes;
     slab s = {.plan = plan};
-    s.node_pos = malloc(per_slab * 3 * sizeof(float));
-    s.node_f = first ? malloc(per_slab * sizeof(float)) : NULL;
+    s.node_pos = sdf__big_alloc(per_slab * 3 * sizeof(float));
+    s.node_f = first ? sdf__big_alloc(per_slab * sizeof(float)) : NULL;
     if (first) {
-        s.sample_pos = malloc(per_slab * m * 3 * sizeof(float));
-        s.sample_f = malloc(per_slab * m * sizeof(float));
-        s.bound = malloc(per_slab * m * sizeof(double));
-        s.hint = malloc(per_slab * m);
-        s.run_start = malloc(per_slab * m);
+        s.sample_pos = sdf__big_alloc(per_slab * m * 3 * sizeof(float));
+        s.sample_f = sdf__big_alloc(per_slab * m * sizeof(float));
+        s.bound = sdf__big_alloc(per_slab * m * sizeof(double));
+        s.hint = sdf__big_alloc(per_slab * m);
+        s.run_start = sdf__big_alloc(per_slab * m);
     }
     if (!s.node_pos || (first && (!s.node_f || !s.sample_pos || !s.sample_f || !s.bound ||
                                   !s.hint || !s.run_start)))
@@ -559,10 +561,12 @@ static size_t query_bake_scratch(const bake_plan *plan)
     size_t nodes = plan->info.dims[0] * plan->info.dims[1] * plan->info.dims[2];
     size_t per_slab = SLAB_QUERIES / (m * plan->queries_per_point);
     per_slab = per_slab < 1 ? 1 : per_slab > nodes ? nodes : per_slab;
-    size_t arrays = per_slab * 3 * sizeof(float);
+    size_t arrays = sdf__big_size(per_slab * 3 * sizeof(float));
     if (first)
-        arrays += per_slab * sizeof(float) +
-                  per_slab * m * (3 * sizeof(float) + sizeof(float) + sizeof(double) + 2);
+        arrays += sdf__big_size(per_slab * sizeof(float)) +
+                  sdf__big_size(per_slab * m * 3 * sizeof(float)) +
+                  sdf__big_size(per_slab * m * sizeof(float)) +
+                  sdf__big_size(per_slab * m * sizeof(double)) + 2 * sdf__big_size(per_slab * m);
     size_t largest = per_slab * m;
     int threads = plan->query.threads;
     size_t queries = plan->filter
@@ -582,11 +586,13 @@ int sdf_volume_bake_scratch(const sdf_mesh *mesh, const sdf_bake_options *opts, 
         return rc;
     const sdf_volume_info *in = &plan->info;
     size_t nodes = in->dims[0] * in->dims[1] * in->dims[2];
-    /* The plan, the volume's header, the first order's planes and fit state, the sign's data
-     * made on first use, and the way the bake goes. */
-    *bytes = sizeof(bake_plan) + sizeof(sdf_volume) +
+    /* The plan, the volume's header and its data's rounding to huge pages (core/bigmem.h),
+     * the first order's planes and fit state, the sign's data made on first use, and the way
+     * the bake goes. */
+    size_t data = nodes * (size_t)sdf_volume_channels(in) * 4;
+    *bytes = sizeof(bake_plan) + sizeof(sdf_volume) + (sdf__big_size(data) - data) +
              sdf__mesh_first_use_bound(mesh, plan->query.sign) +
-             (in->order == 1 ? nodes * 4 * sizeof(float) + sizeof(fit_state) : 0) +
+             (in->order == 1 ? sdf__big_size(nodes * 4 * sizeof(float)) + sizeof(fit_state) : 0) +
              (scannable(plan) ? sdf__scan_scratch_bound(mesh, in, plan->query.threads)
                               : query_bake_scratch(plan));
     free(plan);
@@ -613,7 +619,7 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
         sdf__diag_set(diag, rc, 0, -1, "no memory for a volume of %zu x %zu x %zu nodes",
                       plan->info.dims[0], plan->info.dims[1], plan->info.dims[2]);
     int first = plan->info.order == 1;
-    if (!rc && first && !(o.planes = malloc(o.v->nodes * 4 * sizeof(float))))
+    if (!rc && first && !(o.planes = sdf__big_alloc(o.v->nodes * 4 * sizeof(float))))
         rc = sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory for the bake's scratch");
     if (!rc)
         rc = scannable(plan) ? scan_bake(plan, &o, opts, diag) : query_bake(plan, &o, opts, diag);
@@ -630,7 +636,7 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
         }
         store_planes(v, o.planes);
     }
-    free(o.planes);
+    sdf__big_free(o.planes);
     free(plan);
     if (rc) {
         sdf_volume_destroy(v);

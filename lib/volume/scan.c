@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "bvh/embree.h"
+#include "core/bigmem.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
 #include "mesh/topology.h"
@@ -254,12 +255,12 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
         size_t w3 = SDF__POW3(2 * info->fine_half + 1), node_bytes = w3 * sizeof(float);
         size_t slices = slices_for(slice, workers, node_bytes, SCAN_SAMPLE_BUDGET_BYTES);
         slices = slices > info->dims[2] ? info->dims[2] : slices;
-        call = workers * slices * slice * node_bytes +
+        call = sdf__big_size(workers * slices * slice * node_bytes) +
                workers * (MERGE_NODES * w3 * sizeof(float) + sizeof(sdf__fat_region));
     } else {
         size_t slices = slices_for(slice, workers, sizeof(sdf__node_best), SCAN_BUDGET_BYTES);
         slices = slices > info->dims[2] ? info->dims[2] : slices;
-        call = workers * slices * slice * sizeof(sdf__node_best) +
+        call = sdf__big_size(workers * slices * slice * sizeof(sdf__node_best)) +
                workers * nx * (3 * sizeof(float) + sizeof(sdf__hit) + sizeof(uint32_t) +
                                sizeof(float));
     }
@@ -294,7 +295,7 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
     int distances_only = out->distance && !out->gradient && !out->closest && !out->triangle &&
                          !out->barycentric;
     sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
-                         .best = malloc(w * nodes * sizeof(sdf__node_best)),
+                         .best = sdf__big_alloc(w * nodes * sizeof(sdf__node_best)),
                          .distances_only = distances_only,
                          .regions = malloc(w * sizeof(sdf__region)),
                          .points = malloc(w * nx * 3 * sizeof(float)),
@@ -312,7 +313,7 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
         sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
         sdf__parallel_for(rows, 8, workers, rows_range, &st);
     }
-    free(st.best), free(st.regions), free(st.points);
+    sdf__big_free(st.best), free(st.regions), free(st.points);
     free(st.hits), free(st.slow), free(st.slow_out);
     return rc;
 }
@@ -355,8 +356,8 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, scratch = w * nodes * w3;
     if (scratch > s->sample_scratch_count) { /* kept between calls: fresh pages cost */
-        free(s->sample_scratch);
-        s->sample_scratch = malloc(scratch * sizeof(float));
+        sdf__big_free(s->sample_scratch);
+        s->sample_scratch = sdf__big_alloc(scratch * sizeof(float));
         s->sample_scratch_count = s->sample_scratch ? scratch : 0;
     }
     sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
@@ -535,6 +536,6 @@ void sdf__scan_destroy(sdf__scan *s)
     for (int a = 0; a < 3; a++)
         free(s->coarse_coord[a]);
     sdf__features_free(&s->feat);
-    free(s->order), free(s->coarse), free(s->sample_scratch), free(s->zspan);
+    free(s->order), free(s->coarse), sdf__big_free(s->sample_scratch), free(s->zspan);
     free(s);
 }

@@ -8,6 +8,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "core/bigmem.h"
 #include "core/diag.h"
 #include "core/parallel.h"
 #include "volume/pack.h"
@@ -118,7 +119,7 @@ int sdf__volume_alloc(const sdf_volume_info *info, sdf_volume **out)
     v->info = *info;
     v->nodes = info->dims[0] * info->dims[1] * info->dims[2];
     v->channels = sdf_volume_channels(info);
-    v->data.p = malloc(v->nodes * (size_t)v->channels * 4);
+    v->data.p = sdf__big_alloc(v->nodes * (size_t)v->channels * 4);
     if (!v->data.p) {
         free(v);
         return SDF_ENOMEM;
@@ -158,7 +159,7 @@ void sdf_volume_destroy(sdf_volume *volume)
 {
     if (!volume)
         return;
-    free(volume->data.p);
+    sdf__big_free(volume->data.p);
     free(volume);
 }
 
