@@ -11,7 +11,7 @@ void *sdf__big_alloc(size_t bytes)
 {
     if (bytes < HUGE_PAGE)
         return malloc(bytes ? bytes : 1);
-    if (bytes > SIZE_MAX - HUGE_PAGE)
+    if (bytes > SIZE_MAX / 2) /* past what sdf__big_size can describe; no machine has it */
         return NULL;
     size_t rounded = (bytes + HUGE_PAGE - 1) / HUGE_PAGE * HUGE_PAGE;
     void *p = aligned_alloc(HUGE_PAGE, rounded); /* C11: a multiple of the alignment */

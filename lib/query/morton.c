@@ -189,8 +189,8 @@ size_t sdf__morton_scratch_bound(size_t count, int threads)
 {
     unsigned shift;
     size_t parts = parts_for(count, threads, &shift);
-    return sdf__big_size(2 * count * sizeof(uint64_t)) + (parts + parts * parts) * BUCKETS * sizeof(uint32_t) +
-           2 * parts * 3 * sizeof(float);
+    return sdf__big_size(2 * count * sizeof(uint64_t)) +
+           (parts + parts * parts) * BUCKETS * sizeof(uint32_t) + 2 * parts * 3 * sizeof(float);
 }
 
 int sdf__morton_order(const char *points, size_t stride, size_t count, int threads,
