@@ -1,10 +1,10 @@
 /* bake-bench - time volume bakes of a mesh: bake-bench MESH DIM [THREADS (0 = all)]
- * [normalize] [fine=H,DELTA] [repeat=N]. Bakes DIM^3 zero-order, then first-order (float32;
- * fitting grids of (2H + 1)^3 samples DELTA cells apart, default 1,0.1), over the default
- * bounds (or [-1, 1]^3 around the mesh normalised to it), each N times (default 1) keeping
- * the fastest, and prints seconds, nodes per second (first order: also fine samples per
- * second) and the first/zero time ratio, one JSON object per line
- * (tests/bench/bake-compare.sh). */
+ * [normalize] [fine=H,DELTA] [repeat=N] [order=0|1]. Bakes DIM^3 zero-order, then first-order
+ * (float32; fitting grids of (2H + 1)^3 samples DELTA cells apart, default 1,0.1), or only
+ * the order that order= names (to profile one), over the default bounds (or [-1, 1]^3 around
+ * the mesh normalised to it), each N times (default 1) keeping the fastest, and prints
+ * seconds, nodes per second (first order: also fine samples per second) and, with both
+ * orders, the first/zero time ratio, one JSON object per line (tests/bench/bake-compare.sh). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,12 +23,13 @@ static double now(void)
 int main(int argc, char **argv)
 {
     if (argc < 3) {
-        fprintf(stderr, "usage: bake-bench MESH DIM [THREADS] [normalize] [fine=H,DELTA]\n");
+        fprintf(stderr, "usage: bake-bench MESH DIM [THREADS] [normalize] [fine=H,DELTA] "
+                        "[repeat=N] [order=0|1]\n");
         return 2;
     }
     size_t dim = strtoul(argv[2], NULL, 10);
     int threads = argc > 3 ? atoi(argv[3]) : 0;
-    int normalize = 0, fine_half = 1, repeat = 1;
+    int normalize = 0, fine_half = 1, repeat = 1, only_order = -1;
     double fine_spacing = 0.1;
     for (int i = 4; i < argc; i++) {
         if (!strcmp(argv[i], "normalize")) {
@@ -36,6 +37,11 @@ int main(int argc, char **argv)
         } else if (sscanf(argv[i], "repeat=%d", &repeat) == 1) {
             if (repeat < 1) {
                 fprintf(stderr, "bake-bench: repeat must be >= 1\n");
+                return 2;
+            }
+        } else if (sscanf(argv[i], "order=%d", &only_order) == 1) {
+            if (only_order != 0 && only_order != 1) {
+                fprintf(stderr, "bake-bench: order must be 0 or 1\n");
                 return 2;
             }
         } else if (sscanf(argv[i], "fine=%d,%lf", &fine_half, &fine_spacing) != 2) {
@@ -61,6 +67,8 @@ int main(int argc, char **argv)
             o.lo[a] = -1, o.hi[a] = 1;
     double seconds[2];
     for (int order = 0; order < 2; order++) {
+        if (only_order >= 0 && order != only_order)
+            continue;
         o.order = order;
         seconds[order] = INFINITY;
         for (int r = 0; r < repeat; r++) {
@@ -80,7 +88,8 @@ int main(int argc, char **argv)
                "\"samples_per_second\": %.0f}\n", order, dim, seconds[order],
                nodes / seconds[order], nodes * side * side * side / seconds[order]);
     }
-    printf("{\"first_over_zero\": %.2f}\n", seconds[1] / seconds[0]);
+    if (only_order < 0)
+        printf("{\"first_over_zero\": %.2f}\n", seconds[1] / seconds[0]);
     sdf_mesh_release(mesh);
     return 0;
 }
