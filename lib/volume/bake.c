@@ -330,24 +330,45 @@ static int slab_samples(slab *s)
                              &plan->query, &out);
 }
 
-/* Algorithm 1, steps 3-6 for one node from its fine samples f: a~ = X_o^+ f, normalised by
- * |(a~, b~, c~)| (all four coefficients, or with SDF_NORMALIZE_GRADIENT the first three).
- * The plane is kept local here (unit normal, value at the node); the global constant
- * d = value - n . x_i (eq. 2) is formed when the volume is written. */
-static void fit_node(const bake_plan *plan, const float *f, float out[4])
+/* Algorithm 1, steps 3-6 for `count` nodes from their fine samples f (m per node): a~ =
+ * X_o^+ f, normalised by |(a~, b~, c~)| (all four coefficients, or with
+ * SDF_NORMALIZE_GRADIENT the first three). The plane is kept local here (unit normal, value at
+ * the node); the global constant d = value - n . x_i (eq. 2) is formed when the volume is
+ * written. Each node's four sums run in order of j, FIT_BATCH nodes side by side: one node's
+ * sums are four chains of m dependent additions, and a batch's chains overlap (the same
+ * floats as one node at a time). */
+#define FIT_BATCH 4
+
+static void fit_nodes(const bake_plan *plan, const float *f, size_t count, float *out)
 {
     size_t m = (size_t)plan->fine_count;
-    double c[4] = {0, 0, 0, 0};
-    for (size_t j = 0; j < m; j++) /* the four sums side by side, each in order of j */
-        for (int r = 0; r < 4; r++)
-            c[r] += plan->pinv_t[j][r] * f[j];
-    double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-    /* A vanishing fitted gradient (a perfectly symmetric spot of the medial axis) has no
-     * direction to normalise to: keep the value with a zero gradient. */
-    double scale = len > 1e-12 ? 1 / len : 1;
-    out[0] = (float)(c[0] * scale), out[1] = (float)(c[1] * scale);
-    out[2] = (float)(c[2] * scale);
-    out[3] = (float)(plan->info.normalize == SDF_NORMALIZE_PLANE ? c[3] * scale : c[3]);
+    for (size_t first = 0; first < count; first += FIT_BATCH) {
+        size_t batch = count - first < FIT_BATCH ? count - first : FIT_BATCH;
+        const float *fb = f + first * m;
+        double c[FIT_BATCH][4] = {{0}};
+        if (batch == FIT_BATCH) {
+            for (size_t j = 0; j < m; j++)
+                for (int k = 0; k < FIT_BATCH; k++)
+                    for (int r = 0; r < 4; r++)
+                        c[k][r] += plan->pinv_t[j][r] * fb[k * m + j];
+        } else {
+            for (size_t k = 0; k < batch; k++)
+                for (size_t j = 0; j < m; j++)
+                    for (int r = 0; r < 4; r++)
+                        c[k][r] += plan->pinv_t[j][r] * fb[k * m + j];
+        }
+        for (size_t k = 0; k < batch; k++) {
+            const double *ck = c[k];
+            float *o = out + 4 * (first + k);
+            double len = sqrt(ck[0] * ck[0] + ck[1] * ck[1] + ck[2] * ck[2]);
+            /* A vanishing fitted gradient (a perfectly symmetric spot of the medial axis) has
+             * no direction to normalise to: keep the value with a zero gradient. */
+            double scale = len > 1e-12 ? 1 / len : 1;
+            o[0] = (float)(ck[0] * scale), o[1] = (float)(ck[1] * scale);
+            o[2] = (float)(ck[2] * scale);
+            o[3] = (float)(plan->info.normalize == SDF_NORMALIZE_PLANE ? ck[3] * scale : ck[3]);
+        }
+    }
 }
 
 static void fit_range(void *ctx, size_t begin, size_t end, int worker)
@@ -355,32 +376,47 @@ static void fit_range(void *ctx, size_t begin, size_t end, int worker)
     (void)worker;
     slab *s = ctx;
     size_t m = (size_t)s->plan->fine_count;
-    for (size_t n = begin; n < end; n++)
-        fit_node(s->plan, s->sample_f + n * m, s->plane + 4 * n);
+    fit_nodes(s->plan, s->sample_f + begin * m, end - begin, s->plane + 4 * begin);
 }
 
 /* ---- assembly ---------------------------------------------------------------------------- */
 
-/* Local planes (normal, value at node) -> the volume's encoding. */
-static void store_planes(sdf_volume *v, const float *plane)
+/* Local planes (normal, value at node) -> the volume's encoding, for a run of nodes. Float32
+ * volumes hold their local planes in their own data until here (sdf_volume_bake), and are
+ * rewritten in place: each node reads its plane before it writes it. */
+typedef struct store_state {
+    sdf_volume *v;
+    const float *plane;
+} store_state;
+
+static void store_range(void *ctx, size_t begin, size_t end, int worker)
 {
+    (void)worker;
+    const store_state *ss = ctx;
+    sdf_volume *v = ss->v;
     const sdf_volume_info *in = &v->info;
-    for (size_t n = 0; n < v->nodes; n++) {
-        const float *p = plane + 4 * n;
+    for (size_t n = begin; n < end; n++) {
+        const float *p = ss->plane + 4 * n;
         size_t ijk[3];
-        double x[3], normal[3] = {p[0], p[1], p[2]};
+        double x[3], normal[3] = {p[0], p[1], p[2]}, value = p[3];
         node_index(in, n, ijk);
         sdf__volume_node(in, ijk[0], ijk[1], ijk[2], x);
         if (in->encoding == SDF_ENCODING_FLOAT32) {
             float *o = v->data.f + 4 * n;
-            o[0] = p[0], o[1] = p[1], o[2] = p[2];
-            o[3] = (float)(p[3] - (normal[0] * x[0] + normal[1] * x[1] + normal[2] * x[2]));
+            o[0] = (float)normal[0], o[1] = (float)normal[1], o[2] = (float)normal[2];
+            o[3] = (float)(value - (normal[0] * x[0] + normal[1] * x[1] + normal[2] * x[2]));
         } else {
             if (normal[0] == 0 && normal[1] == 0 && normal[2] == 0)
                 normal[2] = 1; /* any direction: the packing has no zero normal */
-            v->data.u[n] = sdf__pack_plane(normal, p[3] - in->packed_center, in->packed_range);
+            v->data.u[n] = sdf__pack_plane(normal, value - in->packed_center, in->packed_range);
         }
     }
+}
+
+static void store_planes(sdf_volume *v, const float *plane, int threads)
+{
+    store_state ss = {v, plane};
+    sdf__parallel_for(v->nodes, (size_t)1 << 14, threads, store_range, &ss);
 }
 
 static void free_slab(slab *s)
@@ -441,8 +477,9 @@ static int fit_samples(void *user, size_t first, size_t count, float *f, int wor
     fit_state *fs = user;
     size_t m = (size_t)fs->plan->fine_count;
     int rc = search_missing(fs->plan, first, count, f);
+    if (!rc)
+        fit_nodes(fs->plan, f, count, fs->o->planes + 4 * first);
     for (size_t n = 0; !rc && n < count; n++) {
-        fit_node(fs->plan, f + n * m, fs->o->planes + 4 * (first + n));
         double centre = f[n * m + m / 2]; /* the centre sample is the node */
         fs->smallest_f[worker] = fmin(fs->smallest_f[worker], centre);
         fs->largest_f[worker] = fmax(fs->largest_f[worker], centre);
@@ -587,12 +624,15 @@ int sdf_volume_bake_scratch(const sdf_mesh *mesh, const sdf_bake_options *opts, 
     const sdf_volume_info *in = &plan->info;
     size_t nodes = in->dims[0] * in->dims[1] * in->dims[2];
     /* The plan, the volume's header and its data's rounding to huge pages (core/bigmem.h),
-     * the first order's planes and fit state, the sign's data made on first use, and the way
-     * the bake goes. */
+     * the first order's fit state and its planes (apart from the data when packed), the
+     * sign's data made on first use, and the way the bake goes. */
     size_t data = nodes * (size_t)sdf_volume_channels(in) * 4;
     *bytes = sizeof(bake_plan) + sizeof(sdf_volume) + (sdf__big_size(data) - data) +
              sdf__mesh_first_use_bound(mesh, plan->query.sign) +
-             (in->order == 1 ? sdf__big_size(nodes * 4 * sizeof(float)) + sizeof(fit_state) : 0) +
+             (in->order == 1 ? sizeof(fit_state) : 0) +
+             (in->order == 1 && in->encoding != SDF_ENCODING_FLOAT32
+                  ? sdf__big_size(nodes * 4 * sizeof(float))
+                  : 0) +
              (scannable(plan) ? sdf__scan_scratch_bound(mesh, in, plan->query.threads)
                               : query_bake_scratch(plan));
     free(plan);
@@ -619,7 +659,12 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
         sdf__diag_set(diag, rc, 0, -1, "no memory for a volume of %zu x %zu x %zu nodes",
                       plan->info.dims[0], plan->info.dims[1], plan->info.dims[2]);
     int first = plan->info.order == 1;
-    if (!rc && first && !(o.planes = sdf__big_alloc(o.v->nodes * 4 * sizeof(float))))
+    /* First order: the local planes, in the volume's own data when it holds four floats a
+     * node (store_planes). */
+    int planes_apart = first && plan->info.encoding != SDF_ENCODING_FLOAT32;
+    if (!rc && first)
+        o.planes = planes_apart ? sdf__big_alloc(o.v->nodes * 4 * sizeof(float)) : o.v->data.f;
+    if (!rc && first && !o.planes)
         rc = sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "no memory for the bake's scratch");
     if (!rc)
         rc = scannable(plan) ? scan_bake(plan, &o, opts, diag) : query_bake(plan, &o, opts, diag);
@@ -634,9 +679,10 @@ int sdf_volume_bake(const sdf_mesh *mesh, const sdf_bake_options *opts, sdf_volu
             v->info.packed_range =
                 o.largest_f > o.smallest_f ? 0.5 * (o.largest_f - o.smallest_f) : 1;
         }
-        store_planes(v, o.planes);
+        store_planes(v, o.planes, plan->query.threads);
     }
-    sdf__big_free(o.planes);
+    if (planes_apart)
+        sdf__big_free(o.planes);
     free(plan);
     if (rc) {
         sdf_volume_destroy(v);

@@ -76,6 +76,7 @@ typedef struct bake_case {
     int order;
     int filtered;
     sdf_sign_method sign;
+    sdf_volume_encoding encoding; /* first order's planes: apart from the data when packed */
 } bake_case;
 
 static void check_mesh(const char *file, const bake_case *cases, size_t count)
@@ -87,7 +88,7 @@ static void check_mesh(const char *file, const bake_case *cases, size_t count)
     for (size_t c = 0; c < count; c++) {
         const bake_case *k = &cases[c];
         sdf_bake_options o = {.dims = {k->dim, k->dim, k->dim}, .order = k->order,
-                              .query = {.sign = k->sign, .threads = 2},
+                              .encoding = k->encoding, .query = {.sign = k->sign, .threads = 2},
                               .filter = k->filtered ? &filter : NULL};
         sdf_diag diag = {0};
         size_t bound = 0;
@@ -105,9 +106,9 @@ static void check_mesh(const char *file, const bake_case *cases, size_t count)
         long long volume = (long long)(in.dims[0] * in.dims[1] * in.dims[2]) *
                            sdf_volume_channels(&in) * 4;
         long long used = atomic_load(&peak_bytes) - before - volume;
-        printf("%s %zu^3 order %d filtered %d sign %d: peak %.1f MB, bound %.1f MB\n", file,
-               k->dim, k->order, k->filtered, (int)k->sign, (double)used / 1e6,
-               (double)bound / 1e6);
+        printf("%s %zu^3 order %d filtered %d sign %d encoding %d: peak %.1f MB, bound %.1f MB\n",
+               file, k->dim, k->order, k->filtered, (int)k->sign, (int)k->encoding,
+               (double)used / 1e6, (double)bound / 1e6);
         CHECK(used <= (long long)bound, "%s case %zu: used %lld > bound %zu", file, c, used,
               bound);
         CHECK((long long)bound <= 4 * used + (16ll << 20), "%s case %zu: bound %zu for %lld",
@@ -119,14 +120,17 @@ static void check_mesh(const char *file, const bake_case *cases, size_t count)
 
 int main(void)
 {
-    static const bake_case closed[] = {
-        {64, 0, 0, SDF_SIGN_AUTO},     {128, 0, 0, SDF_SIGN_AUTO},   {64, 1, 0, SDF_SIGN_AUTO},
-        {96, 1, 0, SDF_SIGN_AUTO},     {48, 0, 0, SDF_SIGN_WINDING}, {24, 1, 0, SDF_SIGN_WINDING},
-        {32, 0, 0, SDF_SIGN_RAYCAST},  {32, 0, 0, SDF_SIGN_NONE},    {16, 0, 1, SDF_SIGN_AUTO},
-        {8, 1, 1, SDF_SIGN_AUTO},
+    const sdf_volume_encoding F = SDF_ENCODING_FLOAT32, P = SDF_ENCODING_PACKED32;
+    const bake_case closed[] = {
+        {64, 0, 0, SDF_SIGN_AUTO, F},    {128, 0, 0, SDF_SIGN_AUTO, F},
+        {64, 1, 0, SDF_SIGN_AUTO, F},    {96, 1, 0, SDF_SIGN_AUTO, F},
+        {64, 1, 0, SDF_SIGN_AUTO, P},    {48, 0, 0, SDF_SIGN_WINDING, F},
+        {24, 1, 0, SDF_SIGN_WINDING, F}, {32, 0, 0, SDF_SIGN_RAYCAST, F},
+        {32, 0, 0, SDF_SIGN_NONE, F},    {16, 0, 1, SDF_SIGN_AUTO, F},
+        {8, 1, 1, SDF_SIGN_AUTO, F},
     };
-    static const bake_case open[] = {
-        {64, 0, 0, SDF_SIGN_AUTO}, {24, 1, 0, SDF_SIGN_AUTO}, {12, 0, 1, SDF_SIGN_AUTO},
+    const bake_case open[] = {
+        {64, 0, 0, SDF_SIGN_AUTO, F}, {24, 1, 0, SDF_SIGN_AUTO, F}, {12, 0, 1, SDF_SIGN_AUTO, F},
     };
     check_mesh("fandisk.off", closed, sizeof closed / sizeof closed[0]);
     check_mesh("elephant-with-holes.off", open, sizeof open / sizeof open[0]);
