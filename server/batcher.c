@@ -25,6 +25,8 @@ struct sdfd_batcher {
     float *points, *distance, *vec3;
     uint32_t *triangle;
     size_t capacity;
+    /* the library's scratch, kept between batches of up to max_points (query_batch) */
+    sdf_workspace *workspace;
 };
 
 double sdfd_now(void)
@@ -182,6 +184,10 @@ static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t points, char *mes
     sdf_proto_mode mode = list->mode;
     sdf_query_options opts = {.sign = mode == SDF_MODE_DISTANCE ? SDF_SIGN_NONE : list->sign,
                               .threads = b->threads};
+    /* Batches up to the coalescing cap keep the library's scratch between them; a larger
+     * request (a batch of its own) allocates its own, so the kept memory stays bounded. */
+    if (points <= b->max_points)
+        opts.workspace = b->workspace;
     int with_gradient = mode == SDF_MODE_GRADIENT || mode == SDF_MODE_FILTERED_GRADIENT;
     sdf_query_result res = {.distance = b->distance,
                             .gradient = with_gradient ? b->vec3 : NULL,
@@ -284,7 +290,8 @@ int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, size
     b->max_points = max_points ? max_points : 1;
     b->max_queued = max_queued;
     b->metrics = metrics;
-    if (pthread_create(&b->thread, NULL, dispatcher, b)) {
+    if (sdf_workspace_create(&b->workspace) || pthread_create(&b->thread, NULL, dispatcher, b)) {
+        sdf_workspace_destroy(b->workspace);
         free(b);
         return SDF_ENOMEM;
     }
@@ -304,6 +311,7 @@ void sdfd_batcher_destroy(sdfd_batcher *b)
     pthread_cond_destroy(&b->wake);
     pthread_mutex_destroy(&b->lock);
     free(b->points), free(b->distance), free(b->vec3), free(b->triangle);
+    sdf_workspace_destroy(b->workspace);
     free(b);
 }
 

@@ -5,7 +5,8 @@
  * with the same mesh, mode, sign (and filter parameters), and runs them all as ONE library
  * batch (sdf_query, or sdf_query_filtered for the filtered modes, with
  * the configured worker threads), so points from many small requests are traversed
- * together. Results are written into each job's own `words` buffer in the wire layout
+ * together. Batches of up to the coalescing cap share one sdf_workspace, so the library's
+ * scratch is not allocated and faulted in afresh for each. Results are written into each job's own `words` buffer in the wire layout
  * (PROTOCOL.md: W 32-bit words per point), then each job's `done` callback runs on the
  * dispatcher thread. Under load the queue fills while a batch computes, so batches grow
  * without any waiting; the window only matters when the server is idle.

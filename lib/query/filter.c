@@ -15,6 +15,7 @@
 
 #include "core/bigmem.h"
 #include "core/diag.h"
+#include "core/workspace.h"
 #include "query/morton.h"
 #include "query/packet.h"
 
@@ -316,6 +317,7 @@ typedef struct scratch {
     int8_t *sample_sign;             /* sign(f(p)) where it is certain, else 0 (displace) */
     uint8_t *sample_run;             /* 1 at each point's first sample: packets stay within */
     int closed;                      /* the mesh is closed: its sign only flips at the surface */
+    sdf_workspace *ws;               /* where the arrays live between calls (or NULL) */
 } scratch;
 
 /* Sample k's gradient, or zeros when no gradient is asked for (g's value needs none, and
@@ -328,10 +330,12 @@ static const float *sample_gradient(const scratch *s, size_t k)
 
 static void free_scratch(scratch *s)
 {
-    sdf__big_free(s->centre_f), sdf__big_free(s->centre_grad);
-    sdf__big_free(s->volume_f), sdf__big_free(s->volume_grad);
-    sdf__big_free(s->sample_p), sdf__big_free(s->sample_f), sdf__big_free(s->sample_grad);
-    sdf__big_free(s->sample_bound), sdf__big_free(s->sample_sign), sdf__big_free(s->sample_run);
+    sdf_workspace *ws = s->ws;
+    sdf__ws_free(ws, s->centre_f), sdf__ws_free(ws, s->centre_grad);
+    sdf__ws_free(ws, s->volume_f), sdf__ws_free(ws, s->volume_grad);
+    sdf__ws_free(ws, s->sample_p), sdf__ws_free(ws, s->sample_f);
+    sdf__ws_free(ws, s->sample_grad), sdf__ws_free(ws, s->sample_bound);
+    sdf__ws_free(ws, s->sample_sign), sdf__ws_free(ws, s->sample_run);
 }
 
 /* What one point's filtered value needs: its kernel size and, with adaptive quality, how
@@ -473,12 +477,14 @@ size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int 
                      2 * sdf__big_size(per_block * sizeof(uint8_t));
     size_t inner = sdf__query_scratch_bound(count > per_block ? count : per_block, threads);
     return centre + n * 4 * sizeof(double) + samples + block * sizeof(point_plan) +
-           4 * (count + 1) + sdf__morton_scratch_bound(count, threads) + inner;
+           sdf__big_size(count * sizeof(uint32_t)) + sdf__morton_scratch_bound(count, threads) +
+           inner;
 }
 
-int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
-                       const sdf_query_options *opts, const sdf_filter_options *filter,
-                       sdf_query_result *out, sdf_diag *diag)
+/* sdf_query_filtered with its options' workspace claimed (or none). */
+static int query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
+                          const sdf_query_options *opts, const sdf_filter_options *filter,
+                          sdf_query_result *out, sdf_diag *diag)
 {
     if (!mesh || !out || (!points && count))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "missing mesh, points or outputs");
@@ -492,12 +498,13 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     size_t stride = opts && opts->point_stride ? opts->point_stride : 3 * sizeof(float);
     sdf_query_options inner = opts ? *opts : (sdf_query_options){0};
     inner.point_stride = 0;
-    scratch s = {0};
+    scratch s = {.ws = inner.workspace};
+    sdf_workspace *ws = s.ws;
     sdf_mesh_report report;
     sdf_mesh_get_report(mesh, &report);
     s.closed = report.closed;
-    s.centre_f = sdf__big_alloc((count + 1) * sizeof(float));
-    s.centre_grad = sdf__big_alloc((3 * count + 1) * sizeof(float));
+    s.centre_f = sdf__ws_alloc(ws, SDF__WS_CENTRE_F, (count + 1) * sizeof(float));
+    s.centre_grad = sdf__ws_alloc(ws, SDF__WS_CENTRE_GRAD, (3 * count + 1) * sizeof(float));
     if (!s.centre_f || !s.centre_grad) {
         free_scratch(&s);
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for %zu points", count);
@@ -506,20 +513,21 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     sdf_query_options centre_opts = inner;
     centre_opts.point_stride = stride;
     sdf_query_result centre = {.distance = s.centre_f, .gradient = s.centre_grad};
-    rc = sdf_query(mesh, points, count, &centre_opts, &centre);
+    rc = sdf__query(mesh, points, count, &centre_opts, &centre);
     if (rc) {
         out->bad_index = centre.bad_index;
         free_scratch(&s);
         return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
     }
     if (f.smooth.shape == SDF_VOLUME_MESH) { /* f_s and grad f_s from the volume's mesh */
-        s.volume_f = sdf__big_alloc((count + 1) * sizeof(float));
-        s.volume_grad = sdf__big_alloc((3 * count + 1) * sizeof(float));
+        s.volume_f = sdf__ws_alloc(ws, SDF__WS_VOLUME_F, (count + 1) * sizeof(float));
+        s.volume_grad = sdf__ws_alloc(ws, SDF__WS_VOLUME_GRAD, (3 * count + 1) * sizeof(float));
         sdf_query_result vol = {.distance = s.volume_f, .gradient = s.volume_grad};
         sdf_query_options vol_opts = centre_opts;
         vol_opts.sign = SDF_SIGN_AUTO;
-        rc = s.volume_f && s.volume_grad ? sdf_query(f.smooth.mesh, points, count, &vol_opts, &vol)
-                                         : SDF_ENOMEM;
+        rc = s.volume_f && s.volume_grad
+                 ? sdf__query(f.smooth.mesh, points, count, &vol_opts, &vol)
+                 : SDF_ENOMEM;
         if (rc) {
             free_scratch(&s);
             return sdf__diag_set(diag, rc, 0, -1, "smoothing mesh: %s", sdf_strerror(rc));
@@ -535,12 +543,14 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     size_t block = BLOCK_SAMPLES / per_point;
     block = block < 1 ? 1 : block;
     size_t per_block = block * per_point;
-    s.sample_p = sdf__big_alloc(3 * per_block * sizeof(float));
-    s.sample_f = sdf__big_alloc(per_block * sizeof(float));
-    s.sample_grad = out->gradient ? sdf__big_alloc(3 * per_block * sizeof(float)) : NULL;
-    s.sample_bound = sdf__big_alloc(per_block * sizeof(double));
-    s.sample_sign = sdf__big_alloc(per_block * sizeof(int8_t));
-    s.sample_run = sdf__big_alloc(per_block * sizeof(uint8_t));
+    s.sample_p = sdf__ws_alloc(ws, SDF__WS_SAMPLE_P, 3 * per_block * sizeof(float));
+    s.sample_f = sdf__ws_alloc(ws, SDF__WS_SAMPLE_F, per_block * sizeof(float));
+    s.sample_grad = out->gradient
+                        ? sdf__ws_alloc(ws, SDF__WS_SAMPLE_GRAD, 3 * per_block * sizeof(float))
+                        : NULL;
+    s.sample_bound = sdf__ws_alloc(ws, SDF__WS_SAMPLE_BOUND, per_block * sizeof(double));
+    s.sample_sign = sdf__ws_alloc(ws, SDF__WS_SAMPLE_SIGN, per_block * sizeof(int8_t));
+    s.sample_run = sdf__ws_alloc(ws, SDF__WS_SAMPLE_RUN, per_block * sizeof(uint8_t));
     point_plan *plan = malloc(block * sizeof *plan);
     if (!s.sample_p || !s.sample_f || (out->gradient && !s.sample_grad) || !s.sample_bound ||
         !s.sample_sign || !s.sample_run || !plan) {
@@ -551,9 +561,12 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     }
     /* Points in Morton order, so consecutive points' samples touch the same parts of the tree
      * (without memory for the order: the given order, the same floats). */
-    uint32_t *order = count > 1 && count <= UINT32_MAX ? malloc(count * sizeof *order) : NULL;
-    if (order && sdf__morton_order((const char *)points, stride, count, inner.threads, order)) {
-        free(order);
+    uint32_t *order = count > 1 && count <= UINT32_MAX
+                          ? sdf__ws_alloc(ws, SDF__WS_FILTER_ORDER, count * sizeof *order)
+                          : NULL;
+    if (order &&
+        sdf__morton_order((const char *)points, stride, count, inner.threads, ws, order)) {
+        sdf__ws_free(ws, order);
         order = NULL;
     }
     for (size_t first = 0; first < count && !rc; first += block) {
@@ -638,7 +651,7 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                     out->gradient[3 * q + c] = (float)(outer * grad[c]);
         }
     }
-    free(order);
+    sdf__ws_free(ws, order);
     free(plan);
     sdf__samples_free(&samples);
     free_scratch(&s);
@@ -648,4 +661,14 @@ int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
     if (rc)
         return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
     return 0;
+}
+
+int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
+                       const sdf_query_options *opts, const sdf_filter_options *filter,
+                       sdf_query_result *out, sdf_diag *diag)
+{
+    sdf__ws_call call;
+    int rc = query_filtered(mesh, points, count, sdf__ws_enter(opts, &call), filter, out, diag);
+    sdf__ws_leave(&call);
+    return rc;
 }

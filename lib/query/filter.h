@@ -54,6 +54,11 @@ size_t sdf__query_scratch_bound(size_t count, int threads);
 size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int gradient,
                                  int threads);
 
+/* sdf_query on options whose workspace the caller has claimed (core/workspace.h):
+ * sdf_query_filtered's queries at its points. Defined in query.c. */
+int sdf__query(const sdf_mesh *mesh, const float *points, size_t count,
+               const sdf_query_options *opts, sdf_query_result *out);
+
 /* sdf_query without its lattice path (volume/scan.c queries its coarse lattice with it):
  * packets or single queries only. Defined in query.c. */
 int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,

@@ -13,6 +13,7 @@
 
 #include "core/bigmem.h"
 #include "core/parallel.h"
+#include "core/workspace.h"
 #include "sdf/sdf.h"
 
 #define DIGIT_BITS 10
@@ -194,7 +195,7 @@ size_t sdf__morton_scratch_bound(size_t count, int threads)
 }
 
 int sdf__morton_order(const char *points, size_t stride, size_t count, int threads,
-                      uint32_t *order)
+                      sdf_workspace *ws, uint32_t *order)
 {
     if (count > UINT32_MAX)
         return SDF_ENOMEM;
@@ -202,7 +203,7 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, int threa
         return 0;
     morton_sort s = {.points = points, .stride = stride, .count = count, .order = order};
     s.parts = parts_for(count, threads, &s.part_shift);
-    uint64_t *keys = sdf__big_alloc(2 * count * sizeof *keys);
+    uint64_t *keys = sdf__ws_alloc(ws, SDF__WS_MORTON_KEYS, 2 * count * sizeof *keys);
     s.src = keys;
     s.cursor = calloc(s.parts * BUCKETS, sizeof *s.cursor);
     s.next = malloc(s.parts * s.parts * BUCKETS * sizeof *s.next);
@@ -233,7 +234,7 @@ int sdf__morton_order(const char *points, size_t stride, size_t count, int threa
             s.dst = t;
         }
     }
-    sdf__big_free(keys);
+    sdf__ws_free(ws, keys);
     free(s.cursor), free(s.next), free(s.part_lo), free(s.part_hi);
     return rc;
 }

@@ -10,13 +10,16 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "sdf/sdf.h"
+
 /* Visit order of `count` points (xyz floats `stride` bytes apart, finite): 30-bit Morton
  * codes over the points' bounding box (10 bits per axis), ties by index, so the order is
  * the same for any thread count. `order` receives point indices. `threads` as in
- * sdf_query_options (0 = all CPUs). Returns 0 or SDF_ENOMEM (also for more than
- * UINT32_MAX points). */
+ * sdf_query_options (0 = all CPUs); the keys live in `ws` (a claimed workspace,
+ * core/workspace.h) when given. Returns 0 or SDF_ENOMEM (also for more than UINT32_MAX
+ * points). */
 int sdf__morton_order(const char *points, size_t stride, size_t count, int threads,
-                      uint32_t *order);
+                      sdf_workspace *ws, uint32_t *order);
 
 /* The bytes sdf__morton_order allocates for `count` points on `threads` (its keys and
  * histograms), for the callers' scratch bounds. */

@@ -19,6 +19,7 @@
 #include "bvh/embree.h"
 #include "core/bigmem.h"
 #include "core/parallel.h"
+#include "core/workspace.h"
 #include "mesh/mesh.h"
 #include "query/cluster.h"
 #include "query/filter.h"
@@ -95,6 +96,7 @@ typedef struct batch {
     const uint8_t *run_start; /* sdf__query_seeded: 1 where a run of nearby points begins */
     sdf__cluster **clusters;  /* sdf__query_seeded: each worker's scratch (NULL: packets) */
     int by_embree;            /* SDF_TRAVERSAL_SINGLE: one rtcPointQuery per point */
+    sdf_workspace *ws;        /* the call's claimed workspace (core/workspace.h), or NULL */
 } batch;
 
 static const float *point_at(const batch *b, size_t i)
@@ -119,7 +121,8 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
         return SDF_EINVAL;
     if (sign == SDF_SIGN_AUTO)
         sign = mesh->report.auto_sign;
-    *b = (batch){.mesh = mesh, .points = (const char *)points, .stride = stride, .sign = sign};
+    *b = (batch){.mesh = mesh, .points = (const char *)points, .stride = stride, .sign = sign,
+                 .ws = opts ? opts->workspace : NULL};
     for (size_t i = 0; i < count; i++) {
         const float *p = point_at(b, i);
         if (!(fabsf(p[0]) <= SDF_MAX_COORDINATE && fabsf(p[1]) <= SDF_MAX_COORDINATE &&
@@ -368,9 +371,10 @@ static uint32_t *packet_order(const batch *b, size_t count, const sdf_query_opti
 {
     if ((opts && opts->traversal == SDF_TRAVERSAL_SINGLE) || count < 2 || count > UINT32_MAX)
         return NULL;
-    uint32_t *order = sdf__big_alloc(count * sizeof *order);
-    if (order && sdf__morton_order(b->points, b->stride, count, opts ? opts->threads : 0, order)) {
-        sdf__big_free(order);
+    uint32_t *order = sdf__ws_alloc(b->ws, SDF__WS_ORDER, count * sizeof *order);
+    if (order && sdf__morton_order(b->points, b->stride, count, opts ? opts->threads : 0, b->ws,
+                                   order)) {
+        sdf__ws_free(b->ws, order);
         order = NULL;
     }
     return order;
@@ -570,14 +574,23 @@ static int begin_batch(const sdf_mesh *mesh, const float *points, size_t count,
     return rc;
 }
 
-int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
-              const sdf_query_options *opts, sdf_query_result *out)
+int sdf__query(const sdf_mesh *mesh, const float *points, size_t count,
+               const sdf_query_options *opts, sdf_query_result *out)
 {
     batch b;
     int rc = begin_batch(mesh, points, count, opts, out, &b);
     if (rc || lattice_query(&b, count, opts, out) == 0)
         return rc;
     return query_points(&b, count, opts);
+}
+
+int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
+              const sdf_query_options *opts, sdf_query_result *out)
+{
+    sdf__ws_call call;
+    int rc = sdf__query(mesh, points, count, sdf__ws_enter(opts, &call), out);
+    sdf__ws_leave(&call);
+    return rc;
 }
 
 int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,
@@ -606,13 +619,15 @@ static void copy_in_visit_order(void *ctx, size_t begin, size_t end, int worker)
 }
 
 /* Outputs like `like`'s (the same arrays asked for) for `count` points, in one block (the
- * caller frees it; NULL without memory). */
-static void *alloc_like(const sdf_query_result *like, size_t count, sdf_query_result *out)
+ * caller hands it back with sdf__ws_free; NULL without memory). */
+static void *alloc_like(sdf_workspace *ws, const sdf_query_result *like, size_t count,
+                        sdf_query_result *out)
 {
     size_t words = (like->distance ? 1 : 0) + (like->gradient ? 3 : 0) +
                    (like->closest ? 3 : 0) + (like->triangle ? 1 : 0) +
                    (like->barycentric ? 3 : 0);
-    uint32_t *block = sdf__big_alloc(words * count * sizeof *block + 1), *at = block;
+    uint32_t *block = sdf__ws_alloc(ws, SDF__WS_VISIT_OUT, words * count * sizeof *block + 1);
+    uint32_t *at = block;
     if (!block)
         return NULL;
     *out = (sdf_query_result){0};
@@ -667,13 +682,13 @@ static int query_points(const batch *b0, size_t count, const sdf_query_options *
         b.order = order;
         /* Without these copies the points are read, and the answers written, through the
          * order: the same answers. */
-        float *visit_xyz = sdf__big_alloc(count * 3 * sizeof *visit_xyz);
+        float *visit_xyz = sdf__ws_alloc(b.ws, SDF__WS_VISIT_XYZ, count * 3 * sizeof *visit_xyz);
         if (visit_xyz) {
             b.visit_xyz = visit_xyz;
             sdf__parallel_for(count, VISIT_COPY_CHUNK, threads, copy_in_visit_order, &b);
         }
         sdf_query_result visit_out;
-        void *visit_block = alloc_like(b.out, count, &visit_out);
+        void *visit_block = alloc_like(b.ws, b.out, count, &visit_out);
         if (visit_block) {
             b.final = b.out;
             b.out = &visit_out;
@@ -681,9 +696,9 @@ static int query_points(const batch *b0, size_t count, const sdf_query_options *
         sdf__parallel_for(count, chunk, threads, packet_range, &b);
         if (visit_block)
             sdf__parallel_for(count, VISIT_COPY_CHUNK, threads, scatter_answers, &b);
-        sdf__big_free(visit_block);
-        sdf__big_free(visit_xyz);
-        sdf__big_free(order);
+        sdf__ws_free(b.ws, visit_block);
+        sdf__ws_free(b.ws, visit_xyz);
+        sdf__ws_free(b.ws, order);
     } else { /* single traversal, or no memory for the order: same answers */
         if (opts && opts->traversal == SDF_TRAVERSAL_SINGLE) {
             int rc = sdf__bvh_ready(b.mesh->bvh); /* Embree's scene, built on first use */
@@ -726,8 +741,8 @@ static void winding_packet_range(void *ctx, size_t begin, size_t end, int worker
     }
 }
 
-int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
-                        const sdf_query_options *opts, float *winding, size_t *bad_index)
+static int winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
+                           const sdf_query_options *opts, float *winding, size_t *bad_index)
 {
     if (!winding && count)
         return SDF_EINVAL;
@@ -743,9 +758,18 @@ int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
     if (order) { /* packets of nearby points share the tree's upper levels */
         b.order = order;
         sdf__parallel_for(count, 1024, threads, winding_packet_range, &b);
-        free(order);
+        sdf__ws_free(b.ws, order);
     } else {
         sdf__parallel_for(count, CHUNK, threads, winding_range, &b);
     }
     return 0;
+}
+
+int sdf_winding_numbers(const sdf_mesh *mesh, const float *points, size_t count,
+                        const sdf_query_options *opts, float *winding, size_t *bad_index)
+{
+    sdf__ws_call call;
+    int rc = winding_numbers(mesh, points, count, sdf__ws_enter(opts, &call), winding, bad_index);
+    sdf__ws_leave(&call);
+    return rc;
 }

@@ -138,6 +138,7 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
     plan->filter = o->filter;
     plan->query = o->query;
     plan->query.point_stride = 0;
+    plan->query.workspace = NULL; /* the bake's queries run on several threads at once */
     plan->closed = r.closed;
     return 0;
 }

@@ -414,7 +414,7 @@ static int feature_order(sdf__scan *s)
     feature_positions fp = {&s->feat, at};
     sdf__parallel_for(s->feat.count, (size_t)1 << 14, s->query.threads, positions_range, &fp);
     int rc = sdf__morton_order((const char *)at, 3 * sizeof(float), s->feat.count,
-                               s->query.threads, s->order);
+                               s->query.threads, NULL, s->order);
     free(at);
     return rc;
 }
@@ -447,6 +447,7 @@ static int scan_new(const sdf_mesh *mesh, const size_t dims[3], const float *con
     s->mesh = mesh;
     s->query = *opts;
     s->query.point_stride = 0;
+    s->query.workspace = NULL; /* its calls' own scratch (a bake's runs on several threads) */
     double extent = mesh->report.diagonal;
     int rc = 0;
     for (int a = 0; a < 3 && !rc; a++) {

@@ -1,9 +1,10 @@
 #!/bin/sh
 # Side-by-side throughput of sdf-bench and Open3D's RaycastingScene (via the peer script
 # ../shared/tools/peer_bench.py) on identical points, in one run. Prints a Markdown table of
-# Open3D's throughput, sdfd's with packet traversal (the default) and with one query at a
-# time (--traversal single), and the ratios. Needs python3-open3d (apt) and a release build
-# in build/.
+# Open3D's throughput, sdfd's with packet traversal (the default), the same with one
+# sdf_workspace kept across the timed calls (--workspace 1, as sdfd's batcher runs them), and
+# with one query at a time (--traversal single), and the ratios. Needs python3-open3d (apt)
+# and a release build in build/.
 #
 #   tests/bench/compare.sh [MESH...]        (default: fandisk and refined_elephant)
 # Environment: WORKLOADS (default "box band"), N (default 1000000), THREADS (default 2),
@@ -19,20 +20,23 @@ threads=${THREADS:-2}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-echo "| mesh | workload | points | Open3D Mq/s | sdfd packets Mq/s | sdfd single Mq/s | packets / Open3D | packets / single |"
-echo "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+echo "| mesh | workload | points | Open3D Mq/s | sdfd packets Mq/s | + workspace Mq/s | sdfd single Mq/s | packets / Open3D | + workspace / Open3D | packets / single |"
+echo "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
 for mesh in "$@"; do
     for w in $workloads; do
         o3d=$(/usr/bin/python3 "$peer" "$mesh" --workload "$w" --n "$n" --points-out "$tmp/p.npy" |
             awk '/^open3d:/ {print $2}')
         run() {
             "$bench" "$mesh" "$tmp/p.npy" --threads "$threads" --mode "${MODE:-signed}" \
-                --sign "${SIGN:-auto}" --traversal "$1" | awk '/^throughput:/ {print $2}'
+                --sign "${SIGN:-auto}" --traversal "$1" --workspace "$2" |
+                awk '/^throughput:/ {print $2}'
         }
-        ours=$(run packets)
-        single=$(run single)
+        ours=$(run packets 0)
+        kept=$(run packets 1)
+        single=$(run single 0)
         ratio=$(awk -v a="$ours" -v b="$o3d" 'BEGIN {printf "%.2f", a / b}')
+        kept_ratio=$(awk -v a="$kept" -v b="$o3d" 'BEGIN {printf "%.2f", a / b}')
         gain=$(awk -v a="$ours" -v b="$single" 'BEGIN {printf "%.2f", a / b}')
-        echo "| $(basename "$mesh") | $w | $n | $o3d | $ours | $single | $ratio | $gain |"
+        echo "| $(basename "$mesh") | $w | $n | $o3d | $ours | $kept | $single | $ratio | $kept_ratio | $gain |"
     done
 done

@@ -6,10 +6,13 @@
  *             [--samples N] [--min-samples N] [--sample-gradient 0|1]
  *             [--sign auto|pseudonormal|winding|raycast|none]
  *             [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]
+ *             [--workspace 0|1]
  *
  * Points come from POINTS.npy (float32 or float64, shape (N, 3)) or are generated
  * (--workload, default band, 1,000,000 points). The batch is timed R times (default 2) after
- * a warm-up, best run reported, like the peer script. --out writes float32 results:
+ * a warm-up, best run reported, like the peer script. --workspace 1 gives every call one
+ * sdf_workspace, as sdfd's batcher does (the first timed call fills it; default 0: each call
+ * allocates its own scratch). --out writes float32 results:
  * distance/signed (N,); gradient (N, 4) = distance, gradient xyz; closest (N, 4) = distance,
  * closest point xyz. The last line printed is always `throughput: X Mq/s`. */
 #include <errno.h>
@@ -29,7 +32,7 @@ typedef struct args {
     uint64_t seed;
     sdf_sign_method sign;
     sdf_traversal traversal;
-    int threads, repeat, samples, min_samples, sample_gradient;
+    int threads, repeat, samples, min_samples, sample_gradient, workspace;
 } args;
 
 static void usage(void)
@@ -40,7 +43,8 @@ static void usage(void)
             "                 [--samples N (filtered: n, default 64)] [--min-samples N (adaptive)]\n"
             "                 [--sample-gradient 0|1 (filtered-gradient: the samples' mean)]\n"
             "                 [--sign auto|pseudonormal|winding|raycast|none]\n"
-            "                 [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]\n");
+            "                 [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]\n"
+            "                 [--workspace 0|1 (1: one sdf_workspace for every call, as sdfd)]\n");
     exit(2);
 }
 
@@ -90,6 +94,7 @@ static args parse_args(int argc, char **argv)
         else if (!strcmp(s, "--threads")) a.threads = (int)parse_long(v, s);
         else if (!strcmp(s, "--repeat")) a.repeat = (int)parse_long(v, s);
         else if (!strcmp(s, "--out")) a.out = v;
+        else if (!strcmp(s, "--workspace")) a.workspace = parse_long(v, s) != 0;
         else if (!strcmp(s, "--traversal")) {
             if (strcmp(v, "packets") && strcmp(v, "single")) {
                 fprintf(stderr, "sdf-bench: --traversal packets|single\n");
@@ -149,16 +154,22 @@ int main(int argc, char **argv)
     uint32_t *tri = closest ? malloc((n + 1) * sizeof *tri) : NULL;
     sdf_query_result out = {.distance = dist, .gradient = gradient ? vec3 : NULL,
                             .closest = closest ? vec3 : NULL, .triangle = tri};
-    sdf_query_options opts = {.sign = a.sign, .threads = a.threads, .traversal = a.traversal};
+    sdf_workspace *ws = NULL;
+    if (a.workspace && sdf_workspace_create(&ws)) {
+        fprintf(stderr, "sdf-bench: no memory for a workspace\n");
+        return 1;
+    }
+    sdf_query_options opts = {.sign = a.sign, .threads = a.threads, .traversal = a.traversal,
+                              .workspace = ws};
     printf("mesh: %s triangles: %zu vertices: %zu closed: %d manifold: %d flipped: %d "
            "auto sign: %s index: %.1f MB (%.1f B/triangle) build: %.3f s\n",
            a.mesh, r.triangles, r.vertices, r.closed, r.edge_manifold, r.flipped,
            sdf_sign_name(r.auto_sign), r.index_bytes / 1e6,
            r.triangles ? (double)r.index_bytes / (double)r.triangles : 0.0, r.build_seconds);
-    printf("points: %zu source: %s mode: %s sign: %s threads: %d traversal: %s\n", n,
-           a.points ? a.points : a.workload, a.mode,
+    printf("points: %zu source: %s mode: %s sign: %s threads: %d traversal: %s workspace: %d\n",
+           n, a.points ? a.points : a.workload, a.mode,
            sdf_sign_name(a.sign == SDF_SIGN_AUTO ? r.auto_sign : a.sign), a.threads,
-           a.traversal == SDF_TRAVERSAL_SINGLE ? "single" : "packets");
+           a.traversal == SDF_TRAVERSAL_SINGLE ? "single" : "packets", a.workspace);
     sdf_filter_options filter = {.samples = a.samples, .min_samples = a.min_samples,
                                  .sample_gradient = a.sample_gradient};
     /* The mode's query: raw, or filtered (sdf_query_filtered, docs/filtered.md). */
@@ -185,6 +196,7 @@ int main(int argc, char **argv)
     free(dist);
     free(vec3);
     free(tri);
+    sdf_workspace_destroy(ws);
     sdf_mesh_release(mesh);
     return 0;
 }
