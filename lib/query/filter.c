@@ -15,6 +15,7 @@
 
 #include "core/bigmem.h"
 #include "core/diag.h"
+#include "core/parallel.h"
 #include "core/workspace.h"
 #include "query/morton.h"
 #include "query/packet.h"
@@ -22,6 +23,7 @@
 #define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (~37 MB of scratch) */
 #define DEFAULT_CAP_OF_DIAGONAL 0.02
 #define DEFAULT_MEDIAL 0.2
+#define POINTS_CHUNK 256 /* points of a block per work item of its per-point loops */
 
 /* ---- sample sets ------------------------------------------------------------------------ */
 
@@ -375,39 +377,58 @@ static void displace(const float *p, const double offset[3], double h, double fp
 static double smoothstep(double t) { return t >= 1 ? 1 : t <= 0 ? 0 : t * t * (3 - 2 * t); }
 static double smoothstep_slope(double t) { return t >= 1 || t <= 0 ? 0 : 6 * t * (1 - t); }
 
-/* Sec. 5.2 for a block of points: evaluate each point's 3^3 stencil (spacing delta h(p), the
- * grid of eq. 9), detect the medial axis from how far the neighbours' mean is from the centre,
- * and set n_a = N_min + (n_medial + n_distance) / 2 (N_max - N_min) with its gradient. */
-static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
-                        const sdf_filter_options *f, scratch *s, const float *points,
-                        size_t stride, size_t m, point_plan *plan)
+/* One block of a filtered call, for its per-point loops (each point's work is its own, so
+ * the floats do not depend on how the points are shared out). On one thread these loops were
+ * ~10 % of a 2-thread fandisk run's CPU time while the other core waited. */
+typedef struct block_work {
+    const sdf_filter_options *f;
+    scratch *s;
+    const sdf__samples *samples;
+    const float *points;
+    size_t stride;
+    const uint32_t *order; /* the points' visit order, or NULL: as given */
+    size_t first;          /* the block's first position in that order */
+    point_plan *plan;
+    sdf_query_result *out;
+    int adaptive;
+    double stencil[STENCIL][3]; /* adaptive quality: the 3^3 stencil's offsets (plan_samples) */
+    double delta;          /* ... their spacing, in units of h(p) */
+} block_work;
+
+static const float *work_point(const block_work *w, size_t index)
 {
-    double delta = f->kernel == SDF_KERNEL_GAUSSIAN ? gaussian_sigma(f->a) : f->b / 2;
-    double offset[STENCIL][3];
-    int o = 0;
-    for (int x = -1; x <= 1; x++)
-        for (int y = -1; y <= 1; y++)
-            for (int z = -1; z <= 1; z++)
-                if (x || y || z) {
-                    offset[o][0] = x * delta, offset[o][1] = y * delta, offset[o][2] = z * delta;
-                    o++;
-                }
-    for (size_t j = 0; j < m; j++) {
-        const float *p = (const float *)((const char *)points + plan[j].index * stride);
+    return (const float *)((const char *)w->points + index * w->stride);
+}
+
+/* Sec. 5.2, first: each point's 3^3 stencil around it (spacing delta h(p), the grid of
+ * eq. 9), displaced as its samples are. */
+static void stencil_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const block_work *w = ctx;
+    scratch *s = w->s;
+    for (size_t j = begin; j < end; j++) {
+        const point_plan *pl = &w->plan[j];
+        const float *p = work_point(w, pl->index);
         for (int i = 0; i < STENCIL; i++) {
-            displace(p, offset[i], plan[j].h, s->centre_f[plan[j].index], s,
-                     j * STENCIL + (size_t)i);
+            displace(p, w->stencil[i], pl->h, s->centre_f[pl->index], s, j * STENCIL + (size_t)i);
             s->sample_run[j * STENCIL + (size_t)i] = i == 0;
         }
     }
-    sdf_query_result res = {.distance = s->sample_f, .gradient = s->sample_grad};
-    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, s->sample_sign,
-                               s->sample_run, m * STENCIL, inner, &res);
-    if (rc)
-        return rc;
+}
+
+/* Sec. 5.2, then, from the stencil's distances: detect the medial axis from how far the
+ * neighbours' mean is from the centre, and set n_a = N_min + (n_medial + n_distance) / 2
+ * (N_max - N_min) with its gradient. */
+static void medial_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const block_work *w = ctx;
+    const sdf_filter_options *f = w->f;
+    const scratch *s = w->s;
     double spread = 0.5 * (f->samples - f->min_samples);
-    for (size_t j = 0; j < m; j++) {
-        point_plan *pl = &plan[j];
+    for (size_t j = begin; j < end; j++) {
+        point_plan *pl = &w->plan[j];
         size_t q = pl->index;
         double fp = s->centre_f[q];
         const float *grad_fp = s->centre_grad + 3 * q;
@@ -416,14 +437,15 @@ static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
         for (int i = 0; i < STENCIL; i++) {
             size_t k = j * STENCIL + (size_t)i;
             const float *g = sample_gradient(s, k);
-            double along = offset[i][0] * g[0] + offset[i][1] * g[1] + offset[i][2] * g[2];
+            const double *o = w->stencil[i];
+            double along = o[0] * g[0] + o[1] * g[1] + o[2] * g[2];
             mean += s->sample_f[k] / STENCIL;
             for (int c = 0; c < 3; c++)
                 grad_d[c] += (g[c] - pl->grad_h[c] * along) / STENCIL;
         }
         double d = mean - fp, medial = 0, grad_medial[3] = {0, 0, 0};
         if (pl->h > 0) { /* M = |D| / (delta h); at h = 0 the stencil collapses: M = 0 */
-            double scale = delta * pl->h, x = fabs(d) / scale / f->medial;
+            double scale = w->delta * pl->h, x = fabs(d) / scale / f->medial;
             medial = smoothstep(x);
             double slope = smoothstep_slope(x) / f->medial, sgn = d < 0 ? -1 : 1;
             for (int c = 0; c < 3; c++) {
@@ -443,6 +465,31 @@ static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner,
         for (int c = 0; c < 3; c++)
             pl->grad_n[c] = spread * (grad_medial[c] - grad_h4[c]);
     }
+}
+
+/* Sec. 5.2 for the block's first m points: their stencils, queried together, set each one's
+ * sample count. */
+static int plan_samples(const sdf_mesh *mesh, const sdf_query_options *inner, block_work *w,
+                        size_t m)
+{
+    const sdf_filter_options *f = w->f;
+    scratch *s = w->s;
+    w->delta = f->kernel == SDF_KERNEL_GAUSSIAN ? gaussian_sigma(f->a) : f->b / 2;
+    int o = 0;
+    for (int x = -1; x <= 1; x++)
+        for (int y = -1; y <= 1; y++)
+            for (int z = -1; z <= 1; z++)
+                if (x || y || z) {
+                    double *at = w->stencil[o++];
+                    at[0] = x * w->delta, at[1] = y * w->delta, at[2] = z * w->delta;
+                }
+    sdf__parallel_for(m, POINTS_CHUNK, inner->threads, stencil_range, w);
+    sdf_query_result res = {.distance = s->sample_f, .gradient = s->sample_grad};
+    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, s->sample_sign,
+                               s->sample_run, m * STENCIL, inner, &res);
+    if (rc)
+        return rc;
+    sdf__parallel_for(m, POINTS_CHUNK, inner->threads, medial_range, w);
     return 0;
 }
 
@@ -479,6 +526,90 @@ size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int 
     return centre + n * 4 * sizeof(double) + samples + block * sizeof(point_plan) +
            sdf__big_size(count * sizeof(uint32_t)) + sdf__morton_scratch_bound(count, threads) +
            inner;
+}
+
+/* Each point's kernel size h(p), and the full sample count until adaptive quality sets it. */
+static void plan_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const block_work *w = ctx;
+    for (size_t j = begin; j < end; j++) {
+        point_plan *pl = &w->plan[j];
+        pl->index = w->order ? w->order[w->first + j] : w->first + j;
+        pl->h = size_at(w->f, w->s, work_point(w, pl->index), pl->index, pl->grad_h);
+        pl->full = w->samples->n, pl->frac = 0;
+        pl->grad_n[0] = pl->grad_n[1] = pl->grad_n[2] = 0;
+    }
+}
+
+/* The displaced sample points p - s_i h(p) (eq. 10), each point's from its plan's `first`. */
+static void displace_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const block_work *w = ctx;
+    scratch *s = w->s;
+    for (size_t j = begin; j < end; j++) {
+        const point_plan *pl = &w->plan[j];
+        const float *p = work_point(w, pl->index);
+        for (int i = 0; i < pl->used; i++) {
+            size_t at = pl->first + (size_t)i;
+            displace(p, w->samples->offset[i], pl->h, s->centre_f[pl->index], s, at);
+            s->sample_run[at] = i == 0;
+        }
+    }
+}
+
+/* g and grad g at each point from its samples' f and grad f. */
+static void accumulate_range(void *ctx, size_t begin, size_t end, int worker)
+{
+    (void)worker;
+    const block_work *w = ctx;
+    for (size_t j = begin; j < end; j++) {
+        const point_plan *pl = &w->plan[j];
+        size_t q = pl->index;
+        double fp = w->s->centre_f[q];
+        const float *grad_fp = w->s->centre_grad + 3 * q;
+        double total = pl->full + pl->frac; /* the weights' sum: n, or n_a */
+        double value = 0, grad[3] = {0, 0, 0}, along = 0, last = 0;
+        for (int i = 0; i < pl->used; i++) {
+            size_t k = pl->first + (size_t)i;
+            double v = w->s->sample_f[k], sgn = 1;
+            if (w->f->unsigned_integrand) { /* |f| and its gradient sign(f) grad f */
+                sgn = v < 0 ? -1 : 1;
+                v = fabs(v);
+            }
+            const float *gs = sample_gradient(w->s, k);
+            /* 1/n each (eq. 10), w(s_i) for the grid (eq. 9); adaptive: the last sample
+             * weighs the fractional part of n_a. */
+            double weight = w->adaptive ? (i < pl->full ? 1 : pl->frac) / total
+                                        : w->samples->weight[i];
+            const double *offset = w->samples->offset[i];
+            value += weight * v;
+            last = v;
+            for (int c = 0; c < 3; c++)
+                grad[c] += weight * sgn * gs[c];
+            along += weight * sgn * (offset[0] * gs[0] + offset[1] * gs[1] + offset[2] * gs[2]);
+        }
+        /* grad g = sum w_i (I - grad h s_i^T) grad f(x_i), x_i = p - s_i h(p), plus, when
+         * n_a varies, dg/dn_a grad n_a with dg/dn_a = (v_last - g) / n_a. The samples'
+         * mean gradient, when asked for, is the first term alone. */
+        for (int c = 0; c < 3 && !w->f->sample_gradient; c++)
+            grad[c] -= pl->grad_h[c] * along;
+        if (w->adaptive && pl->frac > 0 && !w->f->sample_gradient)
+            for (int c = 0; c < 3; c++)
+                grad[c] += (last - value) / total * pl->grad_n[c];
+        double outer = w->f->unsigned_integrand ? (fp < 0 ? -1 : 1) : 1;
+        if (pl->h == 0) { /* on the surface or outside a smoothing volume: g = f */
+            value = fp, outer = 1;
+            for (int c = 0; c < 3; c++)
+                grad[c] = grad_fp[c];
+        }
+        if (w->out->distance)
+            w->out->distance[q] = (float)(outer * value);
+        if (w->out->gradient)
+            for (int c = 0; c < 3; c++)
+                w->out->gradient[3 * q + c] = (float)(outer * grad[c]);
+    }
 }
 
 /* sdf_query_filtered with its options' workspace claimed (or none). */
@@ -569,34 +700,27 @@ static int query_filtered(const sdf_mesh *mesh, const float *points, size_t coun
         sdf__ws_free(ws, order);
         order = NULL;
     }
+    block_work work = {.f = &f, .s = &s, .samples = &samples, .points = points,
+                       .stride = stride, .order = order, .plan = plan, .out = out,
+                       .adaptive = adaptive};
     for (size_t first = 0; first < count && !rc; first += block) {
         size_t m = count - first < block ? count - first : block;
-        for (size_t j = 0; j < m; j++) {
-            point_plan *pl = &plan[j];
-            pl->index = order ? order[first + j] : first + j;
-            const float *p = (const float *)((const char *)points + pl->index * stride);
-            pl->h = size_at(&f, &s, p, pl->index, pl->grad_h);
-            pl->full = n, pl->frac = 0;
-            pl->grad_n[0] = pl->grad_n[1] = pl->grad_n[2] = 0;
-        }
+        work.first = first;
+        sdf__parallel_for(m, POINTS_CHUNK, inner.threads, plan_range, &work);
         if (adaptive) { /* sec. 5.2: the stencil first, then how many samples each point gets */
-            rc = plan_samples(mesh, &inner, &f, &s, points, stride, m, plan);
+            rc = plan_samples(mesh, &inner, &work, m);
             if (rc)
                 break;
         }
-        /* The displaced sample points p - s_i h(p) (eq. 10) of this block, point by point. A
-         * point with h = 0 (on the surface, or outside a smoothing volume) needs none: there
-         * every sample is p itself and g = f. */
+        /* Each point's samples, consecutive. A point with h = 0 (on the surface, or outside a
+         * smoothing volume) needs none: there every sample is p itself and g = f. */
         size_t at = 0;
         for (size_t j = 0; j < m; j++) {
-            const float *p = (const float *)((const char *)points + plan[j].index * stride);
             plan[j].first = at;
             plan[j].used = plan[j].h == 0 ? 0 : plan[j].full + (plan[j].frac > 0);
-            for (int i = 0; i < plan[j].used; i++, at++) {
-                displace(p, samples.offset[i], plan[j].h, s.centre_f[plan[j].index], &s, at);
-                s.sample_run[at] = i == 0;
-            }
+            at += (size_t)plan[j].used;
         }
+        sdf__parallel_for(m, POINTS_CHUNK, inner.threads, displace_range, &work);
         /* Packet sampling (sec. 3): a point's samples are consecutive, so they make coherent
          * packets, each search bounded by |f(p)| + |x - p| (Lipschitz). */
         sdf_query_result res = {.distance = s.sample_f, .gradient = s.sample_grad};
@@ -604,52 +728,7 @@ static int query_filtered(const sdf_mesh *mesh, const float *points, size_t coun
                                &inner, &res);
         if (rc) /* out of memory, or a kernel so wide that samples pass SDF_MAX_COORDINATE */
             break;
-        for (size_t j = 0; j < m; j++) {
-            const point_plan *pl = &plan[j];
-            size_t q = pl->index;
-            double fp = s.centre_f[q];
-            const float *grad_fp = s.centre_grad + 3 * q;
-            double total = pl->full + pl->frac; /* the weights' sum: n, or n_a */
-            double value = 0, grad[3] = {0, 0, 0}, along = 0, last = 0;
-            for (int i = 0; i < pl->used; i++) {
-                size_t k = pl->first + (size_t)i;
-                double v = s.sample_f[k], sgn = 1;
-                if (f.unsigned_integrand) { /* |f| and its gradient sign(f) grad f */
-                    sgn = v < 0 ? -1 : 1;
-                    v = fabs(v);
-                }
-                const float *gs = sample_gradient(&s, k);
-                /* 1/n each (eq. 10), w(s_i) for the grid (eq. 9); adaptive: the last sample
-                 * weighs the fractional part of n_a. */
-                double w = adaptive ? (i < pl->full ? 1 : pl->frac) / total : samples.weight[i];
-                value += w * v;
-                last = v;
-                for (int c = 0; c < 3; c++)
-                    grad[c] += w * sgn * gs[c];
-                along += w * sgn *
-                         (samples.offset[i][0] * gs[0] + samples.offset[i][1] * gs[1] +
-                          samples.offset[i][2] * gs[2]);
-            }
-            /* grad g = sum w_i (I - grad h s_i^T) grad f(x_i), x_i = p - s_i h(p), plus, when
-             * n_a varies, dg/dn_a grad n_a with dg/dn_a = (v_last - g) / n_a. The samples'
-             * mean gradient, when asked for, is the first term alone. */
-            for (int c = 0; c < 3 && !f.sample_gradient; c++)
-                grad[c] -= pl->grad_h[c] * along;
-            if (adaptive && pl->frac > 0 && !f.sample_gradient)
-                for (int c = 0; c < 3; c++)
-                    grad[c] += (last - value) / total * pl->grad_n[c];
-            double outer = f.unsigned_integrand ? (fp < 0 ? -1 : 1) : 1;
-            if (pl->h == 0) { /* on the surface or outside a smoothing volume: g = f */
-                value = fp, outer = 1;
-                for (int c = 0; c < 3; c++)
-                    grad[c] = grad_fp[c];
-            }
-            if (out->distance)
-                out->distance[q] = (float)(outer * value);
-            if (out->gradient)
-                for (int c = 0; c < 3; c++)
-                    out->gradient[3 * q + c] = (float)(outer * grad[c]);
-        }
+        sdf__parallel_for(m, POINTS_CHUNK, inner.threads, accumulate_range, &work);
     }
     sdf__ws_free(ws, order);
     free(plan);
