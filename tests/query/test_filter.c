@@ -7,7 +7,8 @@
  *  - the analytic gradient matches central differences of g (relative error <= 1e-3) where
  *    the stencil does not straddle a kink of a sample (forward and backward differences
  *    agree), on at least 80 % of the points, both far (h = 1) and in the transition (h < 1);
- *  - the same request gives the same floats on 1 and 2 threads and for the same seed;
+ *  - the same request gives the same floats on 1, 2 and 3 threads (plain, adaptive, inside a
+ *    smoothing sphere) and for the same seed;
  *  - smoothness (Fig. 13): the edge detector on the gradient field responds far less to the
  *    filtered field than to the raw one beyond f_c from the surface;
  *  - no extra zero crossings: with a bump within eq. (7)'s bound and with the unsigned
@@ -360,15 +361,34 @@ static void test_adaptive(const sdf_mesh *m, double diag)
     free(p), free(a), free(b), free(line), free(g);
 }
 
-static void test_deterministic(const sdf_mesh *m)
+static void test_deterministic(const sdf_mesh *m, double diag)
 {
     size_t n = 3000;
     float *p = malloc(3 * n * sizeof *p), *a = malloc(4 * n * sizeof *a), *b = malloc(4 * n * sizeof *b);
     sdf_workload(m, "band", &n, 9, p);
-    sdf_filter_options opt = {.samples = 16, .seed = 77};
+    sdf_mesh_report r;
+    sdf_mesh_get_report(m, &r);
+    /* Plain, adaptive (its stencil and medial measure run per point on the threads too),
+     * and inside a smoothing sphere around the mesh's centre. */
+    sdf_filter_options modes[3] = {
+        {.samples = 16, .seed = 77},
+        {.samples = 32, .min_samples = 8, .seed = 77},
+        {.samples = 16, .seed = 77,
+         .smooth = {.shape = SDF_VOLUME_SPHERE, .radius = 0.3 * diag, .depth = 0.05 * diag,
+                    .center = {0.5 * (r.bbox_min[0] + r.bbox_max[0]),
+                               0.5 * (r.bbox_min[1] + r.bbox_max[1]),
+                               0.5 * (r.bbox_min[2] + r.bbox_max[2])}}},
+    };
+    for (int k = 0; k < 3; k++) {
+        filtered(m, p, n, &modes[k], 1, a, a + n);
+        for (int threads = 2; threads <= 3; threads++) {
+            filtered(m, p, n, &modes[k], threads, b, b + n);
+            CHECK(!memcmp(a, b, 4 * n * sizeof *a), "mode %d: 1 and %d threads give different "
+                  "floats", k, threads);
+        }
+    }
+    sdf_filter_options opt = modes[0];
     filtered(m, p, n, &opt, 1, a, a + n);
-    filtered(m, p, n, &opt, 2, b, b + n);
-    CHECK(!memcmp(a, b, 4 * n * sizeof *a), "1 and 2 threads give different floats");
     opt.seed = 78;
     filtered(m, p, n, &opt, 2, b, b + n);
     CHECK(memcmp(a, b, n * sizeof *a), "another seed gives the same floats");
@@ -471,7 +491,7 @@ int main(void)
     test_gradient(m, diag, "box", NULL);
     test_gradient(m, diag, "band", NULL);
     test_localized(m, diag);
-    test_deterministic(m);
+    test_deterministic(m, diag);
     test_adaptive(m, diag);
     test_smoothness(m, diag);
     test_no_extra_zeros(m, diag);
