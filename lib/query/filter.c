@@ -400,21 +400,25 @@ static const float *work_point(const block_work *w, size_t index)
     return (const float *)((const char *)w->points + index * w->stride);
 }
 
+/* A point's `count` samples p - offset_i h(p) into slots first.., a run of their own. */
+static void displace_point(const block_work *w, const point_plan *pl, const double (*offset)[3],
+                           int count, size_t first)
+{
+    const float *p = work_point(w, pl->index);
+    for (int i = 0; i < count; i++) {
+        displace(p, offset[i], pl->h, w->s->centre_f[pl->index], w->s, first + (size_t)i);
+        w->s->sample_run[first + (size_t)i] = i == 0;
+    }
+}
+
 /* Sec. 5.2, first: each point's 3^3 stencil around it (spacing delta h(p), the grid of
  * eq. 9), displaced as its samples are. */
 static void stencil_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     const block_work *w = ctx;
-    scratch *s = w->s;
-    for (size_t j = begin; j < end; j++) {
-        const point_plan *pl = &w->plan[j];
-        const float *p = work_point(w, pl->index);
-        for (int i = 0; i < STENCIL; i++) {
-            displace(p, w->stencil[i], pl->h, s->centre_f[pl->index], s, j * STENCIL + (size_t)i);
-            s->sample_run[j * STENCIL + (size_t)i] = i == 0;
-        }
-    }
+    for (size_t j = begin; j < end; j++)
+        displace_point(w, &w->plan[j], (const double (*)[3])w->stencil, STENCIL, j * STENCIL);
 }
 
 /* Sec. 5.2, then, from the stencil's distances: detect the medial axis from how far the
@@ -547,15 +551,9 @@ static void displace_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
     const block_work *w = ctx;
-    scratch *s = w->s;
     for (size_t j = begin; j < end; j++) {
         const point_plan *pl = &w->plan[j];
-        const float *p = work_point(w, pl->index);
-        for (int i = 0; i < pl->used; i++) {
-            size_t at = pl->first + (size_t)i;
-            displace(p, w->samples->offset[i], pl->h, s->centre_f[pl->index], s, at);
-            s->sample_run[at] = i == 0;
-        }
+        displace_point(w, pl, (const double (*)[3])w->samples->offset, pl->used, pl->first);
     }
 }
 
