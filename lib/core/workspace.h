@@ -1,7 +1,8 @@
 /* workspace.h - a caller's scratch kept between batch calls (sdf_workspace, sdf.h).
  *
  * A batch call's large arrays (the Morton order and its keys, the points and answers in
- * visit order, a filtered call's per-point and per-block arrays) used to be allocated and
+ * visit order, a filtered call's per-point and per-block arrays, the per-node bests of a
+ * lattice that the scan answers) used to be allocated and
  * freed by every call, and their fresh pages faulted in afresh each time: on this project's
  * virtual machines ~10 % of a 1M-point band query (perf: clear_page under the Morton keys,
  * the visit-order copies and the answers' scatter). A workspace keeps each array in a slot of
@@ -36,6 +37,7 @@ typedef enum sdf__ws_slot {
     SDF__WS_SAMPLE_BOUND,
     SDF__WS_SAMPLE_SIGN,
     SDF__WS_SAMPLE_RUN,
+    SDF__WS_SCAN_BESTS,   /* volume/scan.c: a lattice query's per-worker bests */
     SDF__WS_SLOTS
 } sdf__ws_slot;
 

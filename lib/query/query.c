@@ -548,7 +548,7 @@ static int lattice_query(const batch *b, size_t count, const sdf_query_options *
     float *axis[3] = {NULL, NULL, NULL};
     if (!sdf__find_lattice((const float *)b->points, b->stride, count, dims, axis))
         return -1;
-    sdf_query_options o = {.sign = b->sign, .threads = threads};
+    sdf_query_options o = {.sign = b->sign, .threads = threads, .workspace = b->ws};
     sdf__scan *scan = NULL;
     int rc = !sdf__scan_fits(dims[0], dims[1], 0, threads)
                  ? -1

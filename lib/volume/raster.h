@@ -35,6 +35,8 @@ struct sdf__scan {
                                   in cache */
     float *coarse;             /* |f| on every COARSE_STEP-th node (scan.c; feat.bound) */
     float *sample_scratch;     /* sdf__scan_samples' per-worker bests, kept between calls */
+    sdf_workspace *ws;         /* a lattice query's claimed workspace: the zero order's
+                                  per-worker bests live there (core/workspace.h); NULL in bakes */
     float *zspan;              /* per feature its region's z-span (NAN: none), or NULL */
     size_t sample_scratch_count;
     double inv_spacing[3];

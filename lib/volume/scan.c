@@ -19,6 +19,7 @@
 #include "bvh/embree.h"
 #include "core/bigmem.h"
 #include "core/parallel.h"
+#include "core/workspace.h"
 #include "mesh/mesh.h"
 #include "mesh/topology.h"
 #include "volume/regions.h"
@@ -295,7 +296,8 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
     int distances_only = out->distance && !out->gradient && !out->closest && !out->triangle &&
                          !out->barycentric;
     sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
-                         .best = sdf__big_alloc(w * nodes * sizeof(sdf__node_best)),
+                         .best = sdf__ws_alloc(s->ws, SDF__WS_SCAN_BESTS,
+                                               w * nodes * sizeof(sdf__node_best)),
                          .distances_only = distances_only,
                          .regions = malloc(w * sizeof(sdf__region)),
                          .points = malloc(w * nx * 3 * sizeof(float)),
@@ -313,7 +315,7 @@ int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result 
         sdf__parallel_for(s->feat.count, FEATURE_CHUNK, workers, features_range, &st);
         sdf__parallel_for(rows, 8, workers, rows_range, &st);
     }
-    sdf__big_free(st.best), free(st.regions), free(st.points);
+    sdf__ws_free(s->ws, st.best), free(st.regions), free(st.points);
     free(st.hits), free(st.slow), free(st.slow_out);
     return rc;
 }
@@ -447,7 +449,10 @@ static int scan_new(const sdf_mesh *mesh, const size_t dims[3], const float *con
     s->mesh = mesh;
     s->query = *opts;
     s->query.point_stride = 0;
-    s->query.workspace = NULL; /* its calls' own scratch (a bake's runs on several threads) */
+    /* The caller's workspace, claimed for this one call, holds the per-node bests; the
+     * scan's own queries (its coarse lattice) take none. Bakes pass none. */
+    s->ws = opts->workspace;
+    s->query.workspace = NULL;
     double extent = mesh->report.diagonal;
     int rc = 0;
     for (int a = 0; a < 3 && !rc; a++) {

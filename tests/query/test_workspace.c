@@ -5,6 +5,7 @@
  *    arrays and small ones in turn, compared bit for bit with the same calls without one;
  *  - the workspace grows only for a larger batch: a batch no larger than one it served before
  *    leaves sdf_workspace_bytes as it was;
+ *  - a lattice, which the scan answers (volume/scan.c), keeps its per-node bests there too;
  *  - two threads sharing one workspace (one of them runs without it) and a bake given one
  *    (which ignores it) still answer as without;
  *  - the argument rules: NULL out, NULL workspace. */
@@ -114,6 +115,28 @@ static void check_filtered(const sdf_mesh *mesh, const float *points, sdf_worksp
     free(f_want), free(f_got), free(g_want), free(g_got);
 }
 
+/* A 64^3 lattice: the scan's per-worker bests come from the workspace. */
+static void check_lattice(const sdf_mesh *mesh, sdf_workspace *ws)
+{
+    size_t n = 64 * 64 * 64;
+    float *grid = malloc(3 * n * sizeof *grid);
+    answers want, got;
+    CHECK(grid && answers_alloc(&want, n) && answers_alloc(&got, n), "memory");
+    CHECK(sdf_workload(mesh, "grid", &n, 1, grid) == 0 && n == 64 * 64 * 64, "grid");
+    size_t before = sdf_workspace_bytes(ws);
+    for (int round = 0; round < 2; round++) {
+        CHECK(query(mesh, grid, n, NULL, &want) == 0 && query(mesh, grid, n, ws, &got) == 0,
+              "lattice queries");
+        CHECK(same_answers(&want, &got, n), "round %d: a lattice's answers differ with a "
+              "workspace", round);
+    }
+    /* One 16-byte best per node for each of at least one worker. */
+    CHECK(sdf_workspace_bytes(ws) >= before + 16 * n, "the lattice left %zu -> %zu bytes",
+          before, sdf_workspace_bytes(ws));
+    answers_free(&want), answers_free(&got);
+    free(grid);
+}
+
 typedef struct sharer {
     const sdf_mesh *mesh;
     const float *points;
@@ -200,6 +223,7 @@ int main(void)
     CHECK(sdf_workload(mesh, "band", &n, 11, points) == 0 && n == MOST, "workload");
     check_raw(mesh, points, ws);
     check_filtered(mesh, points, ws);
+    check_lattice(mesh, ws);
     check_shared(mesh, points, ws);
     check_bake(mesh);
     sdf_workspace_destroy(ws);
