@@ -200,7 +200,8 @@ typedef enum sdf_traversal {
  * Without a workspace each call allocates them and frees them at its end, and their fresh
  * pages fault in again next call (on a virtual machine ~10 % of a 1M-point query). Given one
  * in sdf_query_options.workspace, a call takes its arrays from it and leaves them there,
- * grown to the largest call's needs, for the next. Answers are the same with or without one.
+ * grown to the largest call's needs, for the next (a lattice that the scan answers keeps its
+ * per-node arrays there too). Answers are the same with or without one.
  * A workspace serves one call at a time: a call that finds it in use by another runs as if
  * it had none. Bakes (sdf_volume_bake) ignore it. */
 typedef struct sdf_workspace sdf_workspace;
@@ -209,8 +210,8 @@ typedef struct sdf_workspace sdf_workspace;
 int sdf_workspace_create(sdf_workspace **out);
 /* Frees the workspace and all it holds; NULL is a no-op. Not while a call uses it. */
 void sdf_workspace_destroy(sdf_workspace *ws);
-/* The bytes the workspace holds now (0 for NULL): at most the sum, over the calls it served,
- * of each one's largest arrays. */
+/* The bytes the workspace holds now (0 for NULL): each of its arrays at the largest size a
+ * call it served needed. Read it between calls. */
 size_t sdf_workspace_bytes(const sdf_workspace *ws);
 
 typedef struct sdf_query_options {
