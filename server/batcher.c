@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,6 +28,7 @@ struct sdfd_batcher {
     size_t capacity;
     /* the library's scratch, kept between batches of up to max_points (query_batch) */
     sdf_workspace *workspace;
+    _Atomic size_t kept_bytes; /* the two kept, for /metrics: set between batches */
 };
 
 double sdfd_now(void)
@@ -218,6 +220,13 @@ static void deliver(sdfd_batcher *b, sdfd_job *list, int rc, const char *message
     }
 }
 
+/* The scratch arrays' bytes (points, distance, vec3, triangle) and the workspace's. */
+static size_t kept_bytes(const sdfd_batcher *b)
+{
+    return b->capacity * (7 * sizeof(float) + sizeof(uint32_t)) +
+           sdf_workspace_bytes(b->workspace);
+}
+
 static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t points)
 {
     double start = sdfd_now();
@@ -236,6 +245,7 @@ static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t p
     } else {
         deliver(b, list, rc, message);
     }
+    atomic_store(&b->kept_bytes, kept_bytes(b));
 }
 
 static void wait_until(sdfd_batcher *b, double deadline)
@@ -313,6 +323,11 @@ void sdfd_batcher_destroy(sdfd_batcher *b)
     free(b->points), free(b->distance), free(b->vec3), free(b->triangle);
     sdf_workspace_destroy(b->workspace);
     free(b);
+}
+
+size_t sdfd_batcher_kept_bytes(sdfd_batcher *b)
+{
+    return atomic_load(&b->kept_bytes);
 }
 
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index)

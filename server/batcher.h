@@ -60,6 +60,10 @@ void sdfd_batcher_destroy(sdfd_batcher *b);
  * SDF_ENONFINITE (*bad_index set: NaN, Inf or beyond SDF_MAX_COORDINATE), SDF_EBUSY (queue
  * full), SDF_EUNAVAILABLE (shutting down). */
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
+
+/* Bytes the batcher keeps between batches: its gathered points and answers (as large as the
+ * largest batch) and the library's workspace (batches up to max_points). Any thread. */
+size_t sdfd_batcher_kept_bytes(sdfd_batcher *b);
 /* What both protocols tell a client whose point *bad_index was refused (printf, %zu). */
 #define SDFD_BAD_POINT_MESSAGE "point %zu has a coordinate that is NaN, Inf or beyond +-1e18"
 

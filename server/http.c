@@ -550,7 +550,8 @@ static enum MHD_Result dispatch(request *req)
         size_t len;
         sdfd_gauges g = {.meshes_loaded = sdfd_registry_count(srv->registry),
                          .volumes_loaded = sdfd_volumes_count(srv->volumes),
-                         .buffered_bytes = atomic_load(&srv->buffered)};
+                         .buffered_bytes = atomic_load(&srv->buffered),
+                         .batch_scratch_bytes = sdfd_batcher_kept_bytes(srv->batcher)};
         sdfd_volumes_usage(srv->volumes, &g.volume_bytes, &g.bakes_running, &g.bakes_queued);
         char *text = sdfd_metrics_render(srv->metrics, &g, &len);
         return text ? sdfd_http_buffer(req, 200, "text/plain; version=0.0.4", text, len, NULL)

@@ -168,6 +168,9 @@ char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len)
              "# TYPE sdfd_volume_bytes gauge\nsdfd_volume_bytes %zu\n", g->volume_bytes);
     emit(&o, "# HELP sdfd_buffered_bytes Bytes of request bodies and binary input held.\n"
              "# TYPE sdfd_buffered_bytes gauge\nsdfd_buffered_bytes %zu\n", g->buffered_bytes);
+    emit(&o, "# HELP sdfd_batch_scratch_bytes Bytes the batcher keeps between batches.\n"
+             "# TYPE sdfd_batch_scratch_bytes gauge\nsdfd_batch_scratch_bytes %zu\n",
+         g->batch_scratch_bytes);
     emit(&o, "# HELP sdfd_bakes Bake jobs by state.\n# TYPE sdfd_bakes gauge\n"
              "sdfd_bakes{state=\"running\"} %zu\nsdfd_bakes{state=\"queued\"} %zu\n",
          g->bakes_running, g->bakes_queued);

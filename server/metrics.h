@@ -31,6 +31,7 @@ void sdfd_metrics_queue_depth(sdfd_metrics *m, long delta);
 typedef struct sdfd_gauges {
     size_t meshes_loaded, volumes_loaded, volume_bytes, bakes_running, bakes_queued;
     size_t buffered_bytes; /* request bodies and binary input held (--max-buffered-bytes) */
+    size_t batch_scratch_bytes; /* what the batcher keeps between batches */
 } sdfd_gauges;
 
 /* Render everything (plus the given gauges) into a new string. */

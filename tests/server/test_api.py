@@ -69,6 +69,15 @@ class Exactness(unittest.TestCase):
                 self.assertTrue(same_bits(r["closest"], ref[:, 1:4]), f"{form}: closest")
                 self.assertTrue(np.array_equal(r["triangle"], answers["binary"]["triangle"]))
 
+    def test_batch_scratch_metric(self):
+        """/metrics tells what the batcher keeps between batches: a batch's gathered points and
+        answers (32 bytes a point) and the library's workspace (the Morton order and keys, the
+        visit-order copies: 36 more for distances alone)."""
+        p = np.random.default_rng(8).uniform(-0.2, 0.2, (100000, 3)).astype(np.float32)
+        self.bin.query("fandisk", p)
+        kept = harness.metric(self.http.metrics(), "sdfd_batch_scratch_bytes")
+        self.assertGreaterEqual(kept, 60 * len(p))
+
     def test_signed(self):
         self.check_mode("signed")
 
