@@ -509,6 +509,14 @@ static double size_at(const sdf_filter_options *f, const scratch *s, const float
     return local_kernel_size(&f->smooth, fs, grad_fs, grad_h);
 }
 
+/* Points per block: BLOCK_SAMPLES samples' worth (at least one point), and no more than the
+ * call has, so a small call's sample arrays are small too. */
+static size_t points_per_block(size_t per_point, size_t count)
+{
+    size_t block = BLOCK_SAMPLES / per_point > 0 ? BLOCK_SAMPLES / per_point : 1;
+    return count > 0 && count < block ? count : block;
+}
+
 size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int gradient,
                                  int threads)
 {
@@ -517,8 +525,7 @@ size_t sdf__filter_scratch_bound(const sdf_filter_options *f, size_t count, int 
      * sort's scratch, and the larger of its inner queries' own scratch. */
     size_t n = f->grid ? 27 : (size_t)f->samples;
     size_t per_point = n + (f->min_samples ? STENCIL : 0);
-    size_t block = BLOCK_SAMPLES / per_point > 0 ? BLOCK_SAMPLES / per_point : 1;
-    size_t per_block = block * per_point;
+    size_t block = points_per_block(per_point, count), per_block = block * per_point;
     size_t centre = 2 * (sdf__big_size((count + 1) * sizeof(float)) +
                          sdf__big_size((3 * count + 1) * sizeof(float)));
     size_t samples = sdf__big_size(3 * per_block * sizeof(float)) +
@@ -669,9 +676,7 @@ static int query_filtered(const sdf_mesh *mesh, const float *points, size_t coun
     }
     int n = samples.n, adaptive = f.min_samples > 0;
     size_t per_point = (size_t)n + (adaptive ? STENCIL : 0);
-    size_t block = BLOCK_SAMPLES / per_point;
-    block = block < 1 ? 1 : block;
-    size_t per_block = block * per_point;
+    size_t block = points_per_block(per_point, count), per_block = block * per_point;
     s.sample_p = sdf__ws_alloc(ws, SDF__WS_SAMPLE_P, 3 * per_block * sizeof(float));
     s.sample_f = sdf__ws_alloc(ws, SDF__WS_SAMPLE_F, per_block * sizeof(float));
     s.sample_grad = out->gradient
