@@ -6,10 +6,11 @@
  * batch (sdf_query, or sdf_query_filtered for the filtered modes, with
  * the configured worker threads), so points from many small requests are traversed
  * together. Batches of up to the coalescing cap share one sdf_workspace, so the library's
- * scratch is not allocated and faulted in afresh for each. Results are written into each job's own `words` buffer in the wire layout
- * (PROTOCOL.md: W 32-bit words per point), then each job's `done` callback runs on the
- * dispatcher thread. Under load the queue fills while a batch computes, so batches grow
- * without any waiting; the window only matters when the server is idle.
+ * scratch is not allocated and faulted in afresh for each. Results are written into each
+ * job's own `words` buffer in the wire layout (PROTOCOL.md: W 32-bit words per point), then
+ * each job's `done` callback runs on the dispatcher thread. Under load the queue fills while
+ * a batch computes, so batches grow without any waiting; the window only matters when the
+ * server is idle.
  *
  * Points are checked (finite) at submission, and a shared batch that fails all the same (a
  * filtered kernel that displaces one request's samples out of range, memory for the whole
@@ -64,6 +65,7 @@ int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
 /* Bytes the batcher keeps between batches: its gathered points and answers (as large as the
  * largest batch) and the library's workspace (batches up to max_points). Any thread. */
 size_t sdfd_batcher_kept_bytes(sdfd_batcher *b);
+
 /* What both protocols tell a client whose point *bad_index was refused (printf, %zu). */
 #define SDFD_BAD_POINT_MESSAGE "point %zu has a coordinate that is NaN, Inf or beyond +-1e18"
 
