@@ -79,3 +79,8 @@ void sdf__ws_free(sdf_workspace *ws, void *p)
     if (!ws)
         sdf__big_free(p);
 }
+
+size_t sdf__ws_create_bytes(void)
+{
+    return sizeof(struct sdf_workspace);
+}

@@ -37,7 +37,8 @@ typedef enum sdf__ws_slot {
     SDF__WS_SAMPLE_BOUND,
     SDF__WS_SAMPLE_SIGN,
     SDF__WS_SAMPLE_RUN,
-    SDF__WS_SCAN_BESTS,   /* volume/scan.c: a lattice query's per-worker bests */
+    SDF__WS_SCAN_BESTS,   /* volume/scan.c: the zero order's per-worker bests */
+    SDF__WS_SCAN_SAMPLES, /* volume/scan.c: the first order's per-worker sample bests */
     SDF__WS_SLOTS
 } sdf__ws_slot;
 
@@ -61,5 +62,8 @@ void *sdf__ws_alloc(sdf_workspace *ws, sdf__ws_slot slot, size_t bytes);
 
 /* Done with an array from sdf__ws_alloc: the workspace keeps it; without one it is freed. */
 void sdf__ws_free(sdf_workspace *ws, void *p);
+
+/* The bytes sdf_workspace_create allocates (scratch bounds of callers that make their own). */
+size_t sdf__ws_create_bytes(void);
 
 #endif

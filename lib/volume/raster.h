@@ -34,11 +34,10 @@ struct sdf__scan {
                                   this order write to nearby nodes, so the per-node arrays stay
                                   in cache */
     float *coarse;             /* |f| on every COARSE_STEP-th node (scan.c; feat.bound) */
-    float *sample_scratch;     /* sdf__scan_samples' per-worker bests, kept between calls */
-    sdf_workspace *ws;         /* a lattice query's claimed workspace: the zero order's
-                                  per-worker bests live there (core/workspace.h); NULL in bakes */
+    sdf_workspace *ws;         /* where the per-worker bests live between calls (fresh pages
+                                  cost): a lattice query's claimed workspace, else own_ws */
+    sdf_workspace *own_ws;     /* the scan's own, for bakes (core/workspace.h) */
     float *zspan;              /* per feature its region's z-span (NAN: none), or NULL */
-    size_t sample_scratch_count;
     double inv_spacing[3];
     double index_slack[3];     /* float rounding of node coordinates, in nodes */
     double extent;             /* the scene's size: the scale of every rounding margin */

@@ -249,7 +249,7 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
     size_t coords = 12 * axes;
     /* One call's per-node arrays, each worker's (as slices_within and sdf__scan_fits size
      * them: the budget, or one slice when that is larger, and no more slices than there
-     * are), and its per-row arrays. */
+     * are; kept between calls in the scan's workspace), and its per-row arrays. */
     size_t workers = (size_t)sdf__effective_threads(threads, features, 1);
     size_t slice = nx * ny, call;
     if (info->order == 1) {
@@ -265,7 +265,7 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
                workers * nx * (3 * sizeof(float) + sizeof(sdf__hit) + sizeof(uint32_t) +
                                sizeof(float));
     }
-    call += workers * sizeof(sdf__region) + sizeof(sdf__scan);
+    call += workers * sizeof(sdf__region) + sizeof(sdf__scan) + sdf__ws_create_bytes();
     return adjacency + order + lattice + coords + call;
 }
 
@@ -357,14 +357,11 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
     size_t w3 = SDF__POW3(2 * half + 1), nodes = (k1 - k0) * s->dims[0] * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, scratch = w * nodes * w3;
-    if (scratch > s->sample_scratch_count) { /* kept between calls: fresh pages cost */
-        sdf__big_free(s->sample_scratch);
-        s->sample_scratch = sdf__big_alloc(scratch * sizeof(float));
-        s->sample_scratch_count = s->sample_scratch ? scratch : 0;
-    }
     sdf__scan_call st = {.scan = s, .k0 = k0, .k1 = k1, .nodes = nodes,
                          .regions = malloc(w * sizeof(sdf__region)), .workers = workers,
-                         .fine_w = 2 * half + 1, .sample_best = s->sample_scratch,
+                         .fine_w = 2 * half + 1,
+                         .sample_best = sdf__ws_alloc(s->ws, SDF__WS_SCAN_SAMPLES,
+                                                      scratch * sizeof(float)),
                          .merged = malloc(w * MERGE_NODES * w3 * sizeof(float)),
                          .fat = malloc(w * sizeof(sdf__fat_region)), .consume = consume,
                          .user = user};
@@ -449,12 +446,15 @@ static int scan_new(const sdf_mesh *mesh, const size_t dims[3], const float *con
     s->mesh = mesh;
     s->query = *opts;
     s->query.point_stride = 0;
-    /* The caller's workspace, claimed for this one call, holds the per-node bests; the
-     * scan's own queries (its coarse lattice) take none. Bakes pass none. */
+    /* The per-node bests live in the caller's workspace, claimed for this one call, or (bakes
+     * pass none) in the scan's own, kept across its calls; the scan's own queries (its coarse
+     * lattice) take none. */
     s->ws = opts->workspace;
     s->query.workspace = NULL;
     double extent = mesh->report.diagonal;
-    int rc = 0;
+    int rc = s->ws ? 0 : sdf_workspace_create(&s->own_ws);
+    if (!rc && !s->ws)
+        s->ws = s->own_ws;
     for (int a = 0; a < 3 && !rc; a++) {
         s->dims[a] = dims[a], s->origin[a] = origin[a], s->spacing[a] = spacing[a];
         s->inv_spacing[a] = 1 / spacing[a];
@@ -542,6 +542,7 @@ void sdf__scan_destroy(sdf__scan *s)
     for (int a = 0; a < 3; a++)
         free(s->coarse_coord[a]);
     sdf__features_free(&s->feat);
-    free(s->order), free(s->coarse), sdf__big_free(s->sample_scratch), free(s->zspan);
+    free(s->order), free(s->coarse), free(s->zspan);
+    sdf_workspace_destroy(s->own_ws);
     free(s);
 }
