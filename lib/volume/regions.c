@@ -381,11 +381,16 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
             sdf__cross3(ray, e[i], e[j]);
             if (normalize3(ray) < 1e-9)
                 continue;
+            /* The ray and its opposite against every plane in one pass: the opposite's
+             * products are the ray's negated, exactly. */
+            int ok_minus = 1, ok_plus = 1;
+            for (int l = 0; l < n && (ok_minus || ok_plus); l++) {
+                double along = sdf__dot3(ray, e[l]);
+                ok_minus &= -along <= 1e-9, ok_plus &= along <= 1e-9;
+            }
             for (int sign = -1; sign <= 1; sign += 2) {
                 double cand[3] = {sign * ray[0], sign * ray[1], sign * ray[2]};
-                int ok = 1;
-                for (int l = 0; l < n && ok; l++)
-                    ok = sdf__dot3(cand, e[l]) <= 1e-9;
+                int ok = sign < 0 ? ok_minus : ok_plus;
                 for (int h = 0; h < g && ok; h++)
                     ok = sdf__dot3(cand, gen[h]) < 1 - 1e-12; /* a repeat */
                 if (!ok)
@@ -477,6 +482,38 @@ int sdf__region_build(const sdf__features *s, size_t f, sdf__region *r)
              : f < s->faces + s->edges ? edge_region(s, f - s->faces, r)
                                        : vertex_region(s, f - s->faces - s->edges, r);
     return ok;
+}
+
+void sdf__feature_prefetch(const sdf__features *s, size_t f, int stage)
+{
+    if (f < s->faces) {
+        const uint32_t *tri = s->triangles + 3 * f;
+        if (!stage)
+            __builtin_prefetch(tri);
+        else
+            for (int c = 0; c < 3; c++)
+                __builtin_prefetch(vertex(s, tri[c]));
+    } else if (f < s->faces + s->edges) {
+        size_t e = f - s->faces;
+        if (!stage) {
+            __builtin_prefetch(s->edge_end + 2 * e);
+            __builtin_prefetch(s->edge_first + e);
+            __builtin_prefetch(s->edge_normal + 3 * e);
+        } else {
+            __builtin_prefetch(vertex(s, s->edge_end[2 * e]));
+            __builtin_prefetch(vertex(s, s->edge_end[2 * e + 1]));
+            __builtin_prefetch(s->edge_tri + s->edge_first[e]);
+        }
+    } else {
+        size_t v = f - s->faces - s->edges;
+        if (!stage) {
+            __builtin_prefetch(vertex(s, (uint32_t)v));
+            __builtin_prefetch(s->vert_first + v);
+            __builtin_prefetch(s->vertex_normal + 3 * v);
+        } else {
+            __builtin_prefetch(s->vert_nbr + s->vert_first[v]);
+        }
+    }
 }
 
 /* ---- reach and bound ---------------------------------------------------------------------- */

@@ -103,6 +103,10 @@ static inline size_t sdf__features_bound_nodes(size_t dim, size_t step)
  * extent, a vertex whose cone is only itself). */
 int sdf__region_build(const sdf__features *f, size_t feature, sdf__region *r);
 
+/* Prefetches what building the feature's region reads first (stage 0: its own entries in
+ * the adjacency) or next (stage 1: what those entries point to, once they have arrived). */
+void sdf__feature_prefetch(const sdf__features *f, size_t feature, int stage);
+
 /* The feature's lowest-numbered triangle (the face itself for a face). */
 uint32_t sdf__feature_triangle(const sdf__features *f, size_t feature);
 

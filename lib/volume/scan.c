@@ -33,6 +33,7 @@
 #define COARSE_STEP 8      /* nodes between the coarse lattice's nodes */
 #define FEATURE_CHUNK 256  /* features per work item */
 #define SCAN_BUDGET_BYTES ((size_t)64 << 20) /* the workers' per-node arrays of one call */
+#define PREFETCH_AHEAD 8   /* features between a prefetch and the region's build */
 #define MERGE_NODES 256    /* nodes per sdf__sample_fn call */
 #define SCAN_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one z-slice may take */
 /* The same, first order: fewer calls rebuild fewer regions that span several (refined_elephant
@@ -58,6 +59,10 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
     double z1 = s->coord[2][st->k1 - 1] + st->rho[2] + s->feat.row_pad;
     for (size_t q = begin; q < end; q++) {
         uint32_t f = s->order[q];
+        if (q + PREFETCH_AHEAD < end)
+            sdf__feature_prefetch(&s->feat, s->order[q + PREFETCH_AHEAD], 0);
+        if (q + PREFETCH_AHEAD / 2 < end)
+            sdf__feature_prefetch(&s->feat, s->order[q + PREFETCH_AHEAD / 2], 1);
         if (s->zspan && (s->zspan[2 * f] > z1 || s->zspan[2 * f + 1] < z0))
             continue;
         if (!sdf__region_build(&s->feat, f, r))
