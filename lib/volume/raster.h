@@ -30,9 +30,9 @@ struct sdf__scan {
     double *coord[3];          /* node coordinates per axis, as the float points sdf_query gets */
     sdf__features feat;
     double *coarse_coord[3];   /* the coarse lattice's node coordinates (feat.bound_coord) */
-    uint32_t *order;           /* features in Morton order of their positions: neighbours in
-                                  this order write to nearby nodes, so the per-node arrays stay
-                                  in cache */
+    uint32_t *order;           /* features in the mesh tree's order (scan.c, feature_order):
+                                  neighbours in this order write to nearby nodes, so the
+                                  per-node arrays stay in cache */
     float *coarse;             /* |f| on every COARSE_STEP-th node (scan.c; feat.bound) */
     sdf_workspace *ws;         /* where the per-worker bests live between calls (fresh pages
                                   cost): a lattice query's claimed workspace, else own_ws */

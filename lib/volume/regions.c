@@ -695,23 +695,3 @@ uint32_t sdf__feature_triangle(const sdf__features *s, size_t feature)
            : feature < s->faces + s->edges ? s->edge_tri[s->edge_first[feature - s->faces]]
                                            : s->vtri[s->vtri_first[feature - s->faces - s->edges]];
 }
-
-void sdf__feature_position(const sdf__features *s, size_t feature, float out[3])
-{
-    const uint32_t *ends;
-    uint32_t one;
-    int n;
-    if (feature < s->faces)
-        ends = s->triangles + 3 * feature, n = 3;
-    else if (feature < s->faces + s->edges)
-        ends = s->edge_end + 2 * (feature - s->faces), n = 2;
-    else
-        one = (uint32_t)(feature - s->faces - s->edges), ends = &one, n = 1;
-    for (int a = 0; a < 3; a++) {
-        double sum = 0;
-        for (int c = 0; c < n; c++)
-            sum += s->pos[3 * (size_t)ends[c] + a];
-        out[a] = (float)(sum / n);
-    }
-}
-

@@ -110,7 +110,4 @@ void sdf__feature_prefetch(const sdf__features *f, size_t feature, int stage);
 /* The feature's lowest-numbered triangle (the face itself for a face). */
 uint32_t sdf__feature_triangle(const sdf__features *f, size_t feature);
 
-/* Where the feature is: a face's centroid, an edge's midpoint, the vertex. */
-void sdf__feature_position(const sdf__features *f, size_t feature, float out[3]);
-
 #endif

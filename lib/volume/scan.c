@@ -6,10 +6,10 @@
  * crossings with a slice give the range of rows to visit. Regions reach only as far as any
  * node can be from the surface (`reach_front` on the outward side, `reach_back` inside),
  * which a coarse lattice of exact queries bounds. Worker threads take runs of features in
- * Morton order, each into its own per-node "best so far" arrays (no locks; the loop over one
- * region's nodes is volume/raster.c); the rows are then finished in parallel, the workers'
- * bests merged by (distance, feature id) so the result does not depend on how the features
- * were shared out. */
+ * the mesh tree's order, each into its own per-node "best so far" arrays (no locks; the loop
+ * over one region's nodes is volume/raster.c); the rows are then finished in parallel, the
+ * workers' bests merged by (distance, feature id) so the result does not depend on how the
+ * features were shared out. */
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
@@ -24,7 +24,6 @@
 #include "mesh/topology.h"
 #include "volume/regions.h"
 #include "query/filter.h"
-#include "query/morton.h"
 #include "query/packet.h"
 #include "query/triangle.h"
 #include "volume/raster.h"
@@ -245,8 +244,8 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
     size_t adjacency = 24 * vertices + 8 * edges + 4 * (edges + 1) + 12 * faces +
                        2 * 4 * (vertices + 1) + 8 * edges + 12 * faces + 24 * faces +
                        16 * edges + 4 * (edges + 1) + 2 * 4 * (vertices + 1);
-    /* The visit order with its positions and its sort's scratch, the z-spans. */
-    size_t order = (4 + 12 + 8) * (features + 1) + sdf__morton_scratch_bound(features, threads);
+    /* The visit order with its flags, the z-spans. */
+    size_t order = (4 + 1 + 8) * (features + 1);
     /* The coarse lattice of exact distances: its points, values, closest points, axes and
      * queries. */
     size_t lattice = 28 * coarse + 8 * axes + sdf__query_scratch_bound(coarse, threads);
@@ -393,34 +392,42 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
 
 /* ---- set-up ------------------------------------------------------------------------------ */
 
-typedef struct feature_positions {
-    const sdf__features *feat;
-    float *at;
-} feature_positions;
-
-static void positions_range(void *ctx, size_t begin, size_t end, int worker)
+/* Features in the order the mesh's tree holds its triangles, each face followed by those of
+ * its edges and vertices not yet listed (then any feature no triangle of the tree lists): a
+ * subtree's triangles are neighbours in space, so features near in this order write to
+ * nearby nodes and the per-node arrays stay in cache. It replaced a Morton sort of the
+ * features' positions (240k features, refined_elephant: 4-7 ms of a 170 ms bake, now ~1). */
+static void list_feature(uint8_t *listed, uint32_t *order, size_t *n, size_t feature)
 {
-    (void)worker;
-    const feature_positions *fp = ctx;
-    for (size_t f = begin; f < end; f++)
-        sdf__feature_position(fp->feat, f, fp->at + 3 * f);
+    if (!listed[feature]) {
+        listed[feature] = 1;
+        order[(*n)++] = (uint32_t)feature;
+    }
 }
 
-/* The visit order of the features: faces at their centroids, edges at their midpoints. */
 static int feature_order(sdf__scan *s)
 {
-    float *at = malloc((3 * s->feat.count + 1) * sizeof *at);
-    s->order = malloc((s->feat.count + 1) * sizeof *s->order);
-    if (!at || !s->order) {
-        free(at);
+    const sdf__features *f = &s->feat;
+    const sdf__tree *tree = &s->mesh->tree;
+    uint8_t *listed = calloc(f->count + 1, 1);
+    s->order = malloc((f->count + 1) * sizeof *s->order);
+    if (!listed || !s->order) {
+        free(listed);
         return SDF_ENOMEM;
     }
-    feature_positions fp = {&s->feat, at};
-    sdf__parallel_for(s->feat.count, (size_t)1 << 14, s->query.threads, positions_range, &fp);
-    int rc = sdf__morton_order((const char *)at, 3 * sizeof(float), s->feat.count,
-                               s->query.threads, NULL, s->order);
-    free(at);
-    return rc;
+    size_t n = 0;
+    for (size_t i = 0; i < tree->prim_count; i++) {
+        size_t t = tree->prims[i];
+        list_feature(listed, s->order, &n, t);
+        for (size_t c = 3 * t; c < 3 * t + 3; c++)
+            list_feature(listed, s->order, &n, f->faces + s->mesh->edge_of[c]);
+        for (size_t c = 3 * t; c < 3 * t + 3; c++)
+            list_feature(listed, s->order, &n, f->faces + f->edges + f->triangles[c]);
+    }
+    for (size_t feature = 0; feature < f->count; feature++)
+        list_feature(listed, s->order, &n, feature);
+    free(listed);
+    return 0;
 }
 
 int sdf__scan_supported(const sdf_mesh *mesh, sdf_sign_method sign)
