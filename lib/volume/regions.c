@@ -616,7 +616,7 @@ static int csr(size_t keys, size_t pairs, const uint32_t *key, const uint32_t *v
     return 0;
 }
 
-/* The three adjacency lists, each a counting sort of its own pairs: built side by side. */
+/* The two adjacency lists, each a counting sort of its own pairs: built side by side. */
 typedef struct csr_job {
     size_t keys, pairs;
     const uint32_t *key, *value;
@@ -647,36 +647,42 @@ int sdf__features_init(sdf__features *s, const sdf_mesh *m, int threads)
     s->pos = malloc((3 * s->vertices + 1) * sizeof *s->pos);
     for (size_t i = 0; s->pos && i < 3 * s->vertices; i++)
         s->pos[i] = m->positions[i];
-    /* Pairs: (edge, its triangle) per corner; (vertex, neighbour) both ways per edge;
-     * (vertex, its triangle) per corner. */
-    uint32_t *edge_key = malloc((t3 + 1) * sizeof *edge_key);
+    /* Pairs: (edge, its triangle) per corner (the mesh's edge ids are the keys);
+     * (vertex, neighbour) both ways per edge. */
     uint32_t *corner_tri = malloc((t3 + 1) * sizeof *corner_tri);
     uint32_t *nbr_key = malloc((2 * s->edges + 1) * sizeof *nbr_key);
     uint32_t *nbr_val = malloc((2 * s->edges + 1) * sizeof *nbr_val);
     s->edge_end = malloc((2 * s->edges + 1) * sizeof *s->edge_end);
-    int rc = edge_key && corner_tri && nbr_key && nbr_val && s->edge_end && s->pos ? 0
-                                                                                  : SDF_ENOMEM;
+    s->vertex_tri = malloc((s->vertices + 1) * sizeof *s->vertex_tri);
+    int rc = corner_tri && nbr_key && nbr_val && s->edge_end && s->vertex_tri && s->pos
+                 ? 0
+                 : SDF_ENOMEM;
     if (!rc) {
-        for (size_t c = 0; c < t3; c++) { /* each triangle's edges, and their ends */
-            uint32_t e = m->edge_of[c];
-            edge_key[c] = e, corner_tri[c] = (uint32_t)(c / 3);
+        for (size_t v = 0; v < s->vertices; v++)
+            s->vertex_tri[v] = UINT32_MAX;
+        /* Each triangle's edges and their ends; a vertex's first triangle, corners in order,
+         * is its lowest-numbered. */
+        for (size_t c = 0; c < t3; c++) {
+            uint32_t e = m->edge_of[c], t = (uint32_t)(c / 3);
+            corner_tri[c] = t;
             uint32_t a = m->triangles[c], b = m->triangles[c - c % 3 + (c % 3 + 1) % 3];
             s->edge_end[2 * e] = a < b ? a : b, s->edge_end[2 * e + 1] = a < b ? b : a;
+            if (s->vertex_tri[a] == UINT32_MAX)
+                s->vertex_tri[a] = t;
         }
         for (size_t e = 0; e < s->edges; e++) { /* every edge is a neighbour relation both ways */
             nbr_key[2 * e] = s->edge_end[2 * e], nbr_val[2 * e] = s->edge_end[2 * e + 1];
             nbr_key[2 * e + 1] = s->edge_end[2 * e + 1], nbr_val[2 * e + 1] = s->edge_end[2 * e];
         }
-        csr_job jobs[3] = {
-            {s->edges, t3, edge_key, corner_tri, &s->edge_first, &s->edge_tri, 0},
+        csr_job jobs[2] = {
+            {s->edges, t3, m->edge_of, corner_tri, &s->edge_first, &s->edge_tri, 0},
             {s->vertices, 2 * s->edges, nbr_key, nbr_val, &s->vert_first, &s->vert_nbr, 0},
-            {s->vertices, t3, m->triangles, corner_tri, &s->vtri_first, &s->vtri, 0},
         };
-        sdf__parallel_for(3, 1, threads, csr_range, jobs);
-        for (int j = 0; j < 3 && !rc; j++)
+        sdf__parallel_for(2, 1, threads, csr_range, jobs);
+        for (int j = 0; j < 2 && !rc; j++)
             rc = jobs[j].rc;
     }
-    free(edge_key), free(corner_tri), free(nbr_key), free(nbr_val);
+    free(corner_tri), free(nbr_key), free(nbr_val);
     if (rc)
         sdf__features_free(s);
     return rc;
@@ -685,7 +691,7 @@ int sdf__features_init(sdf__features *s, const sdf_mesh *m, int threads)
 void sdf__features_free(sdf__features *s)
 {
     free(s->pos), free(s->edge_end), free(s->edge_first), free(s->edge_tri);
-    free(s->vert_first), free(s->vert_nbr), free(s->vtri_first), free(s->vtri);
+    free(s->vert_first), free(s->vert_nbr), free(s->vertex_tri);
     memset(s, 0, sizeof *s);
 }
 
@@ -693,5 +699,5 @@ uint32_t sdf__feature_triangle(const sdf__features *s, size_t feature)
 {
     return feature < s->faces ? (uint32_t)feature
            : feature < s->faces + s->edges ? s->edge_tri[s->edge_first[feature - s->faces]]
-                                           : s->vtri[s->vtri_first[feature - s->faces - s->edges]];
+                                           : s->vertex_tri[feature - s->faces - s->edges];
 }

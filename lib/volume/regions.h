@@ -59,7 +59,8 @@ typedef struct sdf__features {
     uint32_t *edge_end;                  /* 2 per edge */
     uint32_t *edge_first, *edge_tri;     /* triangles of each edge (CSR, ascending) */
     uint32_t *vert_first, *vert_nbr;     /* neighbour vertices of each vertex (CSR) */
-    uint32_t *vtri_first, *vtri;         /* triangles of each vertex (CSR, ascending) */
+    uint32_t *vertex_tri;                /* each vertex's lowest-numbered triangle (UINT32_MAX:
+                                            none) */
     const float *edge_normal;            /* the mesh's edge and vertex pseudonormals, 3 each */
     const float *vertex_normal;
     /* Set by the caller before building regions: */

@@ -238,12 +238,12 @@ size_t sdf__scan_scratch_bound(const sdf_mesh *mesh, const sdf_volume_info *info
         axes += info->dims[a];
         coarse *= sdf__features_bound_nodes(info->dims[a], COARSE_STEP);
     }
-    /* sdf__features_init's arrays (positions in double, edge ends, three CSR lists) and its
-     * temporaries (the pairs' keys and values, the three sorts' fill cursors at once),
-     * counted all at once. */
+    /* sdf__features_init's arrays (positions in double, edge ends, two CSR lists, each
+     * vertex's first triangle) and its temporaries (the pairs' values and the neighbours'
+     * keys, the two sorts' fill cursors at once), counted all at once. */
     size_t adjacency = 24 * vertices + 8 * edges + 4 * (edges + 1) + 12 * faces +
-                       2 * 4 * (vertices + 1) + 8 * edges + 12 * faces + 24 * faces +
-                       16 * edges + 4 * (edges + 1) + 2 * 4 * (vertices + 1);
+                       4 * (vertices + 1) + 8 * edges + 4 * (vertices + 1) + 12 * faces +
+                       16 * edges + 4 * (edges + 1) + 4 * (vertices + 1);
     /* The visit order with its flags, the z-spans. */
     size_t order = (4 + 1 + 8) * (features + 1);
     /* The coarse lattice of exact distances: its points, values, closest points, axes and
