@@ -34,18 +34,20 @@ static int node_range(const sdf__scan *s, int a, double from, double to, size_t 
 void sdf__fat_prepare(const sdf__scan_call *st, const sdf__region *r, sdf__fat_region *fr)
 {
     int w = st->fine_w;
-    size_t m = SDF__POW3(w);
-    for (size_t j = 0; j < m; j++) {
-        size_t o[3] = {j % (size_t)w, j / (size_t)w % (size_t)w, j / (size_t)w / (size_t)w};
-        double dl[3], c[3];
-        for (int a = 0; a < 3; a++)
-            dl[a] = fr->delta[a][j] = st->fine_offset[a][o[a]];
-        fr->height[j] = sdf__dot3(r->dir, dl);
-        fr->side[j] = sdf__dot3(r->sign_dir, dl);
-        fr->delta2[j] = sdf__dot3(dl, dl);
-        sdf__cross3(c, dl, r->dir);
-        fr->cross[0][j] = c[0], fr->cross[1][j] = c[1], fr->cross[2][j] = c[2];
-    }
+    size_t j = 0; /* x fastest: j = x + w (y + w z) */
+    for (int z = 0; z < w; z++)
+        for (int y = 0; y < w; y++)
+            for (int x = 0; x < w; x++, j++) {
+                double dl[3] = {st->fine_offset[0][x], st->fine_offset[1][y],
+                                st->fine_offset[2][z]}, c[3];
+                for (int a = 0; a < 3; a++)
+                    fr->delta[a][j] = dl[a];
+                fr->height[j] = sdf__dot3(r->dir, dl);
+                fr->side[j] = sdf__dot3(r->sign_dir, dl);
+                fr->delta2[j] = sdf__dot3(dl, dl);
+                sdf__cross3(c, dl, r->dir);
+                fr->cross[0][j] = c[0], fr->cross[1][j] = c[1], fr->cross[2][j] = c[2];
+            }
     for (int p = 0; p < r->planes; p++) {
         const double *pl = r->plane[p];
         fr->plane_ready[p] = 0;
