@@ -35,9 +35,12 @@
 #define PREFETCH_AHEAD 8   /* features between a prefetch and the region's build */
 #define MERGE_NODES 256    /* nodes per sdf__sample_fn call */
 #define SCAN_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one z-slice may take */
-/* The same, first order: fewer calls rebuild fewer regions that span several (refined_elephant
- * 128^3: 64 MiB 1.57-1.63 s, 128 MiB 1.46-1.49, 256 MiB 1.42-1.48). */
-#define SCAN_SAMPLE_BUDGET_BYTES ((size_t)128 << 20)
+/* The same, first order: fewer calls rebuild fewer regions that span several. refined_elephant
+ * 128^3, one thread: 64 MiB 1.57-1.63 s, 128 MiB 1.46-1.49, 256 MiB 1.42-1.48; two threads
+ * (each worker its own copy, so half the slices a call), 6 alternating runs: 64 MiB 0.715 s
+ * (median), 128 MiB 0.618 (4 calls), 256 MiB 0.584 (2 calls); 512 MiB (1 call) 0.531, but
+ * with 3.5 times the memory. */
+#define SCAN_SAMPLE_BUDGET_BYTES ((size_t)256 << 20)
 /* The region's estimate and the exact test's distance both lie within this much of the
  * scene's size of the true distance. */
 #define SURE_DISTANCE_OF_EXTENT 1e-13
