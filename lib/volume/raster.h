@@ -38,6 +38,8 @@ struct sdf__scan {
                                   cost): a lattice query's claimed workspace, else own_ws */
     sdf_workspace *own_ws;     /* the scan's own, for bakes (core/workspace.h) */
     float *zspan;              /* per feature its region's z-span (NAN: none), or NULL */
+    int zspan_known;           /* zspan is filled (by the first call, which builds every
+                                  region) */
     double inv_spacing[3];
     double index_slack[3];     /* float rounding of node coordinates, in nodes */
     double extent;             /* the scene's size: the scale of every rounding margin */
