@@ -379,15 +379,22 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
         for (int j = i + 1; j < n && pointed; j++) {
             double ray[3];
             sdf__cross3(ray, e[i], e[j]);
-            if (normalize3(ray) < 1e-9)
+            double len = sqrt(sdf__dot3(ray, ray));
+            if (len < 1e-9)
                 continue;
-            /* The ray and its opposite against every plane in one pass: the opposite's
-             * products are the ray's negated, exactly. */
+            /* The ray and its opposite against every plane in one pass, before the ray is
+             * made a unit vector (most pairs fail; each division cost as much as a test): the
+             * opposite's products are the ray's negated, exactly. */
             int ok_minus = 1, ok_plus = 1;
+            double tolerance = 1e-9 * len;
             for (int l = 0; l < n && (ok_minus || ok_plus); l++) {
                 double along = sdf__dot3(ray, e[l]);
-                ok_minus &= -along <= 1e-9, ok_plus &= along <= 1e-9;
+                ok_minus &= -along <= tolerance, ok_plus &= along <= tolerance;
             }
+            if (!ok_minus && !ok_plus)
+                continue;
+            for (int a = 0; a < 3; a++)
+                ray[a] /= len;
             for (int sign = -1; sign <= 1; sign += 2) {
                 double cand[3] = {sign * ray[0], sign * ray[1], sign * ray[2]};
                 int ok = sign < 0 ? ok_minus : ok_plus;
