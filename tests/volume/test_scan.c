@@ -7,6 +7,8 @@
  *  - nodes lying exactly on faces, edges and corners (a cube on an aligned grid) are 0;
  *  - 1 and 2 threads give the same bits; the sign methods the scan does not take (winding,
  *    raycast) and open meshes still bake sdf_query's values;
+ *  - zero order in several calls, as a large bake makes them (the first call records each
+ *    region's z-span, the later ones skip regions outside their slices): the same bits;
  *  - first order: the fine samples of every node (H = 1..2) match sdf_query at the same float
  *    points to float rounding, signs included;
  *  - sdf_query on a batch laid out as a lattice (which takes the scan; uneven float axes)
@@ -197,6 +199,51 @@ typedef struct copy_ctx {
 } copy_ctx;
 
 /* sdf__sample_fn: keep every node's samples. */
+/* sdf__scan_slices in uneven runs of slices, as a bake larger than one call's scratch makes
+ * them, against sdf_query one Embree query per node: the same bits at every node. */
+static void test_slices_in_calls(const char *file, sdf_sign_method sign, size_t dim)
+{
+    sdf_mesh *mesh = load_data_mesh(file);
+    if (!mesh)
+        return;
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    sdf_volume_info in = {.dims = {dim + 2, dim - 1, dim}};
+    for (int a = 0; a < 3; a++) {
+        in.origin[a] = r.bbox_min[a] - 0.05 * r.diagonal;
+        in.spacing[a] =
+            (r.bbox_max[a] - r.bbox_min[a] + 0.1 * r.diagonal) / (double)(in.dims[a] - 1);
+    }
+    sdf_query_options qo = {.sign = sign, .threads = 2};
+    size_t n = node_count(&in), slice = in.dims[0] * in.dims[1];
+    float *p = malloc(n * 3 * sizeof *p), *f = malloc(n * sizeof *f), *g = malloc(n * sizeof *g);
+    for (size_t q = 0; q < n; q++)
+        node_position(&in, q, p + 3 * q);
+    sdf__scan *scan = NULL;
+    CHECK(sdf__scan_create(mesh, &in, &qo, &scan) == 0, "%s: scan", file);
+    /* Runs of 1, dim / 3 and the rest of the slices. */
+    size_t cut[4] = {0, 1, 1 + dim / 3, in.dims[2]};
+    for (int c = 0; c < 3 && scan; c++) {
+        sdf_query_result out = {.distance = f + cut[c] * slice};
+        CHECK(sdf__scan_slices(scan, cut[c], cut[c + 1], &out) == 0, "%s: slices %zu-%zu", file,
+              cut[c], cut[c + 1]);
+    }
+    sdf__scan_destroy(scan);
+    sdf_query_options single = qo;
+    single.traversal = SDF_TRAVERSAL_SINGLE;
+    sdf_query_result res = {.distance = g};
+    CHECK(sdf_query(mesh, p, n, &single, &res) == 0, "%s: query", file);
+    size_t differ = 0, first = n;
+    for (size_t q = 0; q < n; q++)
+        if (memcmp(&f[q], &g[q], sizeof *f) && differ++ == 0)
+            first = q;
+    CHECK(differ == 0, "%s in 3 calls: %zu of %zu nodes differ from sdf_query (first: node %zu, "
+          "%.9g vs %.9g)", file, differ, n, first, first < n ? f[first] : 0.0,
+          first < n ? g[first] : 0.0);
+    free(p), free(f), free(g);
+    sdf_mesh_release(mesh);
+}
+
 static int copy_samples(void *user, size_t first, size_t count, float *f, int worker)
 {
     (void)worker;
@@ -364,6 +411,8 @@ int main(void)
     test_mesh("mech-holes-shark.off", SDF_SIGN_NONE, 24); /* open: the search path */
     test_on_surface();
     test_threads();
+    test_slices_in_calls("fandisk.off", SDF_SIGN_AUTO, 40);
+    test_slices_in_calls("knot1.off", SDF_SIGN_NONE, 33);
     test_samples("fandisk.off", SDF_SIGN_AUTO, 1, 0.1, 28);
     test_samples("knot1.off", SDF_SIGN_AUTO, 2, 0.4, 20);
     test_samples("cow.off", SDF_SIGN_NONE, 1, 0.25, 22); /* self-intersecting: unsigned */
