@@ -26,6 +26,7 @@ struct sdfd_batcher {
     float *points, *distance, *vec3;
     uint32_t *triangle;
     size_t capacity;
+    size_t scratch_bytes; /* what those four arrays hold (ensure_scratch) */
     /* the library's scratch, kept between batches of up to max_points (query_batch) */
     sdf_workspace *workspace;
     _Atomic size_t kept_bytes; /* the two kept, for /metrics: set between batches */
@@ -138,11 +139,13 @@ static int ensure_scratch(sdfd_batcher *b, size_t n)
     if (n <= b->capacity)
         return 0;
     free(b->points), free(b->distance), free(b->vec3), free(b->triangle);
-    b->points = malloc(3 * n * sizeof(float));
-    b->distance = malloc(n * sizeof(float));
-    b->vec3 = malloc(3 * n * sizeof(float));
-    b->triangle = malloc(n * sizeof(uint32_t));
+    size_t xyz = 3 * n * sizeof(float), one = n * sizeof(float), ids = n * sizeof(uint32_t);
+    b->points = malloc(xyz);
+    b->distance = malloc(one);
+    b->vec3 = malloc(xyz);
+    b->triangle = malloc(ids);
     b->capacity = b->points && b->distance && b->vec3 && b->triangle ? n : 0;
+    b->scratch_bytes = b->capacity ? 2 * xyz + one + ids : 0;
     return b->capacity ? 0 : SDF_ENOMEM;
 }
 
@@ -223,8 +226,7 @@ static void deliver(sdfd_batcher *b, sdfd_job *list, int rc, const char *message
 /* The scratch arrays' bytes (points, distance, vec3, triangle) and the workspace's. */
 static size_t kept_bytes(const sdfd_batcher *b)
 {
-    return b->capacity * (7 * sizeof(float) + sizeof(uint32_t)) +
-           sdf_workspace_bytes(b->workspace);
+    return b->scratch_bytes + sdf_workspace_bytes(b->workspace);
 }
 
 static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t points)
