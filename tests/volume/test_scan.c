@@ -38,6 +38,27 @@ static void node_position(const sdf_volume_info *in, size_t n, float p[3])
         p[a] = (float)(in->origin[a] + (double)ijk[a] * in->spacing[a]);
 }
 
+/* sdf_query at the n points p, one Embree query per point (sdf_query would take the scan
+ * itself for a lattice), with qo's sign and threads: the same bits as `values` at every
+ * point. */
+static void compare_with_query(const char *what, const sdf_mesh *mesh,
+                               const sdf_query_options *qo, const float *p, size_t n,
+                               const float *values)
+{
+    float *f = malloc(n * sizeof *f);
+    sdf_query_options single = *qo;
+    single.traversal = SDF_TRAVERSAL_SINGLE;
+    sdf_query_result res = {.distance = f};
+    CHECK(sdf_query(mesh, p, n, &single, &res) == 0, "%s: query", what);
+    size_t differ = 0, first = n;
+    for (size_t q = 0; q < n; q++)
+        if (memcmp(&values[q], &f[q], sizeof *f) && differ++ == 0)
+            first = q;
+    CHECK(differ == 0, "%s: %zu of %zu nodes differ from sdf_query (first: node %zu, %.9g vs %.9g)",
+          what, differ, n, first, first < n ? values[first] : 0.0, first < n ? f[first] : 0.0);
+    free(f);
+}
+
 /* Bake with `o`, query every node with the same sign and threads, compare bits; brute force
  * on `samples` nodes. Returns the volume (or NULL). */
 static sdf_volume *bake_and_compare(const char *what, const sdf_mesh *mesh,
@@ -51,21 +72,11 @@ static sdf_volume *bake_and_compare(const char *what, const sdf_mesh *mesh,
     sdf_volume_info in;
     sdf_volume_get_info(v, &in);
     size_t n = node_count(&in);
-    float *p = malloc(n * 3 * sizeof *p), *f = malloc(n * sizeof *f);
+    float *p = malloc(n * 3 * sizeof *p);
     for (size_t q = 0; q < n; q++)
         node_position(&in, q, p + 3 * q);
-    /* One Embree query per point: sdf_query would take the scan itself for a lattice. */
-    sdf_query_options qo = o->query;
-    qo.traversal = SDF_TRAVERSAL_SINGLE;
-    sdf_query_result res = {.distance = f};
-    CHECK(sdf_query(mesh, p, n, &qo, &res) == 0, "%s: query", what);
     const float *baked = sdf_volume_data(v);
-    size_t differ = 0, first = n;
-    for (size_t q = 0; q < n; q++)
-        if (memcmp(&baked[q], &f[q], sizeof *f) && differ++ == 0)
-            first = q;
-    CHECK(differ == 0, "%s: %zu of %zu nodes differ from sdf_query (first: node %zu, %.9g vs %.9g)",
-          what, differ, n, first, first < n ? baked[first] : 0.0, first < n ? f[first] : 0.0);
+    compare_with_query(what, mesh, &o->query, p, n, baked);
     /* Brute force: every triangle, double precision. */
     sdf_mesh_report r;
     sdf_mesh_get_report(mesh, &r);
@@ -89,7 +100,7 @@ static sdf_volume *bake_and_compare(const char *what, const sdf_mesh *mesh,
     }
     CHECK(worst <= 1e-6 * r.diagonal, "%s: brute force differs by %g more than the float "
           "rounding (diagonal %g)", what, worst, r.diagonal);
-    free(p), free(f);
+    free(p);
     return v;
 }
 
@@ -193,12 +204,6 @@ static void test_threads(void)
     sdf_mesh_release(mesh);
 }
 
-typedef struct copy_ctx {
-    float *all;
-    size_t m;
-} copy_ctx;
-
-/* sdf__sample_fn: keep every node's samples. */
 /* sdf__scan_slices in uneven runs of slices, as a bake larger than one call's scratch makes
  * them, against sdf_query one Embree query per node: the same bits at every node. */
 static void test_slices_in_calls(const char *file, sdf_sign_method sign, size_t dim)
@@ -216,7 +221,7 @@ static void test_slices_in_calls(const char *file, sdf_sign_method sign, size_t 
     }
     sdf_query_options qo = {.sign = sign, .threads = 2};
     size_t n = node_count(&in), slice = in.dims[0] * in.dims[1];
-    float *p = malloc(n * 3 * sizeof *p), *f = malloc(n * sizeof *f), *g = malloc(n * sizeof *g);
+    float *p = malloc(n * 3 * sizeof *p), *f = malloc(n * sizeof *f);
     for (size_t q = 0; q < n; q++)
         node_position(&in, q, p + 3 * q);
     sdf__scan *scan = NULL;
@@ -229,21 +234,19 @@ static void test_slices_in_calls(const char *file, sdf_sign_method sign, size_t 
               cut[c], cut[c + 1]);
     }
     sdf__scan_destroy(scan);
-    sdf_query_options single = qo;
-    single.traversal = SDF_TRAVERSAL_SINGLE;
-    sdf_query_result res = {.distance = g};
-    CHECK(sdf_query(mesh, p, n, &single, &res) == 0, "%s: query", file);
-    size_t differ = 0, first = n;
-    for (size_t q = 0; q < n; q++)
-        if (memcmp(&f[q], &g[q], sizeof *f) && differ++ == 0)
-            first = q;
-    CHECK(differ == 0, "%s in 3 calls: %zu of %zu nodes differ from sdf_query (first: node %zu, "
-          "%.9g vs %.9g)", file, differ, n, first, first < n ? f[first] : 0.0,
-          first < n ? g[first] : 0.0);
-    free(p), free(f), free(g);
+    char what[128];
+    snprintf(what, sizeof what, "%s in 3 calls", file);
+    compare_with_query(what, mesh, &qo, p, n, f);
+    free(p), free(f);
     sdf_mesh_release(mesh);
 }
 
+typedef struct copy_ctx {
+    float *all;
+    size_t m;
+} copy_ctx;
+
+/* sdf__sample_fn: keep every node's samples. */
 static int copy_samples(void *user, size_t first, size_t count, float *f, int worker)
 {
     (void)worker;
