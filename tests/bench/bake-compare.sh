@@ -15,7 +15,7 @@ build=${1:-build}
 dim=${2:-128}
 repeat=${REPEAT:-3}
 if [ "$#" -ge 2 ]; then shift 2; else shift "$#"; fi # dash exits on a failed shift
-meshes=${*:-"../shared/meshes/fandisk.off ../shared/meshes/refined_elephant.off"}
+meshes=${*:-"tests/data/fandisk.off tests/data/refined_elephant.off"}
 [ -f "$build/build.ninja" ] || meson setup "$build" --buildtype=release >/dev/null
 meson compile -C "$build" >/dev/null
 /usr/bin/python3 -c "import pyopenvdb" 2>/dev/null || {

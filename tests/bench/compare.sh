@@ -1,6 +1,6 @@
 #!/bin/sh
 # Side-by-side throughput of sdf-bench and Open3D's RaycastingScene (via the peer script
-# ../shared/tools/peer_bench.py) on identical points, in one run. Prints a Markdown table of
+# tests/bench/peer_bench.py) on identical points, in one run. Prints a Markdown table of
 # Open3D's throughput, sdfd's with packet traversal (the default), the same with one
 # sdf_workspace kept across the timed calls (--workspace 1, as sdfd's batcher runs them), and
 # with one query at a time (--traversal single), and the ratios. Needs python3-open3d (apt)
@@ -11,9 +11,9 @@
 #              MODE (default signed), SIGN (default auto).
 set -eu
 cd "$(dirname "$0")/../.."
-peer=../shared/tools/peer_bench.py
+peer=tests/bench/peer_bench.py
 bench=build/tests/bench/sdf-bench
-[ "$#" -gt 0 ] || set -- ../shared/meshes/fandisk.off ../shared/meshes/refined_elephant.off
+[ "$#" -gt 0 ] || set -- tests/data/fandisk.off tests/data/refined_elephant.off
 workloads=${WORKLOADS:-box band}
 n=${N:-1000000}
 threads=${THREADS:-2}

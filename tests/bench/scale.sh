@@ -11,7 +11,7 @@ cd "$(dirname "$0")/../.."
 n=${N:-1000000}
 threads=${THREADS:-2}
 work=${WORK:-/tmp/sdfd-scale}
-src=../shared/meshes/refined_elephant.off
+src=tests/data/refined_elephant.off
 big=$work/refined_elephant_x16.off
 mkdir -p "$work"
 [ -s "$big" ] || /usr/bin/python3 tests/bench/subdivide.py "$src" "$big" --times 2 >&2

@@ -1,5 +1,5 @@
 /* sdf-bench - throughput of batched queries on one mesh, for side-by-side runs with the
- * peer (../shared/tools/peer_bench.py) on the same points. Not a test: it asserts nothing.
+ * peer (tests/bench/peer_bench.py) on the same points. Not a test: it asserts nothing.
  *
  *   sdf-bench MESH|demo [POINTS.npy] [--workload box|band|grid --n N --seed S]
  *             [--mode distance|signed|gradient|closest|filtered|filtered-gradient]

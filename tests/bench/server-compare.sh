@@ -14,7 +14,7 @@
 #   tests/bench/server-compare.sh [MESH...]     (default: fandisk, refined_elephant)
 set -eu
 cd "$(dirname "$0")/../.."
-[ "$#" -gt 0 ] || set -- ../shared/meshes/fandisk.off ../shared/meshes/refined_elephant.off
+[ "$#" -gt 0 ] || set -- tests/data/fandisk.off tests/data/refined_elephant.off
 n=${N:-1000000}
 log=$(mktemp)
 trap 'kill $pid 2>/dev/null; rm -f "$log"' EXIT

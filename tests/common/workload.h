@@ -4,7 +4,7 @@
  *   grid - a regular k^3 grid over the grown box, x fastest (k = round(n^(1/3)), lowered
  *          until k^3 <= n; so n = 1,000,000 gives peer_bench.py's 100^3 grid)
  *   far  - uniform in a box 10x the mesh's, outside the grown box
- * These follow ../shared/tools/peer_bench.py's definitions (not its random stream: to
+ * These follow tests/bench/peer_bench.py's definitions (not its random stream: to
  * compare on identical points, have peer_bench.py write them with --points-out). */
 #ifndef SDF_TESTS_WORKLOAD_H
 #define SDF_TESTS_WORKLOAD_H
