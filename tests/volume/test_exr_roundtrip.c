@@ -8,7 +8,9 @@
  *    in our files must hold the raw pixels (OpenEXRCore 3.1's ZIP step stores a chunk that
  *    packs to exactly its raw size compressed, which then reads back as garbage);
  *  - the case that was reported: a 128^3 zero-order bake of a sphere round-trips;
- *  - exrheader reads what we write.
+ *  - exrheader reads what we write; a chunk whose declared size exceeds its raw size or the
+ *    file, or whose offset points past the file, and every truncation, is refused with a
+ *    message and no volume.
  * The file's chunks are inspected with OpenEXRCore itself (exr_read_chunk gives the stored
  * bytes), independently of the reader under test. */
 #include <math.h>
@@ -393,10 +395,124 @@ static void test_sphere_bake(void)
     sdf_mesh_release(sphere);
 }
 
+/* ---- damaged files -------------------------------------------------------------------------- */
+
+static uint32_t get32(const unsigned char *p)
+{
+    return p[0] | p[1] << 8 | p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static void put32(unsigned char *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (unsigned char)(v >> 8 * i);
+}
+static void put64(unsigned char *p, uint64_t v)
+{
+    for (int i = 0; i < 8; i++)
+        p[i] = (unsigned char)(v >> 8 * i);
+}
+
+/* Load a damaged copy: refused with a message and no volume, or (`may_recover`) the volume
+ * unchanged - OpenEXR may rebuild a damaged offset table from the chunks themselves. */
+static void expect_refused(const unsigned char *copy, size_t size, const sdf_volume *v,
+                           const char *what, int may_recover)
+{
+    sdf_volume *out = (sdf_volume *)&out; /* must be cleared */
+    sdf_diag diag = {0};
+    int rc = sdf_volume_load_exr_memory(copy, size, &out, &diag);
+    if (rc == 0 && may_recover) {
+        CHECK(out && same_volume(out, v), "%s: accepted, but not the volume", what);
+        printf("damaged: %s: recovered the volume\n", what);
+    } else {
+        CHECK(rc != 0 && out == NULL && diag.code == rc && diag.message[0],
+              "%s: must be refused with a message (rc %d, %s)", what, rc, diag.message);
+        printf("damaged: %s: %s\n", what, diag.message);
+    }
+    if (rc == 0)
+        sdf_volume_destroy(out);
+}
+
+/* Chunk sizes and offsets that lie: larger than the chunk's raw size, past the file's end,
+ * negative; offsets past the end; every truncation of the file. */
+static void test_damaged(void)
+{
+    const size_t dims[3] = {32, 32, 24};
+    sdf_volume *v = make_volume(dims, 0, SDF_ENCODING_FLOAT32, RUNS, 5);
+    void *file = NULL;
+    size_t size = 0;
+    if (!v || sdf_volume_save_memory(v, SDF_VOLUME_EXR, &file, &size, NULL)) {
+        CHECK(0, "damaged: no file to damage");
+        sdf_volume_destroy(v);
+        return;
+    }
+    input in = {file, size};
+    exr_context_t ctxt = open_exr(&in);
+    exr_chunk_info_t first = {0}, last = {0};
+    int height = 32 * 24, lines = 0;
+    int ok = ctxt && !exr_get_scanlines_per_chunk(ctxt, 0, &lines) && lines > 0 &&
+             !exr_read_scanline_chunk_info(ctxt, 0, 0, &first) &&
+             !exr_read_scanline_chunk_info(ctxt, 0, height - 1, &last);
+    if (ctxt)
+        exr_finish(&ctxt);
+    const unsigned char *bytes = file;
+    size_t chunks = (size_t)((height + lines - 1) / (lines ? lines : 1));
+    /* A scanline chunk is (int32 y, int32 packed size, data); the offset table, one uint64 a
+     * chunk pointing at those headers, comes just before the first. */
+    ok = ok && first.data_offset >= 8 + 8 * chunks && last.data_offset + last.packed_size == size &&
+         get32(bytes + first.data_offset - 4) == first.packed_size &&
+         get32(bytes + last.data_offset - 4) == last.packed_size;
+    size_t table = ok ? (size_t)first.data_offset - 8 - 8 * chunks : 0;
+    ok = ok && first.packed_size < first.unpacked_size && last.packed_size + 1 < last.unpacked_size;
+    CHECK(ok, "damaged: the file's layout is not as expected");
+    if (ok) {
+        unsigned char *copy = malloc(size);
+        const struct {
+            const exr_chunk_info_t *chunk;
+            uint32_t packed;
+            const char *what;
+        } sizes[] = {
+            {&first, (uint32_t)first.unpacked_size + 1, "first chunk one byte over its raw size"},
+            {&first, (uint32_t)first.unpacked_size * 2, "first chunk twice its raw size"},
+            {&first, 0x7fffffffu, "first chunk 2 GiB"},
+            {&first, 0xffffffffu, "first chunk size -1"},
+            {&first, 0, "first chunk size 0"},
+            {&last, (uint32_t)last.packed_size + 1, "last chunk one byte past the file"},
+        };
+        for (size_t t = 0; t < sizeof sizes / sizeof sizes[0]; t++) {
+            memcpy(copy, file, size);
+            put32(copy + sizes[t].chunk->data_offset - 4, sizes[t].packed);
+            expect_refused(copy, size, v, sizes[t].what, 0);
+        }
+        const struct { size_t chunk; uint64_t offset; const char *what; } offsets[] = {
+            {0, size + 100, "first offset past the file"},
+            {chunks - 1, size - 4, "last offset 4 bytes before the end"},
+            {chunks - 1, UINT64_MAX, "last offset 2^64 - 1"},
+            {1, 0, "second offset 0"},
+        };
+        for (size_t t = 0; t < sizeof offsets / sizeof offsets[0]; t++) {
+            memcpy(copy, file, size);
+            put64(copy + table + 8 * offsets[t].chunk, offsets[t].offset);
+            expect_refused(copy, size, v, offsets[t].what, 1);
+        }
+        size_t refused = 0, tried = 0;
+        for (size_t cut = 0; cut < size; cut += cut < 600 ? 1 : 97, tried++) {
+            sdf_volume *t = NULL;
+            refused += sdf_volume_load_exr_memory(file, cut, &t, NULL) != 0 && !t;
+            sdf_volume_destroy(t);
+        }
+        CHECK(refused == tried, "damaged: %zu of %zu truncations accepted", tried - refused, tried);
+        free(copy);
+    }
+    free(file);
+    sdf_volume_destroy(v);
+}
+
 int main(void)
 {
     test_size_sweep();
     test_sphere_bake();
     test_fields();
+    test_damaged();
     return check_finish("exr_roundtrip");
 }
