@@ -3,9 +3,10 @@
  * The image is N pixels wide and M K high: z-slice k occupies rows k M .. k M + M - 1, row j
  * of a slice holds nodes (0..N-1, j, k). One channel per word of a node: FLOAT "d" (order 0),
  * FLOAT "a" "b" "c" "d" (order 1), or UINT "packed" (PACKED32), ZIP-compressed (lossless, so
- * a round trip is exact). The volume's description rides in sdf.* attributes that any EXR
- * tool (exrheader) lists. All I/O goes through memory callbacks: the server sends the bytes
- * and the reader never trusts a length it has not checked against the buffer. */
+ * a round trip is exact; a chunk ZIP does not shrink is stored raw). The volume's description
+ * rides in sdf.* attributes that any EXR tool (exrheader) lists. All I/O goes through memory
+ * callbacks: the server sends the bytes and the reader never trusts a length it has not
+ * checked against the buffer. */
 #include "volume/exr.h"
 
 #include <math.h>
@@ -154,11 +155,33 @@ static exr_result_t write_header(exr_context_t ctxt, const sdf_volume *v, int wi
     return r;
 }
 
+/* OpenEXR reads a chunk stored at exactly its raw size as raw pixels, the C++ library and
+ * OpenEXRCore alike. OpenEXRCore 3.1's ZIP step keeps its output when that is exactly the raw
+ * size, and such a chunk reads back as garbage. So its compress step runs wrapped: a chunk
+ * that does not pack smaller than raw is stored raw, as the C++ library writes it. */
+typedef struct compress_step {
+    exr_result_t (*compress)(exr_encode_pipeline_t *encoder);
+} compress_step;
+
+static exr_result_t compress_or_store_raw(exr_encode_pipeline_t *e)
+{
+    const compress_step *step = e->encoding_user_data;
+    exr_result_t r = step->compress(e);
+    if (r || e->compressed_bytes < e->packed_bytes)
+        return r;
+    if (e->compressed_alloc_size < e->packed_bytes)
+        return EXR_ERR_OUT_OF_MEMORY;
+    memcpy(e->compressed_buffer, e->packed_buffer, e->packed_bytes);
+    e->compressed_bytes = e->packed_bytes;
+    return EXR_ERR_SUCCESS;
+}
+
 static exr_result_t write_pixels(exr_context_t ctxt, const sdf_volume *v, int height)
 {
     int lines = 1;
     exr_result_t r = exr_get_scanlines_per_chunk(ctxt, 0, &lines);
     exr_encode_pipeline_t encoder = EXR_ENCODE_PIPELINE_INITIALIZER;
+    compress_step step = {NULL};
     int started = 0;
     for (int y = 0; !r && y < height; y += lines) {
         exr_chunk_info_t chunk;
@@ -169,8 +192,14 @@ static exr_result_t write_pixels(exr_context_t ctxt, const sdf_volume *v, int he
         if (r)
             break;
         point_channels(encoder.channels, encoder.channel_count, v, chunk.start_y);
-        if (!started && !(r = exr_encoding_choose_default_routines(ctxt, 0, &encoder)))
+        if (!started && !(r = exr_encoding_choose_default_routines(ctxt, 0, &encoder))) {
             started = 1;
+            if (encoder.compress_fn) {
+                step.compress = encoder.compress_fn;
+                encoder.encoding_user_data = &step;
+                encoder.compress_fn = compress_or_store_raw;
+            }
+        }
         if (!r)
             r = exr_encoding_run(ctxt, 0, &encoder);
     }
@@ -272,18 +301,39 @@ static int read_info(exr_context_t ctxt, sdf_volume_info *in, memory_stream *m, 
     return 0;
 }
 
+/* A chunk must cover rows inside the image, hold the raw size of its rows, store no more
+ * than that (OpenEXR never writes a chunk larger than raw) and end inside the file. OpenEXRCore
+ * 3.1 checks most of this itself; the reader does not rely on one version's checks. */
+static int check_chunk(const exr_chunk_info_t *c, const sdf_volume *v, int height,
+                       const memory_stream *m, sdf_diag *diag)
+{
+    uint64_t row = (uint64_t)v->info.dims[0] * (uint64_t)v->channels * 4;
+    if (c->start_y < 0 || c->height < 1 || c->start_y > height - c->height)
+        return sdf__diag_set(diag, SDF_EPARSE, 0, -1,
+                             "EXR chunk at row %d covers rows outside the image", (int)c->start_y);
+    if (c->unpacked_size != (uint64_t)c->height * row || c->packed_size > c->unpacked_size ||
+        c->data_offset > m->in_size || c->packed_size > m->in_size - c->data_offset)
+        return sdf__diag_set(diag, SDF_EPARSE, 0, -1,
+                             "EXR chunk at row %d stores %llu bytes at offset %llu for %llu raw "
+                             "bytes (%llu expected) in a file of %zu bytes", (int)c->start_y,
+                             (unsigned long long)c->packed_size, (unsigned long long)c->data_offset,
+                             (unsigned long long)c->unpacked_size,
+                             (unsigned long long)((uint64_t)c->height * row), m->in_size);
+    return 0;
+}
+
 static int read_pixels(exr_context_t ctxt, sdf_volume *v, memory_stream *m, sdf_diag *diag)
 {
     int lines = 1;
     int height = (int)(v->info.dims[1] * v->info.dims[2]);
     exr_result_t r = exr_get_scanlines_per_chunk(ctxt, 0, &lines);
     exr_decode_pipeline_t decoder = EXR_DECODE_PIPELINE_INITIALIZER;
-    int started = 0;
+    int started = 0, rc = 0;
     for (int y = 0; !r && y < height; y += lines) {
         exr_chunk_info_t chunk;
         r = exr_read_scanline_chunk_info(ctxt, 0, y, &chunk);
-        if (!r && (chunk.start_y < 0 || chunk.height < 1 || chunk.start_y + chunk.height > height))
-            r = EXR_ERR_CORRUPT_CHUNK;
+        if (!r && (rc = check_chunk(&chunk, v, height, m, diag)))
+            break;
         if (!r)
             r = started ? exr_decoding_update(ctxt, 0, &chunk, &decoder)
                         : exr_decoding_initialize(ctxt, 0, &chunk, &decoder);
@@ -297,7 +347,7 @@ static int read_pixels(exr_context_t ctxt, sdf_volume *v, memory_stream *m, sdf_
     }
     if (started)
         exr_decoding_destroy(ctxt, &decoder);
-    return r ? exr_fail(diag, SDF_EPARSE, r, m, "pixels") : 0;
+    return rc ? rc : r ? exr_fail(diag, SDF_EPARSE, r, m, "pixels") : 0;
 }
 
 int sdf__exr_load(const void *data, size_t size, sdf_volume **out, sdf_diag *diag)
