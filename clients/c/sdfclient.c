@@ -456,7 +456,10 @@ static int rx_pump(sdfc_client *c, int *frames)
             ++*frames;
             continue;
         }
+        errno = 0;
         ssize_t got = recv(c->fd, dst, want, MSG_DONTWAIT);
+        if (got <= 0 && errno != EINTR && *frames)
+            return 0; /* the frames before an end or error count first; the next call sees it */
         if (got == 0)
             return set_broken(c, SDFC_ECLOSED);
         if (got < 0) {
