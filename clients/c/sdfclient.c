@@ -769,6 +769,10 @@ static int send_points(sdfc_client *c, unsigned char *frame, size_t frame_len, s
 /* Header and prefix room: 16 + 8 + 256 (name) + 120 (FILTER) + 256 (its mesh name). */
 #define PREFIX_MAX 664
 
+/* The codec copies zero points from here when it writes a frame's prefix (memcpy wants a
+ * valid pointer even for no bytes). */
+static const float no_points[3];
+
 int sdfc_send_query(sdfc_client *c, const char *mesh, sdfc_mode mode, sdfc_sign sign,
                     const sdfc_filter *filter, const float *points, uint32_t count,
                     void *result, size_t result_size, uint32_t *request_id)
@@ -780,7 +784,8 @@ int sdfc_send_query(sdfc_client *c, const char *mesh, sdfc_mode mode, sdfc_sign 
     if (rc)
         return rc;
     sdf_proto_query q = {.mode = (sdf_proto_mode)mode, .sign = (sdf_sign_method)sign,
-                         .name = mesh, .name_len = strlen(mesh), .count = 0};
+                         .name = mesh, .name_len = strlen(mesh), .count = 0,
+                         .points = no_points};
     if (sdf_proto_mode_filtered(q.mode) && (rc = to_filter(filter, &q)))
         return rc;
     /* the codec writes the frame for zero points; its length and count are set later */
@@ -804,7 +809,8 @@ int sdfc_send_volume_query(sdfc_client *c, const char *volume, int gradient, int
         return rc;
     sdf_proto_volume_query q = {.gradient = !!gradient,
                                 .interpolation = nearest ? SDF_VOLUME_NEAREST : SDF_VOLUME_TRILINEAR,
-                                .name = volume, .name_len = strlen(volume), .count = 0};
+                                .name = volume, .name_len = strlen(volume), .count = 0,
+                                .points = no_points};
     unsigned char frame[PREFIX_MAX];
     size_t frame_len = sdf_proto_encode_volume_query(frame, sizeof frame, 0, &q);
     if (!frame_len)
