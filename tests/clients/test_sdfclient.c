@@ -1,0 +1,318 @@
+/* test_sdfclient.c - libsdfclient against a real sdfd and against a fake server.
+ *
+ * Real server (SDFC_TEST_BIN=host:port, demo mesh; SDFC_TEST_AUTH_BIN, one started with
+ * --token s3cret --auth-queries; run_sdfclient.py starts both): HELLO, LIST_MESHES, every
+ * mode; hundreds of pipelined queries of many sizes waited for in reverse order and in
+ * arrival order give the same bits as the same queries sent one at a time; refusals keep the
+ * server's status, code and message and leave the connection usable; AUTH right and wrong;
+ * local refusals (small buffer, too many points, bad names) send nothing.
+ * Fake server (a listening socket in this process): the bytes the client sends, with the
+ * points passed straight from the caller's array, are exactly the codec's
+ * sdf_proto_encode_query frame (the differential test of that fast path); malformed replies
+ * are EPROTO and sticky; silence is ETIMEDOUT; a connection-level ERROR is kept. */
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "../common/check.h"
+#include "proto.h"
+#include "sdfclient.h"
+
+static char host[64];
+static int port, auth_port;
+
+static int parse_addr(const char *env, int *out)
+{
+    const char *s = getenv(env);
+    const char *colon = s ? strrchr(s, ':') : NULL;
+    if (!colon || colon - s >= (int)sizeof host)
+        return -1;
+    memcpy(host, s, (size_t)(colon - s));
+    host[colon - s] = 0;
+    *out = atoi(colon + 1);
+    return 0;
+}
+
+static sdfc_client *open_client(int p, const char *token)
+{
+    sdfc_options o = {.reply_timeout_ms = 60000, .token = token};
+    sdfc_client *c = NULL;
+    int rc = sdfc_connect(host, p, &o, &c);
+    CHECK(rc == 0 && c, "connect %s:%d: %s", host, p, sdfc_strerror(rc));
+    return c;
+}
+
+static float *random_points(size_t n, unsigned seed)
+{
+    float *p = malloc(12 * (n ? n : 1));
+    srand(seed);
+    for (size_t i = 0; i < 3 * n; i++)
+        p[i] = (float)rand() / RAND_MAX * 3.0f - 1.5f;
+    return p;
+}
+
+static void test_hello_and_meshes(sdfc_client *c)
+{
+    sdfc_hello_info h;
+    CHECK(sdfc_hello(c, &h) == 0 && h.version == 1 && h.max_points > 0 &&
+              h.max_payload > 12 * (uint64_t)h.max_points && h.server[0],
+          "hello: version %d, max_points %u", h.version, h.max_points);
+    size_t count = 0;
+    CHECK(sdfc_list_meshes(c, NULL, 0, &count) == 0 && count >= 1, "mesh count %zu", count);
+    sdfc_mesh m[4];
+    CHECK(sdfc_list_meshes(c, m, 4, &count) == 0 && !strcmp(m[0].name, "demo") &&
+              m[0].triangles > 0 && m[0].closed == 1,
+          "demo listed: %s %llu", m[0].name, (unsigned long long)m[0].triangles);
+}
+
+/* Pipelined queries equal the same queries one at a time, bit for bit. */
+static void test_pipelining(sdfc_client *c)
+{
+    enum { N = 300 };
+    static uint32_t ids[N];
+    static void *piped[N], *single[N];
+    static uint32_t counts[N];
+    float *pts[N];
+    sdfc_mode modes[N];
+    for (int i = 0; i < N; i++) {
+        counts[i] = (uint32_t)(i % 7 == 0 ? 0 : (i * 37) % 500 + 1);
+        modes[i] = (sdfc_mode)(i % 4); /* signed, distance, gradient, closest */
+        pts[i] = random_points(counts[i], (unsigned)i + 1);
+        size_t size = sdfc_result_size(modes[i], counts[i]);
+        piped[i] = calloc(1, size + 1);
+        single[i] = calloc(1, size + 1);
+        int rc = sdfc_send_query(c, "demo", modes[i], SDFC_SIGN_AUTO, NULL, pts[i], counts[i],
+                                 piped[i], size, &ids[i]);
+        CHECK(rc == 0, "send %d: %s", i, sdfc_strerror(rc));
+    }
+    CHECK(sdfc_in_flight(c) == N, "in flight %zu", sdfc_in_flight(c));
+    for (int i = N - 1; i >= N / 2; i--) /* half in reverse order */
+        CHECK(sdfc_wait(c, ids[i]) == 0, "wait %d", i);
+    for (int left = N / 2; left > 0; left--) { /* the rest as they come */
+        uint32_t id;
+        CHECK(sdfc_wait_any(c, &id) == 0 && id >= ids[0] && id < ids[0] + N / 2, "any %u", id);
+    }
+    uint32_t none;
+    CHECK(sdfc_wait_any(c, &none) == SDFC_ENOREQUEST && sdfc_wait(c, ids[0]) == SDFC_ENOREQUEST,
+          "nothing left in flight");
+    for (int i = 0; i < N; i++) {
+        size_t size = sdfc_result_size(modes[i], counts[i]);
+        int rc = sdfc_query(c, "demo", modes[i], SDFC_SIGN_AUTO, NULL, pts[i], counts[i],
+                            single[i], size);
+        CHECK(rc == 0 && !memcmp(piped[i], single[i], size + 1), "request %d (%u points, %s)",
+              i, counts[i], sdf_proto_mode_name((sdf_proto_mode)modes[i]));
+        free(pts[i]);
+        free(piped[i]);
+        free(single[i]);
+    }
+}
+
+static void test_filtered(sdfc_client *c)
+{
+    float *p = random_points(50, 99);
+    float a[200], b[200];
+    sdfc_filter f = {.samples = 16, .seed = 3};
+    CHECK(sdfc_query(c, "demo", SDFC_FILTERED_GRADIENT, SDFC_SIGN_AUTO, &f, p, 50, a, sizeof a) == 0,
+          "filtered-gradient");
+    CHECK(sdfc_query(c, "demo", SDFC_FILTERED_GRADIENT, SDFC_SIGN_AUTO, &f, p, 50, b, sizeof b) == 0 &&
+              !memcmp(a, b, sizeof a),
+          "the same seed gives the same bits");
+    f.samples = 5000;
+    CHECK(sdfc_query(c, "demo", SDFC_FILTERED, SDFC_SIGN_AUTO, &f, p, 50, a, sizeof a) ==
+                  SDFC_ESERVER &&
+              sdfc_server_error(c)->status == 422,
+          "too many samples: %s", sdfc_server_error(c)->message);
+    f.flags = 0x100;
+    CHECK(sdfc_query(c, "demo", SDFC_FILTERED, SDFC_SIGN_AUTO, &f, p, 50, a, sizeof a) == SDFC_EINVAL,
+          "unknown filter flag refused locally");
+    free(p);
+}
+
+static void test_refusals(sdfc_client *c)
+{
+    float p[6] = {0, 0, 0, 1, 1, 1}, out[10];
+    CHECK(sdfc_query(c, "nope", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 2, out, sizeof out) ==
+              SDFC_ESERVER,
+          "unknown mesh");
+    const sdfc_server_err *e = sdfc_server_error(c);
+    CHECK(e->status == 404 && !strcmp(e->code, "ENOTFOUND") && strstr(e->message, "nope"),
+          "kept: %d %s %s", e->status, e->code, e->message);
+    p[4] = 0.0f / 0.0f;
+    CHECK(sdfc_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 2, out, sizeof out) ==
+              SDFC_ESERVER && !strcmp(sdfc_server_error(c)->code, "ENONFINITE"),
+          "NaN point");
+    p[4] = 1;
+    CHECK(sdfc_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 2, out, sizeof out) == 0 &&
+              sdfc_server_error(c)->code[0] == 0,
+          "the connection goes on after refusals; the error is cleared");
+    CHECK(sdfc_query(c, "demo", SDFC_GRADIENT, SDFC_SIGN_AUTO, NULL, p, 2, out, 31) == SDFC_ELIMIT,
+          "small buffer");
+    sdfc_hello_info h;
+    sdfc_hello(c, &h);
+    CHECK(sdfc_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, h.max_points + 1, out,
+                     SIZE_MAX) == SDFC_ELIMIT,
+          "more than max_points");
+    char long_name[300];
+    memset(long_name, 'a', 299);
+    long_name[299] = 0;
+    CHECK(sdfc_query(c, long_name, SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 2, out, sizeof out) ==
+                  SDFC_EINVAL &&
+              sdfc_query(c, "", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 2, out, sizeof out) == SDFC_EINVAL &&
+              sdfc_query(c, "demo", (sdfc_mode)9, SDFC_SIGN_AUTO, NULL, p, 2, out, sizeof out) ==
+                  SDFC_EINVAL,
+          "bad names and modes");
+    CHECK(sdfc_in_flight(c) == 0 &&
+              sdfc_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 2, out, sizeof out) == 0,
+          "local refusals sent nothing");
+}
+
+static void test_auth(void)
+{
+    float p[3] = {0, 0, 0}, out[1];
+    sdfc_client *c = open_client(auth_port, NULL);
+    size_t count;
+    CHECK(c && sdfc_list_meshes(c, NULL, 0, &count) == 0, "mesh list needs no token");
+    CHECK(c && sdfc_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 1, out, 4) == SDFC_ESERVER &&
+              !strcmp(sdfc_server_error(c)->code, "EUNAUTHORIZED"),
+          "query without AUTH");
+    CHECK(c && sdfc_auth(c, "wrong", 5) == SDFC_ESERVER &&
+              sdfc_server_error(c)->status == 401,
+          "wrong token");
+    CHECK(c && sdfc_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 1, out, 4) == SDFC_ECLOSED,
+          "closed after a wrong token");
+    sdfc_close(c);
+    c = open_client(auth_port, "s3cret");
+    CHECK(c && sdfc_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 1, out, 4) == 0,
+          "right token");
+    sdfc_close(c);
+    sdfc_client *bad = (sdfc_client *)1;
+    sdfc_options o = {.token = "nope"};
+    CHECK(sdfc_connect(host, auth_port, &o, &bad) == SDFC_ESERVER && bad == NULL,
+          "connect with a wrong token");
+}
+
+/* ---- the fake server --------------------------------------------------------------------- */
+
+static int listen_loopback(int *port_out)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    socklen_t len = sizeof a;
+    if (fd < 0 || bind(fd, (struct sockaddr *)&a, sizeof a) || listen(fd, 4) ||
+        getsockname(fd, (struct sockaddr *)&a, &len))
+        return -1;
+    *port_out = ntohs(a.sin_port);
+    return fd;
+}
+
+static int read_n(int fd, unsigned char *buf, size_t n)
+{
+    for (size_t got = 0; got < n;) {
+        ssize_t r = recv(fd, buf + got, n - got, 0);
+        if (r <= 0)
+            return -1;
+        got += (size_t)r;
+    }
+    return 0;
+}
+
+/* A client on the fake server: *peer is the server's end. */
+static sdfc_client *fake_pair(int lfd, int fport, int timeout_ms, int *peer)
+{
+    sdfc_options o = {.reply_timeout_ms = timeout_ms};
+    sdfc_client *c = NULL;
+    CHECK(sdfc_connect("127.0.0.1", fport, &o, &c) == 0, "connect to the fake server");
+    *peer = accept(lfd, NULL, NULL);
+    return c;
+}
+
+static void test_fake_server(void)
+{
+    int fport = 0, peer = -1, lfd = listen_loopback(&fport);
+    CHECK(lfd >= 0, "listen");
+    static unsigned char want[1 << 16], got[1 << 16];
+    float *p = random_points(1000, 7);
+    float out[5000];
+    sdfc_filter f = {.kernel = 1, .flags = SDFC_FILTER_GRID, .samples = 9, .seed = 77,
+                     .smooth = SDFC_SMOOTH_MESH, .smooth_mesh = "vol", .depth = 0.5};
+
+    /* the frames on the wire are the codec's, byte for byte */
+    sdfc_client *c = fake_pair(lfd, fport, 2000, &peer);
+    uint32_t id, id2;
+    CHECK(sdfc_send_query(c, "fandisk", SDFC_FILTERED, SDFC_SIGN_WINDING, &f, p, 1000, out,
+                          sizeof out, &id) == 0, "send filtered");
+    CHECK(sdfc_send_volume_query(c, "knot", 1, 1, p, 999, out, sizeof out, &id2) == 0, "send vq");
+    sdf_proto_query q = {.mode = SDF_MODE_FILTERED, .sign = SDF_SIGN_WINDING, .name = "fandisk",
+                         .name_len = 7, .count = 1000, .points = p, .volume_name = "vol",
+                         .volume_name_len = 3};
+    q.filter = (sdf_filter_options){.kernel = SDF_KERNEL_BUMP, .grid = 1, .samples = 9, .seed = 77};
+    q.filter.smooth.shape = SDF_VOLUME_MESH;
+    q.filter.smooth.depth = 0.5;
+    size_t n = sdf_proto_encode_query(want, sizeof want, id, &q);
+    CHECK(n > 12000 && read_n(peer, got, n) == 0 && !memcmp(got, want, n), "QUERY frame bytes");
+    sdf_proto_volume_query vq = {.gradient = 1, .interpolation = SDF_VOLUME_NEAREST,
+                                 .name = "knot", .name_len = 4, .count = 999, .points = p};
+    n = sdf_proto_encode_volume_query(want, sizeof want, id2, &vq);
+    CHECK(n > 0 && read_n(peer, got, n) == 0 && !memcmp(got, want, n), "VOLUME_QUERY frame bytes");
+
+    /* an ERROR for the second, then a RESULT for the first whose count is wrong */
+    n = sdf_proto_encode_error(want, sizeof want, id2, SDF_ENOTFOUND, "no volume named 'knot'");
+    CHECK(send(peer, want, n, 0) == (ssize_t)n, "send error");
+    CHECK(sdfc_wait(c, id2) == SDFC_ESERVER && !strcmp(sdfc_server_error(c)->code, "ENOTFOUND") &&
+              sdfc_server_error(c)->status == 404,
+          "ERROR frame kept");
+    n = sdf_proto_encode_result_head(want, id, SDF_MODE_FILTERED, 999);
+    memset(want + n, 0, 4 * 999);
+    CHECK(send(peer, want, n + 4 * 999, 0) > 0, "send result");
+    CHECK(sdfc_wait(c, id) == SDFC_EPROTO, "a RESULT of the wrong length is EPROTO");
+    CHECK(sdfc_hello(c, &(sdfc_hello_info){0}) == SDFC_EPROTO, "and sticky");
+    sdfc_close(c);
+    close(peer);
+
+    /* silence: the reply timeout */
+    c = fake_pair(lfd, fport, 200, &peer);
+    CHECK(sdfc_send_query(c, "m", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 10, out, sizeof out, &id) == 0 &&
+              sdfc_wait(c, id) == SDFC_ETIMEDOUT,
+          "no reply: timed out");
+    sdfc_close(c);
+    close(peer);
+
+    /* a connection-level ERROR (request id 0), then the close */
+    c = fake_pair(lfd, fport, 2000, &peer);
+    n = sdf_proto_encode_error(want, sizeof want, 0, SDF_EBUSY, "no room for this connection");
+    CHECK(send(peer, want, n, 0) == (ssize_t)n, "send busy");
+    close(peer);
+    CHECK(sdfc_query(c, "m", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 10, out, sizeof out) ==
+                  SDFC_ECLOSED &&
+              !strcmp(sdfc_server_error(c)->code, "EBUSY") && sdfc_server_error(c)->status == 429,
+          "connection-level ERROR kept: %s", sdfc_server_error(c)->code);
+    sdfc_close(c);
+    close(lfd);
+
+    /* nobody listening */
+    CHECK(sdfc_connect("127.0.0.1", fport, NULL, &c) == SDFC_ECONNECT && c == NULL, "refused");
+    free(p);
+}
+
+int main(void)
+{
+    if (parse_addr("SDFC_TEST_BIN", &port) || parse_addr("SDFC_TEST_AUTH_BIN", &auth_port)) {
+        fprintf(stderr, "test_sdfclient: set SDFC_TEST_BIN and SDFC_TEST_AUTH_BIN to host:port "
+                        "(tests/clients/run_sdfclient.py does)\n");
+        return 1;
+    }
+    sdfc_client *c = open_client(port, NULL);
+    if (c) {
+        test_hello_and_meshes(c);
+        test_pipelining(c);
+        test_filtered(c);
+        test_refusals(c);
+    }
+    sdfc_close(c);
+    test_auth();
+    test_fake_server();
+    return check_finish("sdfclient");
+}

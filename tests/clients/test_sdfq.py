@@ -1,0 +1,289 @@
+"""sdfq, the command line (docs/sdfq.md), against a real sdfd: every subcommand; its
+answers bit-equal to the server's HTTP octet-stream answers for the same points (npy and
+CSV outputs, npy and CSV inputs, many pipelined requests); its npy output byte-equal to the
+HTTP npy answer; the token over both protocols; bad input files, unknown names and an
+unreachable server, each with its documented exit code and a one-line message."""
+import io
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+HERE = os.path.dirname(__file__)
+sys.path.insert(0, os.path.join(HERE, "..", "..", "clients", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "server"))
+import sdfclient  # noqa: E402
+from harness import DATA, Server  # noqa: E402
+
+SDFQ = os.environ.get("SDFQ", "build/clients/c/sdfq")
+MODES = ["signed", "distance", "gradient", "closest", "filtered", "filtered-gradient"]
+WORDS = {"signed": 1, "distance": 1, "gradient": 4, "closest": 5, "filtered": 1,
+         "filtered-gradient": 4}
+
+
+def free_port():
+    """A loopback port nobody listens on (bound, then released)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def csv_words(text, words):
+    """sdfq's CSV output -> (N, W) uint32 words in the wire layout."""
+    lines = text.strip().splitlines()[1:]
+    out = np.zeros((len(lines), words), np.uint32)
+    for i, line in enumerate(lines):
+        fields = line.split(",")
+        assert len(fields) == words, line
+        for w, f in enumerate(fields):
+            if words == 5 and w == 4:
+                out[i, w] = int(f)
+            else:
+                out[i, w] = np.float32(float(f)).view(np.uint32)
+    return out
+
+
+class Sdfq(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.server = Server("--mesh", f"fandisk={os.path.join(DATA, 'fandisk.off')}")
+        cls.http = sdfclient.Client(cls.server.url)
+        cls.tmp = tempfile.TemporaryDirectory()
+        rng = np.random.default_rng(11)
+        cls.points = rng.uniform(-0.3, 0.3, (2500, 3)).astype(np.float32)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.http.close()
+        cls.tmp.cleanup()
+        cls.server.stop()
+
+    def path(self, name):
+        return os.path.join(self.tmp.name, name)
+
+    def sdfq(self, *args, stdin=None, env_extra=None, server=None):
+        server = server or self.server
+        env = dict(os.environ, SDFD_URL=server.url, SDFD_BIN=f"127.0.0.1:{server.bin_port}")
+        env.pop("SDFD_TOKEN", None)
+        env.update(env_extra or {})
+        return subprocess.run([SDFQ, *args], input=stdin, capture_output=True, env=env,
+                              timeout=120)
+
+    def octet(self, mode, points, mesh="fandisk", extra=""):
+        """The server's HTTP octet-stream answer: (N, W) uint32 words."""
+        _, data = self.http._request(
+            "POST", f"/v1/meshes/{mesh}/query?mode={mode}{extra}", points.tobytes(),
+            {"Content-Type": "application/octet-stream"})
+        return np.frombuffer(data, np.uint32).reshape(len(points), WORDS[mode])
+
+    def assertOk(self, r):
+        self.assertEqual(r.returncode, 0, r.stderr.decode())
+
+    def assertFails(self, r, code, *words):
+        err = r.stderr.decode()
+        self.assertEqual(r.returncode, code, err)
+        self.assertEqual(err.count("\n"), 1, f"one line on stderr: {err!r}")
+        self.assertTrue(err.startswith("sdfq"), err)
+        for w in words:
+            self.assertIn(w, err)
+
+    # ---- query ----
+
+    def test_every_mode_npy_and_csv_bit_equal_to_http(self):
+        np.save(self.path("p.npy"), self.points)
+        for mode in MODES:
+            extra = "&samples=8" if mode.startswith("filtered") else ""
+            flags = ["--samples", "8"] if extra else []
+            ref = self.octet(mode, self.points, extra=extra)
+            out = self.path(f"{mode}.npy")
+            self.assertOk(self.sdfq("query", "fandisk", self.path("p.npy"), "--mode", mode,
+                                    "-o", out, *flags))
+            a = np.load(out)
+            words = (np.stack([a["distance"].view(np.uint32), *a["closest"].view(np.uint32).T,
+                               a["triangle"]], 1) if mode == "closest"
+                     else a.view(np.uint32).reshape(len(self.points), -1))
+            self.assertTrue(np.array_equal(words, ref), mode)
+            _, npy = self.http._request(
+                "POST", f"/v1/meshes/fandisk/query?mode={mode}{extra}", open(self.path("p.npy"),
+                                                                              "rb").read(),
+                {"Content-Type": "application/x-npy"})
+            self.assertEqual(open(out, "rb").read(), npy, f"{mode}: npy bytes as HTTP's")
+            r = self.sdfq("query", "fandisk", self.path("p.npy"), "--mode", mode, *flags)
+            self.assertOk(r)
+            self.assertTrue(np.array_equal(csv_words(r.stdout.decode(), WORDS[mode]), ref), mode)
+
+    def test_csv_inputs_and_stdin(self):
+        pts = self.points[:300]
+        ref = self.octet("gradient", pts)
+        rows = "\n".join(f"{x!r},{y!r},{z!r}" for x, y, z in pts.astype(float).tolist())
+        for name, text in (("plain.csv", rows + "\n"), ("header.csv", "x,y,z\n" + rows),
+                           ("crlf.csv", "x, y, z\r\n" + rows.replace("\n", "\r\n") + "\r\n\r\n")):
+            with open(self.path(name), "w", newline="") as f:
+                f.write(text)
+            r = self.sdfq("query", "fandisk", self.path(name), "--mode", "gradient")
+            self.assertOk(r)
+            self.assertTrue(np.array_equal(csv_words(r.stdout.decode(), 4), ref), name)
+        r = self.sdfq("query", "fandisk", "-", "--mode", "gradient", stdin=rows.encode())
+        self.assertTrue(np.array_equal(csv_words(r.stdout.decode(), 4), ref), "CSV on stdin")
+        buf = io.BytesIO()
+        np.save(buf, pts.astype(np.float64))  # float64 points go out as float32
+        r = self.sdfq("query", "fandisk", "--mode", "gradient", "-o", "-", "--output-format",
+                      "npy", stdin=buf.getvalue())
+        self.assertOk(r)
+        self.assertTrue(np.array_equal(np.load(io.BytesIO(r.stdout)).view(np.uint32), ref))
+
+    def test_csv_round_trip(self):
+        """Points written as sdfq writes floats (%.9g) read back as the same float32, and the
+        CSV answer parses back to the octet answer's bits."""
+        pts = self.points[:200]
+        with open(self.path("in.csv"), "w") as f:
+            f.writelines("%.9g,%.9g,%.9g\n" % tuple(p) for p in pts.astype(float).tolist())
+        out = self.path("round.csv")
+        self.assertOk(self.sdfq("query", "fandisk", self.path("in.csv"), "--mode", "closest",
+                                "-o", out))
+        self.assertTrue(np.array_equal(csv_words(open(out).read(), 5), self.octet("closest", pts)))
+
+    def test_pipelining_many_requests(self):
+        rng = np.random.default_rng(3)
+        pts = rng.uniform(-0.4, 0.4, (30001, 3)).astype(np.float32)
+        np.save(self.path("many.npy"), pts)
+        out = self.path("many-out.npy")
+        self.assertOk(self.sdfq("query", "fandisk", self.path("many.npy"), "--mode", "closest",
+                                "--batch", "97", "-o", out))  # 310 requests, the last short
+        a = np.load(out)
+        ref = self.octet("closest", pts)
+        self.assertTrue(np.array_equal(a["triangle"], ref[:, 4]))
+        self.assertTrue(np.array_equal(a["distance"].view(np.uint32), ref[:, 0]))
+        requests = [e for e in self.server.logs
+                    if e.get("event") == "request" and e.get("proto") == "binary"
+                    and e.get("method") == "QUERY" and e.get("points") == 97]
+        self.assertGreaterEqual(len(requests), 309, "split into --batch requests")
+
+    # ---- refusals and bad input ----
+
+    def test_bad_input_files(self):
+        np.save(self.path("good.npy"), self.points[:10])
+        data = open(self.path("good.npy"), "rb").read()
+        cases = {
+            "trunc.npy": (data[:-5], "npy"),
+            "header.npy": (data[:40], "npy"),
+            "shape.npy": (None, "shape (N, 3)"),
+            "big.npy": (None, "little-endian"),
+            "bad.csv": (b"x,y,z\n1,2,3\n4,5,6\n7,8\n", "line 4"),
+            "word.csv": (b"1,2,3\n1,two,3\n", "line 2"),
+            "extra.csv": (b"1,2,3,4\n", "line 1"),
+        }
+        np.save(self.path("shape.npy"), np.zeros((4, 2), np.float32))
+        np.save(self.path("big.npy"), np.zeros((4, 3), ">f4"))
+        for name, (content, words) in cases.items():
+            if content is not None:
+                with open(self.path(name), "wb") as f:
+                    f.write(content)
+            r = self.sdfq("query", "fandisk", self.path(name), "-o", self.path("never.csv"))
+            self.assertFails(r, 4, name, words)
+            self.assertFalse(os.path.exists(self.path("never.csv")))
+        self.assertFails(self.sdfq("query", "fandisk", self.path("missing.csv")), 4, "missing")
+        self.assertFails(self.sdfq("upload", "m", self.path("missing.off")), 4, "missing")
+
+    def test_server_refusals_exit_2(self):
+        np.save(self.path("p2.npy"), self.points[:5])
+        self.assertFails(self.sdfq("query", "nope", self.path("p2.npy")), 2, "404", "ENOTFOUND")
+        bad = self.points[:5].copy()
+        bad[3, 1] = np.nan
+        np.save(self.path("nan.npy"), bad)
+        self.assertFails(self.sdfq("query", "fandisk", self.path("nan.npy")), 2, "ENONFINITE")
+        self.assertFails(self.sdfq("download", "nope", "-o", self.path("x.exr")), 2, "ENOTFOUND")
+        self.assertFalse(os.path.exists(self.path("x.exr")), "no file from a refusal")
+        self.assertFails(self.sdfq("delete", "nope"), 2, "404")
+        self.assertFails(self.sdfq("bake", "fandisk", "--resolution", "4096"), 2, "413")
+
+    def test_unreachable_server_exit_3(self):
+        port = free_port()
+        np.save(self.path("p3.npy"), self.points[:5])
+        r = self.sdfq("query", "fandisk", self.path("p3.npy"), "--bin", f"127.0.0.1:{port}")
+        self.assertFails(r, 3, "cannot connect", str(port))
+        self.assertFails(self.sdfq("meshes", env_extra={"SDFD_BIN": f"127.0.0.1:{port}"}), 3,
+                         str(port))
+        r = self.sdfq("volumes", "--server", f"http://127.0.0.1:{port}")
+        self.assertFails(r, 3, str(port))
+
+    def test_usage_and_help(self):
+        for cmd in ("query", "query-volume", "meshes", "upload", "bake", "download", "delete",
+                    "volumes"):
+            r = self.sdfq(cmd, "--help")
+            self.assertOk(r)
+            self.assertIn(f"usage: sdfq {cmd}", r.stdout.decode())
+            self.assertIn("Exit: 0 ok", r.stdout.decode())
+        self.assertOk(self.sdfq("--help"))
+        self.assertFails(self.sdfq("query", "fandisk", "--frobnicate"), 1, "--frobnicate")
+        self.assertFails(self.sdfq("query", "fandisk", "--mode", "loud"), 1, "loud")
+        self.assertFails(self.sdfq("frobnicate"), 1, "frobnicate")
+        self.assertFails(self.sdfq("download", "v"), 1, "-o")
+        self.assertFails(self.sdfq("meshes", "--bin", "nocolon"), 1, "HOST:PORT")
+
+    # ---- the other subcommands ----
+
+    def test_meshes_upload_bake_download_delete(self):
+        self.assertOk(self.sdfq("upload", "cow", os.path.join(DATA, "cow.off")))
+        r = self.sdfq("meshes")
+        self.assertOk(r)
+        rows = [line.split("\t") for line in r.stdout.decode().splitlines()]
+        listed = {m["name"]: m for m in self.http.meshes()}
+        self.assertEqual(sorted(row[0] for row in rows), sorted(listed))
+        for row in rows:
+            self.assertEqual(int(row[1]), listed[row[0]]["triangles"])
+        r = self.sdfq("bake", "cow", "--volume", "cv", "--resolution", "24", "--order", "1",
+                      "--wait")
+        self.assertOk(r)
+        self.assertIn('"state":"done"', r.stdout.decode())
+        self.assertIn("bake cv: done 100%", r.stderr.decode(), "plain lines off a terminal")
+        self.assertNotIn("\r", r.stderr.decode())
+        self.assertIn("cv\t24x24x24\torder 1", self.sdfq("volumes").stdout.decode())
+        pts = self.points[:700]
+        np.save(self.path("v.npy"), pts)
+        r = self.sdfq("query-volume", "cv", self.path("v.npy"), "--gradient", "-o",
+                      self.path("vout.npy"))
+        self.assertOk(r)
+        _, data = self.http._request("POST", "/v1/volumes/cv/query?mode=gradient",
+                                     pts.tobytes(), {"Content-Type": "application/octet-stream"})
+        self.assertEqual(np.load(self.path("vout.npy")).tobytes(), data)
+        for fmt in ("exr", "npy", "raw"):
+            out = self.path(f"cv.{fmt}")
+            self.assertOk(self.sdfq("download", "cv", "-o", out))
+            _, data = self.http._request("GET", f"/v1/volumes/cv/data?format={fmt}")
+            self.assertEqual(open(out, "rb").read(), data, fmt)
+        job = self.sdfq("bake", "cow", "--volume", "cv2", "--resolution", "8")
+        self.assertOk(job)
+        self.assertTrue(job.stdout.decode().strip(), "the job id")
+        self.http.wait(job.stdout.decode().strip())
+        self.assertOk(self.sdfq("delete", "--volume", "cv", "cv2"))
+        self.assertEqual(self.http.volumes(), [])
+        self.assertOk(self.sdfq("delete", "cow"))
+        self.assertNotIn("cow", self.sdfq("meshes").stdout.decode())
+
+    def test_token(self):
+        with Server("--token", "s3cret", "--auth-queries") as srv:
+            np.save(self.path("t.npy"), self.points[:20])
+            ok = self.sdfq("query", "demo", self.path("t.npy"), server=srv,
+                           env_extra={"SDFD_TOKEN": "s3cret"})
+            self.assertOk(ok)
+            ref = sdfclient.Client(srv.url, token="s3cret").query("demo", self.points[:20],
+                                                                  form="octet")
+            self.assertTrue(np.array_equal(csv_words(ok.stdout.decode(), 1).view(np.float32)[:, 0],
+                                           ref["distance"]))
+            self.assertFails(self.sdfq("query", "demo", self.path("t.npy"), "--token", "wrong",
+                                       server=srv), 2, "401", "EUNAUTHORIZED")
+            self.assertFails(self.sdfq("query", "demo", self.path("t.npy"), server=srv), 2,
+                             "EUNAUTHORIZED")
+            self.assertFails(self.sdfq("upload", "c", os.path.join(DATA, "cow.off"), server=srv),
+                             2, "401")
+            self.assertOk(self.sdfq("upload", "c", os.path.join(DATA, "cow.off"), "--token",
+                                    "s3cret", server=srv))
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
