@@ -383,7 +383,7 @@ int sdf_proto_decode_result(const void *payload, size_t size, sdf_proto_result *
     r->mode = (sdf_proto_mode)p[0];
     r->words = p[1];
     r->count = get32(p + 4);
-    if (p[0] > SDF_MODE_CLOSEST || r->words != sdf_proto_words(r->mode))
+    if (p[0] > SDF_MODE_LAST || r->words != sdf_proto_words(r->mode))
         return fail(reason, SDF_EPROTO, "RESULT mode and words per point disagree");
     if ((size - SDF_PROTO_RESULT_PREFIX) / 4 / r->words != r->count ||
         (size - SDF_PROTO_RESULT_PREFIX) % (4 * r->words))

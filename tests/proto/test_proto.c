@@ -165,6 +165,17 @@ static void test_result(void)
           "result round trip");
     for (size_t len = 0; len < h.length; len++)
         CHECK(sdf_proto_decode_result(frame + 16, len, &r, &why) != 0, "prefix %zu", len);
+    /* every mode's result decodes, the filtered ones included; one past the last does not */
+    for (int m = 0; m <= SDF_MODE_LAST + 1; m++) {
+        unsigned words = m <= SDF_MODE_LAST ? sdf_proto_words((sdf_proto_mode)m) : 1;
+        n = sdf_proto_encode_result_head(frame, 4, (sdf_proto_mode)m, 1);
+        frame[16 + 1] = (unsigned char)words;
+        memcpy(frame + n, data, 4 * words);
+        int rc = sdf_proto_decode_result(frame + 16, 8 + 4 * words, &r, &why);
+        CHECK(m <= SDF_MODE_LAST ? rc == 0 && (int)r.mode == m && r.words == words && r.count == 1
+                                 : rc == SDF_EPROTO,
+              "mode %d result: %d", m, rc);
+    }
 }
 
 static void test_error_and_hello(void)
