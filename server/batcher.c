@@ -9,6 +9,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "errors.h"
 #include "log.h"
 
 struct sdfd_batcher {
@@ -248,7 +249,7 @@ static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t points, char *mes
                  ? sdf_query_filtered(list->mesh, p, points, &opts, &list->filter, &res, &diag)
                  : sdf_query(list->mesh, p, points, &opts, &res);
     if (rc)
-        snprintf(message, cap, "%s", diag.message[0] ? diag.message : sdf_strerror(rc));
+        snprintf(message, cap, "%s", diag.message[0] ? diag.message : sdfd_strerror(rc));
     return rc;
 }
 
@@ -394,11 +395,11 @@ int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index)
     pthread_mutex_lock(&b->lock);
     if (b->stopping) {
         pthread_mutex_unlock(&b->lock);
-        return SDF_EUNAVAILABLE;
+        return SDFD_EUNAVAILABLE;
     }
     if (b->head && b->queued + job->count > b->max_queued) { /* an idle queue takes any job */
         pthread_mutex_unlock(&b->lock);
-        return SDF_EBUSY;
+        return SDFD_EBUSY;
     }
     b->queued += job->count;
     if (b->tail)

@@ -58,15 +58,15 @@ struct sdfd_job {
 typedef struct sdfd_batcher sdfd_batcher;
 
 /* `max_queued` bounds the points waiting: a job arriving while more wait is refused
- * (SDF_EBUSY, HTTP 429), so overload sheds requests instead of growing memory and latency. */
+ * (SDFD_EBUSY, HTTP 429), so overload sheds requests instead of growing memory and latency. */
 int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, size_t max_queued,
                         sdfd_metrics *metrics, sdfd_batcher **out);
 /* Finish every queued job, then stop the thread and free. */
 void sdfd_batcher_destroy(sdfd_batcher *b);
 
 /* Queue a job. Returns 0 (done will be called), or an error and done is NOT called:
- * SDF_ENONFINITE (*bad_index set: NaN, Inf or beyond SDF_MAX_COORDINATE), SDF_EBUSY (queue
- * full), SDF_EUNAVAILABLE (shutting down). */
+ * SDF_ENONFINITE (*bad_index set: NaN, Inf or beyond SDF_MAX_COORDINATE), SDFD_EBUSY (queue
+ * full), SDFD_EUNAVAILABLE (shutting down). */
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
 
 /* The key of a job as submitted: every parameter that shapes its answer (mesh, mode, sign,

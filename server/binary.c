@@ -28,6 +28,7 @@
 #include <sys/time.h>
 #include <unistd.h>
 
+#include "errors.h"
 #include "log.h"
 #include "proto.h"
 
@@ -67,7 +68,8 @@ void sdfd_bin_send_error(connection *c, uint32_t id, int err, const char *messag
     char *frame = malloc(512);
     if (!frame)
         return;
-    size_t n = sdf_proto_encode_error(frame, 512, id, err, message);
+    size_t n = sdf_proto_encode_error(frame, 512, id, (uint16_t)sdfd_http_status(err),
+                                      sdfd_errname(err), message);
     sdfd_bin_enqueue(c, frame, n);
 }
 
@@ -174,16 +176,16 @@ static void refuse_for_room(sdfd_binary *b, connection *c)
         unsigned char sink[4096];
         for (int reads = 0; reads < 16 && recv(c->fd, sink, sizeof sink, 0) > 0; reads++)
             ;
-        sdfd_bin_send_error(c, 0, SDF_EBUSY, why);
+        sdfd_bin_send_error(c, 0, SDFD_EBUSY, why);
         c->closing = 1;
         return;
     }
-    sdfd_bin_send_error(c, h.request_id, SDF_EBUSY, why);
+    sdfd_bin_send_error(c, h.request_id, SDFD_EBUSY, why);
     size_t frame = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
     sdfd_route route;
     const char *what;
     sdfd_bin_frame_kind(h.type, &route, &what);
-    sdfd_bin_account(b, route, what, sdf_http_status(SDF_EBUSY), 0, sdfd_now(), frame, 0);
+    sdfd_bin_account(b, route, what, sdfd_http_status(SDFD_EBUSY), 0, sdfd_now(), frame, 0);
     c->skip = frame - c->in_len;
     c->in_len = 0;
 }

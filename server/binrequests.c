@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "binconn.h"
+#include "errors.h"
 #include "log.h"
 
 /* ---- queries ----------------------------------------------------------------------------- */
@@ -29,7 +30,7 @@ static void query_done(sdfd_job *job)
     bin_job *bj = (bin_job *)job;
     connection *c = bj->conn;
     sdfd_binary *b = job->user;
-    int status = job->status ? sdf_http_status(job->status) : 200;
+    int status = job->status ? sdfd_http_status(job->status) : 200;
     size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
                  4 * sdf_proto_words(job->mode) * job->count;
     if (job->status) {
@@ -53,7 +54,7 @@ static void refuse(sdfd_binary *b, connection *c, uint32_t id, int err, const ch
                    double start, size_t bytes_in)
 {
     sdfd_bin_send_error(c, id, err, message);
-    sdfd_bin_account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", sdf_http_status(err), 0, start, bytes_in, 0);
+    sdfd_bin_account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", sdfd_http_status(err), 0, start, bytes_in, 0);
 }
 
 static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsigned char *payload,
@@ -70,7 +71,7 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         return;
     }
     if (atomic_load(&srv->draining)) {
-        refuse(b, c, id, SDF_EUNAVAILABLE, "the server is shutting down", start, bytes_in);
+        refuse(b, c, id, SDFD_EUNAVAILABLE, "the server is shutting down", start, bytes_in);
         return;
     }
     sdf_mesh *mesh = sdfd_registry_get(srv->registry, q.name, q.name_len);
@@ -140,11 +141,11 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         char message[96];
         if (rc == SDF_ENONFINITE)
             snprintf(message, sizeof message, SDFD_BAD_POINT_MESSAGE, bad);
-        else if (rc == SDF_EBUSY)
+        else if (rc == SDFD_EBUSY)
             snprintf(message, sizeof message, "more than %zu points are waiting; retry later",
                      srv->cfg.max_queued_points);
         else
-            snprintf(message, sizeof message, "%s", sdf_strerror(rc));
+            snprintf(message, sizeof message, "%s", sdfd_strerror(rc));
         refuse(b, c, id, rc, message, start, bytes_in);
         sdf_mesh_release(mesh);
         sdf_mesh_release(volume);
@@ -186,14 +187,14 @@ static void *run_volume_query(void *arg)
         if (rc == SDF_ENONFINITE)
             snprintf(message, sizeof message, "point %zu has a NaN or infinite coordinate", bad);
         else
-            snprintf(message, sizeof message, "%s", sdf_strerror(rc));
+            snprintf(message, sizeof message, "%s", sdfd_strerror(rc));
         sdfd_bin_send_error(c, vj->request_id, rc, message);
         free(vj->frame);
     } else {
         sdfd_bin_enqueue(c, vj->frame, len);
     }
     sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY",
-                     rc ? sdf_http_status(rc) : 200, vj->count, vj->start, vj->bytes_in,
+                     rc ? sdfd_http_status(rc) : 200, vj->count, vj->start, vj->bytes_in,
                      rc ? 0 : len);
     sdfd_volume_release(vj->stored);
     free(vj->points);
@@ -214,10 +215,10 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
     char message[300];
     int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)srv->cfg.max_points, &q, &why);
     if (rc || atomic_load(&srv->draining)) {
-        sdfd_bin_send_error(c, id, rc ? rc : SDF_EUNAVAILABLE,
+        sdfd_bin_send_error(c, id, rc ? rc : SDFD_EUNAVAILABLE,
                             rc ? why : "the server is shutting down");
         sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY",
-                         sdf_http_status(rc ? rc : SDF_EUNAVAILABLE), 0, start, bytes_in, 0);
+                         sdfd_http_status(rc ? rc : SDFD_EUNAVAILABLE), 0, start, bytes_in, 0);
         return;
     }
     snprintf(message, sizeof message, "%.*s", (int)q.name_len, q.name);
@@ -251,7 +252,7 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
         pthread_mutex_unlock(&c->lock);
         atomic_fetch_add(&srv->in_flight, 1);
         if (pthread_create(&thread, &attr, run_volume_query, vj)) {
-            rc = SDF_EUNAVAILABLE;
+            rc = SDFD_EUNAVAILABLE;
             sdfd_bin_request_finished(b, c);
         }
     }
@@ -263,7 +264,7 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
         }
         sdfd_bin_send_error(c, id, rc,
                             rc == SDF_ENOMEM ? "out of memory" : "cannot start a worker thread");
-        sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", sdf_http_status(rc), 0,
+        sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", sdfd_http_status(rc), 0,
                          start, bytes_in, 0);
         return;
     }
@@ -299,7 +300,7 @@ static void handle_auth(sdfd_binary *b, connection *c, uint32_t id, const unsign
                         uint32_t length)
 {
     if (!sdfd_token_matches(&b->srv->cfg, (const char *)payload, length)) {
-        sdfd_bin_send_error(c, id, SDF_EUNAUTHORIZED, "wrong token");
+        sdfd_bin_send_error(c, id, SDFD_EUNAUTHORIZED, "wrong token");
         c->closing = 1;
         return;
     }
@@ -335,7 +336,7 @@ void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header
     sdfd_bin_frame_kind(h->type, &route, &what);
     if ((h->type == SDF_PROTO_QUERY || h->type == SDF_PROTO_VOLUME_QUERY) && cfg->token &&
         cfg->auth_queries && !c->authenticated) {
-        sdfd_bin_send_error(c, h->request_id, SDF_EUNAUTHORIZED,
+        sdfd_bin_send_error(c, h->request_id, SDFD_EUNAUTHORIZED,
                             "this server needs AUTH with its token before queries");
         sdfd_bin_account(b, route, what, 401, 0, sdfd_now(), SDF_PROTO_HEADER_SIZE + h->length,
                          0);
@@ -366,7 +367,7 @@ void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header
         handle_auth(b, c, h->request_id, payload, h->length);
         status = c->authenticated ? 200 : 401;
     } else {
-        sdfd_bin_send_error(c, h->request_id, SDF_EPROTO, "unknown message type");
+        sdfd_bin_send_error(c, h->request_id, SDFD_EPROTO, "unknown message type");
         status = 400;
     }
     sdfd_bin_account(b, route, what, status, 0, start, SDF_PROTO_HEADER_SIZE + h->length, 0);

@@ -25,6 +25,7 @@
 #include <unistd.h>
 
 #include "body.h"
+#include "errors.h"
 #include "filterparams.h"
 #include "httpreq.h"
 #include "log.h"
@@ -108,9 +109,9 @@ enum MHD_Result sdfd_http_error(request *req, int code, const char *fmt, ...)
     vsnprintf(message, sizeof message, fmt, ap);
     va_end(ap);
     cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
-    cJSON_AddStringToObject(err, "code", sdf_errname(code));
+    cJSON_AddStringToObject(err, "code", sdfd_errname(code));
     cJSON_AddStringToObject(err, "message", message);
-    return sdfd_http_json(req, sdf_http_status(code), root);
+    return sdfd_http_json(req, sdfd_http_status(code), root);
 }
 
 static cJSON *report_json(const char *name, const sdf_mesh *mesh)
@@ -219,14 +220,14 @@ static enum MHD_Result admit(request *req, const char *url)
                                "names are 1-255 characters of A-Z a-z 0-9 . _ - "
                                "and do not start with '.'");
     if (!method_allowed(req))
-        return sdfd_http_error(req, SDF_EMETHOD, "%s is not allowed on %s", req->method,
+        return sdfd_http_error(req, SDFD_EMETHOD, "%s is not allowed on %s", req->method,
                                req->route_text);
     if (!authorized(req))
-        return sdfd_http_error(req, SDF_EUNAUTHORIZED,
+        return sdfd_http_error(req, SDFD_EUNAUTHORIZED,
                                "this request needs 'Authorization: Bearer <token>'");
     if (atomic_load(&srv->draining) && req->route != SDFD_ROUTE_HEALTH &&
         req->route != SDFD_ROUTE_READY && req->route != SDFD_ROUTE_METRICS)
-        return sdfd_http_error(req, SDF_EUNAVAILABLE, "the server is shutting down");
+        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "the server is shutting down");
     int has_body = !strcmp(req->method, "POST") || !strcmp(req->method, "PUT");
     if (!has_body)
         return MHD_YES;
@@ -235,7 +236,7 @@ static enum MHD_Result admit(request *req, const char *url)
     char *end;
     unsigned long long declared = cl ? strtoull(cl, &end, 10) : 0;
     if (!cl || !*cl || *end)
-        return sdfd_http_error(req, SDF_ELENGTH, "send the body with a Content-Length header");
+        return sdfd_http_error(req, SDFD_ELENGTH, "send the body with a Content-Length header");
     if (declared > srv->cfg.max_body_bytes)
         return sdfd_http_error(req, SDF_ELIMIT, "the body is %llu bytes, over the limit of %zu",
                                declared, srv->cfg.max_body_bytes);
@@ -243,7 +244,7 @@ static enum MHD_Result admit(request *req, const char *url)
      * counted against the budget of all connections until the request completes. */
     req->declared = (size_t)declared;
     if (sdfd_buffer_reserve(srv, req->declared + 1))
-        return sdfd_http_error(req, SDF_EBUSY, SDFD_BUFFER_BUSY_FMT, srv->cfg.max_buffered_bytes);
+        return sdfd_http_error(req, SDFD_EBUSY, SDFD_BUFFER_BUSY_FMT, srv->cfg.max_buffered_bytes);
     req->reserved = req->declared + 1;
     req->body = malloc(req->declared + 1);
     if (!req->body)
@@ -384,10 +385,10 @@ static enum MHD_Result start_query(request *req)
         MHD_resume_connection(req->conn);
         if (rc == SDF_ENONFINITE)
             return sdfd_http_error(req, rc, SDFD_BAD_POINT_MESSAGE, bad);
-        if (rc == SDF_EBUSY)
+        if (rc == SDFD_EBUSY)
             return sdfd_http_error(req, rc, "more than %zu points are waiting; retry later",
                                    srv->cfg.max_queued_points);
-        return sdfd_http_error(req, rc, "%s", sdf_strerror(rc));
+        return sdfd_http_error(req, rc, "%s", sdfd_strerror(rc));
     }
     sdfd_metrics_points(srv->metrics, count);
     return MHD_YES;
@@ -441,7 +442,7 @@ enum MHD_Result sdfd_http_start_thread(request *req, sdfd_http_work run,
     if (failed) {
         req->work = WORK_NONE;
         MHD_resume_connection(req->conn);
-        return sdfd_http_error(req, SDF_EUNAVAILABLE, "cannot start a worker thread");
+        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "cannot start a worker thread");
     }
     return MHD_YES;
 }

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "bakeparams.h"
+#include "errors.h"
 #include "httpreq.h"
 #include "log.h"
 
@@ -31,7 +32,7 @@ static cJSON *job_json(const sdfd_job_status *s)
         cJSON_AddBoolToObject(o, "cancel_requested", 1);
     if (s->state == SDFD_JOB_FAILED) {
         cJSON *err = cJSON_AddObjectToObject(o, "error");
-        cJSON_AddStringToObject(err, "code", sdf_errname(s->error));
+        cJSON_AddStringToObject(err, "code", sdfd_errname(s->error));
         cJSON_AddStringToObject(err, "message", s->message);
     }
     return o;
@@ -322,7 +323,7 @@ static void evaluate_volume(request *req)
         snprintf(req->diag.message, sizeof req->diag.message,
                  "point %zu has a NaN or infinite coordinate", bad);
     else if (req->work_rc)
-        snprintf(req->diag.message, sizeof req->diag.message, "%s", sdf_strerror(req->work_rc));
+        snprintf(req->diag.message, sizeof req->diag.message, "%s", sdfd_strerror(req->work_rc));
 }
 
 static enum MHD_Result reply_volume_query(request *req)
