@@ -253,9 +253,13 @@ static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t points, char *mes
     return rc;
 }
 
-/* Answer the jobs of one query_batch call and hand each to its `done`. */
+static size_t kept_bytes(const sdfd_batcher *b);
+
+/* Answer the jobs of one query_batch call and hand each to its `done`. The kept bytes are
+ * published first: a client that reads /metrics after its answer sees its batch's. */
 static void deliver(sdfd_batcher *b, sdfd_job *list, int rc, const char *message)
 {
+    atomic_store(&b->kept_bytes, kept_bytes(b));
     size_t offset = 0;
     for (sdfd_job *j = list, *next; j; j = next) {
         next = j->next; /* done() may free the job */
@@ -293,7 +297,6 @@ static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t p
     } else {
         deliver(b, list, rc, message);
     }
-    atomic_store(&b->kept_bytes, kept_bytes(b));
 }
 
 static void wait_until(sdfd_batcher *b, double deadline)
