@@ -394,13 +394,12 @@ int sdf_proto_decode_result(const void *payload, size_t size, sdf_proto_result *
 
 /* ---- ERROR ------------------------------------------------------------------------------- */
 
-size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, int err,
-                              const char *message)
+size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, uint16_t status,
+                              const char *code, const char *message)
 {
-    const char *code = sdf_errname(err);
     size_t code_len = strlen(code), msg_len = message ? strlen(message) : 0;
     size_t fixed = SDF_PROTO_HEADER_SIZE + 2 + 2 + code_len + 2;
-    if (cap < fixed)
+    if (code_len > UINT16_MAX || cap < fixed)
         return 0;
     if (msg_len > cap - fixed)
         msg_len = cap - fixed;
@@ -410,7 +409,7 @@ size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, int er
     sdf_proto_encode_header(p, SDF_PROTO_ERROR, request_id,
                             (uint32_t)(fixed + msg_len - SDF_PROTO_HEADER_SIZE));
     p += SDF_PROTO_HEADER_SIZE;
-    put16(p, (uint16_t)sdf_http_status(err));
+    put16(p, status);
     put16(p + 2, (uint16_t)code_len);
     memcpy(p + 4, code, code_len);
     put16(p + 4 + code_len, (uint16_t)msg_len);

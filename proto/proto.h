@@ -2,7 +2,8 @@
  * of each message type. No I/O and no allocation: decoders check every length against the
  * bytes given and the caller's caps and return pointers into the caller's buffer; encoders
  * write into caller buffers and say how much they wrote. Shared by the server, the tests
- * and C clients. Errors are SDF_E* codes (sdf.h) with a static reason string. */
+ * and C clients. Errors are SDF_E* codes (sdf.h), or SDF_EPROTO below, with a static reason
+ * string. */
 #ifndef SDF_PROTO_H
 #define SDF_PROTO_H
 
@@ -10,6 +11,10 @@
 #include <stdint.h>
 
 #include "sdf/sdf.h"
+
+/* A frame that breaks the protocol: the codec's own code beside the library's SDF_E* codes,
+ * in the range sdf.h leaves to the layers above it (sdfd's table names it EPROTO, 400). */
+#define SDF_EPROTO (-13)
 
 #define SDF_PROTO_VERSION 1
 #define SDF_PROTO_HEADER_SIZE 16
@@ -130,8 +135,10 @@ typedef struct sdf_proto_error {
     size_t message_len;
 } sdf_proto_error;
 
-size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, int err,
-                              const char *message);
+/* The status and code name are the sender's (sdfd's error table: server/errors.h); returns 0
+ * when `cap` cannot hold the frame with the code name. */
+size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, uint16_t status,
+                              const char *code, const char *message);
 int sdf_proto_decode_error(const void *payload, size_t size, sdf_proto_error *e,
                            const char **reason);
 

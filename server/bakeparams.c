@@ -1,6 +1,7 @@
 /* bakeparams.c - the bake request body (see bakeparams.h), parsed with cJSON: it is small
  * and has nested objects, so a tree is the clear way to read it. */
 #include "bakeparams.h"
+#include "errors.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -185,7 +186,7 @@ int sdfd_bake_from_json(const char *text, size_t len, sdfd_bake_request *out,
     cJSON *root = cJSON_ParseWithLength(text, len);
     if (!root) {
         snprintf(err, cap, "the body is not valid JSON");
-        return SDF_ESYNTAX;
+        return SDFD_ESYNTAX;
     }
     int rc = 0, field = -1;
     if (!cJSON_IsObject(root))

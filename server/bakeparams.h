@@ -21,7 +21,7 @@ typedef struct sdfd_bake_names {
     char smoothing_mesh[SDFD_VOLUME_NAME_MAX + 1];  /* filter's "smooth": {"mesh": ...} */
 } sdfd_bake_names;
 
-/* Parse `len` bytes of JSON. 0, or SDF_ESYNTAX (not JSON) / SDF_EINVAL with a message. */
+/* Parse `len` bytes of JSON. 0, or SDFD_ESYNTAX (not JSON) / SDF_EINVAL with a message. */
 int sdfd_bake_from_json(const char *text, size_t len, sdfd_bake_request *out,
                         sdfd_bake_names *names, char *err, size_t cap);
 

@@ -9,6 +9,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "errors.h"
 #include "log.h"
 
 struct sdfd_batcher {
@@ -39,36 +40,81 @@ double sdfd_now(void)
     return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
-static int same_volume(const sdf_smoothing_volume *a, const sdf_smoothing_volume *b)
-{
-    if (a->shape != b->shape)
-        return 0;
-    if (a->shape == SDF_VOLUME_NONE)
-        return 1;
-    for (int k = 0; k < 3; k++)
-        if (a->center[k] != b->center[k] || a->lo[k] != b->lo[k] || a->hi[k] != b->hi[k])
-            return 0;
-    return a->radius == b->radius && a->mesh == b->mesh && a->depth == b->depth &&
-           a->scale == b->scale;
-}
+/* ---- the batch key ------------------------------------------------------------------------
+ * Jobs share a batch only when their keys are equal byte for byte. A key holds the mesh, the
+ * mode, the sign and, for the filtered modes, every scalar of sdf_filter_options, so no
+ * parameter can be left out of the comparison by accident: FILTER_SCALARS names them all,
+ * and two guards below fail the build when the library's structs gain a field it does not
+ * name. Two spellings of one answer are made one: any nonzero sample_gradient is 1, and a
+ * smoothing volume of shape NONE has its unused fields zeroed. Floats compare by their bits,
+ * which only keeps apart what == would join (0 and -0), never the reverse for a valid
+ * request (NaN parameters are refused before submission). */
 
-/* Every field of sdf_filter_options: requests differing in any run apart. */
-static int same_filter(const sdf_filter_options *a, const sdf_filter_options *b)
-{
-    return a->kernel == b->kernel && a->cap == b->cap && a->a == b->a && a->b == b->b &&
-           a->samples == b->samples && a->min_samples == b->min_samples &&
-           a->medial == b->medial && a->grid == b->grid &&
-           a->unsigned_integrand == b->unsigned_integrand &&
-           a->allow_wide_bump == b->allow_wide_bump && a->seed == b->seed &&
-           !a->sample_gradient == !b->sample_gradient &&
-           same_volume(&a->smooth, &b->smooth);
-}
+/* Every scalar of sdf_filter_options in declaration order, arrays element by element; with
+ * brace elision the list is also the struct's positional initializer (see check_scalars). */
+#define FILTER_SCALARS(X, f, s)                                                             \
+    X(f->kernel) X(f->cap) X(f->a) X(f->b) X(f->samples) X(f->min_samples) X(f->medial)     \
+    X(f->grid) X(f->unsigned_integrand) X(f->allow_wide_bump) X(!!f->sample_gradient)       \
+    X(f->seed) X(s->shape) X(s->center[0]) X(s->center[1]) X(s->center[2]) X(s->radius)     \
+    X(s->lo[0]) X(s->lo[1]) X(s->lo[2]) X(s->hi[0]) X(s->hi[1]) X(s->hi[2]) X(s->mesh)      \
+    X(s->depth) X(s->scale)
 
-/* Jobs run together only when every parameter of the answer is the same. */
+#define KEY_GUARD_ADVICE                                                                    \
+    "sdf_filter_options or sdf_smoothing_volume changed: name the new field in "             \
+    "FILTER_SCALARS (server/batcher.c), so requests that differ in it never share a batch, " \
+    "add a case for it to tests/server/test_batcher.c, then update the size checked here"
+
+/* Guard 1: the structs' sizes when FILTER_SCALARS was last brought up to date (LP64). */
+_Static_assert(sizeof(void *) != 8 || (sizeof(sdf_smoothing_volume) == 112 &&
+                                       sizeof(sdf_filter_options) == 184),
+               KEY_GUARD_ADVICE);
+
+/* Guard 2, for a field that fits in padding and leaves the size alone: FILTER_SCALARS as a
+ * positional initializer leaves any field it does not name uninitialized, which
+ * -Wmissing-field-initializers reports, an error in this function. */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic error "-Wmissing-field-initializers"
+#pragma GCC diagnostic ignored "-Wmissing-braces"
+#define KEY_INIT(v) v,
+static void check_scalars(const sdf_filter_options *f, const sdf_smoothing_volume *s)
+{
+    sdf_filter_options all = {FILTER_SCALARS(KEY_INIT, f, s)}; /* KEY_GUARD_ADVICE */
+    (void)all;
+}
+#undef KEY_INIT
+#pragma GCC diagnostic pop
+
+/* Append the bytes of one value, as its own type, to the key. */
+#define KEY_PUT(v)                                                                          \
+    do {                                                                                    \
+        __typeof__(v) value_ = (v);                                                         \
+        memcpy(key->bytes + at, &value_, sizeof value_);                                    \
+        at += sizeof value_;                                                                \
+    } while (0);
+#define KEY_SIZE(v) +sizeof(v)
+
+void sdfd_batch_key_of(const sdfd_job *job, sdfd_batch_key *key)
+{
+    memset(key, 0, sizeof *key);
+    size_t at = 0;
+    KEY_PUT(job->mesh) KEY_PUT(job->mode) KEY_PUT(job->sign)
+    if (!sdf_proto_mode_filtered(job->mode))
+        return; /* the filter is not read */
+    static const sdf_smoothing_volume everywhere = {.shape = SDF_VOLUME_NONE};
+    const sdf_filter_options *f = &job->filter;
+    const sdf_smoothing_volume *s = f->smooth.shape == SDF_VOLUME_NONE ? &everywhere : &f->smooth;
+    (void)check_scalars;
+    _Static_assert(sizeof(job->mesh) + sizeof(job->mode) + sizeof(job->sign)
+                   FILTER_SCALARS(KEY_SIZE, f, s) <= sizeof key->bytes,
+                   "the key's bytes hold every scalar");
+    FILTER_SCALARS(KEY_PUT, f, s)
+}
+#undef KEY_PUT
+#undef KEY_SIZE
+
 static int same_batch(const sdfd_job *a, const sdfd_job *b)
 {
-    return a->mesh == b->mesh && a->mode == b->mode && a->sign == b->sign &&
-           (!sdf_proto_mode_filtered(a->mode) || same_filter(&a->filter, &b->filter));
+    return !memcmp(&a->key, &b->key, sizeof a->key);
 }
 
 int sdfd_filter_validate(const sdf_mesh *mesh, const sdf_filter_options *f, size_t count,
@@ -203,13 +249,17 @@ static int query_batch(sdfd_batcher *b, sdfd_job *list, size_t points, char *mes
                  ? sdf_query_filtered(list->mesh, p, points, &opts, &list->filter, &res, &diag)
                  : sdf_query(list->mesh, p, points, &opts, &res);
     if (rc)
-        snprintf(message, cap, "%s", diag.message[0] ? diag.message : sdf_strerror(rc));
+        snprintf(message, cap, "%s", diag.message[0] ? diag.message : sdfd_strerror(rc));
     return rc;
 }
 
-/* Answer the jobs of one query_batch call and hand each to its `done`. */
+static size_t kept_bytes(const sdfd_batcher *b);
+
+/* Answer the jobs of one query_batch call and hand each to its `done`. The kept bytes are
+ * published first: a client that reads /metrics after its answer sees its batch's. */
 static void deliver(sdfd_batcher *b, sdfd_job *list, int rc, const char *message)
 {
+    atomic_store(&b->kept_bytes, kept_bytes(b));
     size_t offset = 0;
     for (sdfd_job *j = list, *next; j; j = next) {
         next = j->next; /* done() may free the job */
@@ -247,7 +297,6 @@ static void run_batch(sdfd_batcher *b, sdfd_job *list, size_t requests, size_t p
     } else {
         deliver(b, list, rc, message);
     }
-    atomic_store(&b->kept_bytes, kept_bytes(b));
 }
 
 static void wait_until(sdfd_batcher *b, double deadline)
@@ -343,16 +392,17 @@ int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index)
             return SDF_ENONFINITE;
         }
     }
+    sdfd_batch_key_of(job, &job->key);
     job->next = NULL;
     job->enqueued = sdfd_now();
     pthread_mutex_lock(&b->lock);
     if (b->stopping) {
         pthread_mutex_unlock(&b->lock);
-        return SDF_EUNAVAILABLE;
+        return SDFD_EUNAVAILABLE;
     }
     if (b->head && b->queued + job->count > b->max_queued) { /* an idle queue takes any job */
         pthread_mutex_unlock(&b->lock);
-        return SDF_EBUSY;
+        return SDFD_EBUSY;
     }
     b->queued += job->count;
     if (b->tail)

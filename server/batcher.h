@@ -28,6 +28,12 @@
 
 typedef struct sdfd_job sdfd_job;
 
+/* Which jobs may share a batch: equal keys (byte for byte) and only those. Sized for the
+ * mesh, mode, sign and every scalar of the filter options (batcher.c checks it). */
+typedef struct sdfd_batch_key {
+    unsigned char bytes[sizeof(void *) + 2 * sizeof(int) + sizeof(sdf_filter_options)];
+} sdfd_batch_key;
+
 struct sdfd_job {
     /* in: set by the submitter; the job and its buffers must stay alive until `done` */
     sdf_mesh *mesh;          /* a reference the job holds; the batcher does not release it */
@@ -44,6 +50,7 @@ struct sdfd_job {
     char message[256];       /* with a status: what went wrong, for the client (the size
                                 of sdf_diag's message) */
     /* private */
+    sdfd_batch_key key;      /* set at submission */
     sdfd_job *next;
     double enqueued;
 };
@@ -51,16 +58,21 @@ struct sdfd_job {
 typedef struct sdfd_batcher sdfd_batcher;
 
 /* `max_queued` bounds the points waiting: a job arriving while more wait is refused
- * (SDF_EBUSY, HTTP 429), so overload sheds requests instead of growing memory and latency. */
+ * (SDFD_EBUSY, HTTP 429), so overload sheds requests instead of growing memory and latency. */
 int sdfd_batcher_create(int threads, unsigned window_us, size_t max_points, size_t max_queued,
                         sdfd_metrics *metrics, sdfd_batcher **out);
 /* Finish every queued job, then stop the thread and free. */
 void sdfd_batcher_destroy(sdfd_batcher *b);
 
 /* Queue a job. Returns 0 (done will be called), or an error and done is NOT called:
- * SDF_ENONFINITE (*bad_index set: NaN, Inf or beyond SDF_MAX_COORDINATE), SDF_EBUSY (queue
- * full), SDF_EUNAVAILABLE (shutting down). */
+ * SDF_ENONFINITE (*bad_index set: NaN, Inf or beyond SDF_MAX_COORDINATE), SDFD_EBUSY (queue
+ * full), SDFD_EUNAVAILABLE (shutting down). */
 int sdfd_batcher_submit(sdfd_batcher *b, sdfd_job *job, size_t *bad_index);
+
+/* The key of a job as submitted: every parameter that shapes its answer (mesh, mode, sign,
+ * and the filter's fields in the filtered modes), with the spellings of one answer made
+ * one. Exposed for tests/server/test_batcher.c. */
+void sdfd_batch_key_of(const sdfd_job *job, sdfd_batch_key *key);
 
 /* Bytes the batcher keeps between batches: its gathered points and answers (as large as the
  * largest batch) and the library's workspace (batches up to max_points). Any thread. */

@@ -1,8 +1,8 @@
 /* binary.c - the binary protocol listener: one thread polls the listening socket and every
  * connection (non-blocking) and splits the byte stream into frames, which
  * sdfd_bin_handle_frame (binrequests.c) answers or hands on; replies finished on other
- * threads are appended to the connection's output queue there, and the poll loop is woken
- * through an eventfd. Replies therefore leave in completion order, matched by request id.
+ * threads are appended to the connection's output queue (binconn.c), and the poll loop is
+ * woken through an eventfd. Replies therefore leave in completion order, matched by request id.
  *
  * Limits: a frame's length is checked against max_payload before the input buffer grows;
  * at most 64 queries per connection are in flight and at most 64 MiB of replies wait unsent,
@@ -13,7 +13,7 @@
  * A connection that goes away with queries in flight is freed when the last of them
  * completes. */
 #define _GNU_SOURCE /* accept4 */
-#include "binconn.h"
+#include "binary.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -28,68 +28,16 @@
 #include <sys/time.h>
 #include <unistd.h>
 
+#include "binconn.h"
+#include "binrequests.h"
+#include "errors.h"
 #include "log.h"
+#include "net.h"
 #include "proto.h"
 
 #define MAX_IN_FLIGHT 64
 #define INPUT_BASE (64 * 1024) /* a connection's input buffer between big frames */
 #define MAX_QUEUED_OUT (64u << 20) /* unsent reply bytes before we stop reading */
-
-/* ---- replies (binconn.h), from any thread ------------------------------------------------ */
-
-void sdfd_bin_wake(sdfd_binary *b)
-{
-    uint64_t one = 1;
-    ssize_t unused = write(b->wake_fd, &one, sizeof one);
-    (void)unused;
-}
-
-void sdfd_bin_enqueue(connection *c, char *data, size_t len)
-{
-    out_frame *f = malloc(sizeof *f);
-    if (!f) {
-        free(data);
-        return;
-    }
-    *f = (out_frame){NULL, data, len, 0};
-    pthread_mutex_lock(&c->lock);
-    if (c->out_tail)
-        c->out_tail->next = f;
-    else
-        c->out_head = f;
-    c->out_tail = f;
-    c->out_bytes += len;
-    pthread_mutex_unlock(&c->lock);
-}
-
-void sdfd_bin_send_error(connection *c, uint32_t id, int err, const char *message)
-{
-    char *frame = malloc(512);
-    if (!frame)
-        return;
-    size_t n = sdf_proto_encode_error(frame, 512, id, err, message);
-    sdfd_bin_enqueue(c, frame, n);
-}
-
-void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int status,
-                      size_t points, double start, size_t bytes_in, size_t bytes_out)
-{
-    double seconds = sdfd_now() - start;
-    sdfd_metrics_request(b->srv->metrics, route, status, seconds);
-    sdfd_log_request("binary", what,
-                     route == SDFD_ROUTE_BIN_QUERY          ? "query"
-                     : route == SDFD_ROUTE_BIN_VOLUME_QUERY ? "volume_query"
-                                                            : "other",
-                     status, points, seconds * 1e6, bytes_in, bytes_out);
-}
-
-void sdfd_bin_request_finished(sdfd_binary *b, connection *c)
-{
-    pthread_mutex_lock(&c->lock);
-    c->in_flight--;
-    pthread_mutex_unlock(&c->lock);
-    atomic_fetch_sub(&b->srv->in_flight, 1);
-}
 
 /* ---- connections ------------------------------------------------------------------------- */
 
@@ -174,16 +122,16 @@ static void refuse_for_room(sdfd_binary *b, connection *c)
         unsigned char sink[4096];
         for (int reads = 0; reads < 16 && recv(c->fd, sink, sizeof sink, 0) > 0; reads++)
             ;
-        sdfd_bin_send_error(c, 0, SDF_EBUSY, why);
+        sdfd_bin_send_error(c, 0, SDFD_EBUSY, why);
         c->closing = 1;
         return;
     }
-    sdfd_bin_send_error(c, h.request_id, SDF_EBUSY, why);
+    sdfd_bin_send_error(c, h.request_id, SDFD_EBUSY, why);
     size_t frame = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
     sdfd_route route;
     const char *what;
     sdfd_bin_frame_kind(h.type, &route, &what);
-    sdfd_bin_account(b, route, what, sdf_http_status(SDF_EBUSY), 0, sdfd_now(), frame, 0);
+    sdfd_bin_account(b, route, what, sdfd_http_status(SDFD_EBUSY), 0, sdfd_now(), frame, 0);
     c->skip = frame - c->in_len;
     c->in_len = 0;
 }

@@ -1,9 +1,8 @@
-/* binconn.h - the binary front end's connections, shared by its two halves (private to
- * server/binary.c and server/binrequests.c).
- *
- * binary.c owns the sockets: it polls them, splits their bytes into frames and hands each
- * frame to sdfd_bin_handle_frame (binrequests.c), which answers it or starts the work that
- * will. Replies go out through a connection's queue (sdfd_bin_enqueue), from any thread. */
+/* binconn.h - the binary front end's connections and their reply queues (binconn.c), used by
+ * binary.c, which owns the sockets (it polls them, splits their bytes into frames and hands
+ * each frame to binrequests.c), and by binrequests.c, which answers a frame or starts the
+ * work that will. Replies go out through a connection's queue (sdfd_bin_enqueue), from any
+ * thread. Private to those three files. */
 #ifndef SDFD_BINCONN_H
 #define SDFD_BINCONN_H
 
@@ -12,8 +11,12 @@
 #include <stdint.h>
 #include <sys/socket.h>
 
-#include "binary.h"
 #include "proto.h"
+#include "server.h"
+
+/* As binary.h declares it (C11 allows the repeat): this header does not include binary.h,
+ * whose module includes this one. */
+typedef struct sdfd_binary sdfd_binary;
 
 typedef struct out_frame {
     struct out_frame *next;
@@ -64,10 +67,5 @@ void sdfd_bin_request_finished(sdfd_binary *b, connection *c);
 
 /* A frame type's route and name, as its requests are counted and logged. */
 void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what);
-
-/* Answer or start one complete frame of connection c (binrequests.c); the payload is valid
- * only during the call. */
-void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *h,
-                           const unsigned char *payload);
 
 #endif

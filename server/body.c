@@ -1,6 +1,7 @@
 /* body.c - query bodies in JSON, octet-stream and npy (see body.h). */
 #include "body.h"
 
+#include "errors.h"
 #include "numtext.h"
 
 #include <ctype.h>
@@ -62,7 +63,7 @@ static void ws(json *j)
 
 static int syntax(json *j, const char *what)
 {
-    return fail(j->err, j->err_cap, SDF_ESYNTAX, "malformed JSON at byte %ld: %s",
+    return fail(j->err, j->err_cap, SDFD_ESYNTAX, "malformed JSON at byte %ld: %s",
                 (long)(j->p - j->begin), what);
 }
 
@@ -79,7 +80,7 @@ static int expect(json *j, char c)
 }
 
 /* After an element of an array or object: 1 if a ',' announces another, 0 if `close` ends
- * it (both consumed), or SDF_ESYNTAX. */
+ * it (both consumed), or SDFD_ESYNTAX. */
 static int list_next(json *j, char close)
 {
     ws(j);
@@ -87,7 +88,7 @@ static int list_next(json *j, char close)
         j->p++;
         return 1;
     }
-    return expect(j, close) ? SDF_ESYNTAX : 0;
+    return expect(j, close) ? SDFD_ESYNTAX : 0;
 }
 
 /* Consume `close` if the list is empty (returns 1), else leave it (returns 0). */
@@ -106,7 +107,7 @@ static int list_empty(json *j, char close)
 static int string(json *j, const char **s, size_t *n)
 {
     if (expect(j, '"'))
-        return SDF_ESYNTAX;
+        return SDFD_ESYNTAX;
     *s = j->p;
     while (j->p < j->end && *j->p != '"') {
         if ((unsigned char)*j->p < 0x20)
@@ -172,9 +173,9 @@ static int skip_value(json *j, int depth)
             return 0;
         do {
             if (object && (string(j, &s, &n) || expect(j, ':')))
-                return SDF_ESYNTAX;
+                return SDFD_ESYNTAX;
             if (skip_value(j, depth + 1))
-                return SDF_ESYNTAX;
+                return SDFD_ESYNTAX;
         } while ((more = list_next(j, close)) == 1);
         return more;
     }
@@ -243,7 +244,7 @@ static int point_element(json *j, int nested)
         if (k && expect(j, ','))
             return j->p < j->end && *j->p == ']'
                        ? fail(j->err, j->err_cap, SDF_EINVAL, "%s", not_three(j, what))
-                       : SDF_ESYNTAX;
+                       : SDFD_ESYNTAX;
         const char *at = j->p;
         if (number(j, &v)) {
             j->p = at;
@@ -256,7 +257,7 @@ static int point_element(json *j, int nested)
     if (j->p < j->end && *j->p == ',')
         return fail(j->err, j->err_cap, SDF_EINVAL, "point %zu has more than 3 numbers",
                     j->count / 3 - 1);
-    return expect(j, ']') ? SDF_ESYNTAX : 0;
+    return expect(j, ']') ? SDFD_ESYNTAX : 0;
 }
 
 /* The elements from j->p up to and through the array's ']'; stops early, returning 0 with
@@ -365,7 +366,7 @@ static int points_array(json *j)
 static int json_object(json *j, sdfd_query_params *params, int *have_points)
 {
     if (expect(j, '{'))
-        return fail(j->err, j->err_cap, SDF_ESYNTAX, "the body must be a JSON object");
+        return fail(j->err, j->err_cap, SDFD_ESYNTAX, "the body must be a JSON object");
     int more = list_empty(j, '}') ? 0 : 1;
     /* The keys we read, each at most once: JSON leaves duplicates undefined, and taking one
      * of two "points" (or both) would answer a question nobody asked. */
@@ -376,7 +377,7 @@ static int json_object(json *j, sdfd_query_params *params, int *have_points)
         size_t n, sn;
         int rc;
         if (string(j, &key, &n) || expect(j, ':'))
-            return SDF_ESYNTAX;
+            return SDFD_ESYNTAX;
         for (unsigned k = 0; k < sizeof read_keys / sizeof read_keys[0]; k++) {
             if (strlen(read_keys[k]) != n || memcmp(key, read_keys[k], n))
                 continue;
@@ -448,7 +449,7 @@ static int parse_npy(char *body, size_t len, size_t max_points, float **points, 
     sdf_diag diag;
     int rc = sdf_npy_parse(body, len, &info, &diag);
     if (rc)
-        return fail(err, cap, rc == SDF_ETRUNC || rc == SDF_EPARSE ? SDF_ESYNTAX : rc, "npy: %s",
+        return fail(err, cap, rc == SDF_ETRUNC || rc == SDF_EPARSE ? SDFD_ESYNTAX : rc, "npy: %s",
                     diag.message);
     if (info.ndim != 2 || info.shape[1] != 3)
         return fail(err, cap, SDF_EINVAL, "npy: points must have shape (N, 3)");
@@ -484,7 +485,7 @@ int sdfd_parse_points(sdfd_form form, char *body, size_t len, size_t max_points,
     if (form == SDFD_FORM_NPY)
         return parse_npy(body, len, max_points, points, count, owned, err, err_cap);
     if (len % 12)
-        return fail(err, err_cap, SDF_ESYNTAX,
+        return fail(err, err_cap, SDFD_ESYNTAX,
                     "octet-stream body of %zu bytes is not a whole number of 12-byte points", len);
     if (len / 12 > max_points)
         return fail(err, err_cap, SDF_ELIMIT, "%zu points, more than the limit of %zu", len / 12,

@@ -1,12 +1,11 @@
 /* http.c - the HTTP API on libmicrohttpd (routes in docs/api.md): admission, mesh queries
- * and uploads, the simple routes and MHD's callbacks; the volume routes are in httpvolumes.c,
- * and what both share in httpreq.h.
+ * and uploads, the simple routes and MHD's callbacks. The volume routes are httpvolumes.c's,
+ * a query's admission is the handlers' (queries.h) as for the binary protocol, and how a
+ * request is answered is httpreq.c's; this file calls them, and none of them calls back.
  *
  * MHD's threads only do I/O: they receive bodies, parse them, format replies. Geometry runs
  * elsewhere: a query becomes a batcher job and a mesh upload a loader thread, and the
- * connection is suspended (MHD_suspend_connection) until that work resumes it. The
- * connection is suspended before the work is handed over, so the resume can never come
- * first.
+ * connection is suspended (sdfd_http_wait) until that work resumes it.
  *
  * Each request walks the same steps: `admit` (route, method, auth, Content-Length, all
  * checked from the headers before any body byte is read), `receive` (append the body, never
@@ -16,7 +15,6 @@
 
 #include <cjson/cJSON.h>
 #include <microhttpd.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,93 +23,21 @@
 #include <unistd.h>
 
 #include "body.h"
+#include "errors.h"
 #include "filterparams.h"
 #include "httpreq.h"
+#include "httpvolumes.h"
 #include "log.h"
+#include "net.h"
+
+struct sdfd_http {
+    sdfd_server *srv;
+    struct MHD_Daemon *daemon;
+    int listen_fd;
+    int quiesced; /* listen_fd handed back by MHD_quiesce_daemon: ours to close */
+};
 
 typedef sdfd_http_request request;
-
-/* ---- responses --------------------------------------------------------------------------- */
-
-static const char *allowed_methods(sdfd_route route)
-{
-    switch (route) {
-    case SDFD_ROUTE_MESH:
-    case SDFD_ROUTE_VOLUME:
-        return "GET, HEAD, PUT, DELETE"; /* HEAD wherever GET: MHD drops the body */
-    case SDFD_ROUTE_QUERY:
-    case SDFD_ROUTE_BAKE:
-    case SDFD_ROUTE_VOLUME_QUERY:
-        return "POST";
-    case SDFD_ROUTE_JOB:
-        return "GET, HEAD, DELETE";
-    default:
-        return "GET, HEAD";
-    }
-}
-
-/* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
-enum MHD_Result sdfd_http_queue(request *req, int status, const char *type, struct MHD_Response *r,
-                                size_t len, const sdfd_http_header *extra, int n_extra)
-{
-    MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type);
-    for (int i = 0; i < n_extra; i++)
-        MHD_add_response_header(r, extra[i].name, extra[i].value);
-    if (status == MHD_HTTP_UNAUTHORIZED)
-        MHD_add_response_header(r, MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
-    if (status == MHD_HTTP_METHOD_NOT_ALLOWED)
-        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW, allowed_methods(req->route));
-    if (atomic_load(&req->http->srv->draining))
-        MHD_add_response_header(r, MHD_HTTP_HEADER_CONNECTION, "close");
-    enum MHD_Result ok = MHD_queue_response(req->conn, (unsigned)status, r);
-    MHD_destroy_response(r);
-    req->answered = 1;
-    req->status = status;
-    req->bytes_out = len;
-    return ok;
-}
-
-enum MHD_Result sdfd_http_send(request *req, int status, const char *type, char *body, size_t len,
-                               const sdfd_http_header *extra, int n_extra)
-{
-    struct MHD_Response *r = MHD_create_response_from_buffer(len, body, MHD_RESPMEM_MUST_FREE);
-    if (!r) {
-        free(body);
-        return MHD_NO;
-    }
-    return sdfd_http_queue(req, status, type, r, len, extra, n_extra);
-}
-
-enum MHD_Result sdfd_http_buffer(request *req, int status, const char *type, char *body, size_t len,
-                                 const char *count)
-{
-    sdfd_http_header h = {"X-SDF-Count", ""};
-    if (count)
-        snprintf(h.value, sizeof h.value, "%s", count);
-    return sdfd_http_send(req, status, type, body, len, &h, count ? 1 : 0);
-}
-
-enum MHD_Result sdfd_http_json(request *req, int status, cJSON *json)
-{
-    char *text = cJSON_PrintUnformatted(json);
-    cJSON_Delete(json);
-    if (!text)
-        return MHD_NO;
-    return sdfd_http_buffer(req, status, "application/json", text, strlen(text), NULL);
-}
-
-enum MHD_Result sdfd_http_error(request *req, int code, const char *fmt, ...)
-{
-    char message[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(message, sizeof message, fmt, ap);
-    va_end(ap);
-    cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
-    cJSON_AddStringToObject(err, "code", sdf_errname(code));
-    cJSON_AddStringToObject(err, "message", message);
-    return sdfd_http_json(req, sdf_http_status(code), root);
-}
 
 static cJSON *report_json(const char *name, const sdf_mesh *mesh)
 {
@@ -184,7 +110,7 @@ static int parse_route(request *req, const char *url)
 
 static int method_allowed(const request *req)
 {
-    const char *list = allowed_methods(req->route), *m = req->method;
+    const char *list = sdfd_http_allowed_methods(req->route), *m = req->method;
     size_t n = strlen(m);
     for (const char *p = strstr(list, m); p; p = strstr(p + 1, m))
         if ((p == list || p[-1] == ' ') && (p[n] == ',' || p[n] == '\0'))
@@ -194,7 +120,7 @@ static int method_allowed(const request *req)
 
 static int authorized(const request *req)
 {
-    const sdfd_config *cfg = &req->http->srv->cfg;
+    const sdfd_config *cfg = &req->srv->cfg;
     int needs = !strcmp(req->method, "PUT") || !strcmp(req->method, "DELETE") ||
                 req->route == SDFD_ROUTE_BAKE ||
                 (cfg->auth_queries &&
@@ -210,7 +136,7 @@ static int authorized(const request *req)
 /* Decide from the headers alone; returns MHD_YES with a response queued if refused. */
 static enum MHD_Result admit(request *req, const char *url)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     int route = parse_route(req, url);
     if (route == -1)
         return sdfd_http_error(req, SDF_ENOTFOUND, "no route %s", url);
@@ -219,14 +145,14 @@ static enum MHD_Result admit(request *req, const char *url)
                                "names are 1-255 characters of A-Z a-z 0-9 . _ - "
                                "and do not start with '.'");
     if (!method_allowed(req))
-        return sdfd_http_error(req, SDF_EMETHOD, "%s is not allowed on %s", req->method,
+        return sdfd_http_error(req, SDFD_EMETHOD, "%s is not allowed on %s", req->method,
                                req->route_text);
     if (!authorized(req))
-        return sdfd_http_error(req, SDF_EUNAUTHORIZED,
+        return sdfd_http_error(req, SDFD_EUNAUTHORIZED,
                                "this request needs 'Authorization: Bearer <token>'");
     if (atomic_load(&srv->draining) && req->route != SDFD_ROUTE_HEALTH &&
         req->route != SDFD_ROUTE_READY && req->route != SDFD_ROUTE_METRICS)
-        return sdfd_http_error(req, SDF_EUNAVAILABLE, "the server is shutting down");
+        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "the server is shutting down");
     int has_body = !strcmp(req->method, "POST") || !strcmp(req->method, "PUT");
     if (!has_body)
         return MHD_YES;
@@ -235,7 +161,7 @@ static enum MHD_Result admit(request *req, const char *url)
     char *end;
     unsigned long long declared = cl ? strtoull(cl, &end, 10) : 0;
     if (!cl || !*cl || *end)
-        return sdfd_http_error(req, SDF_ELENGTH, "send the body with a Content-Length header");
+        return sdfd_http_error(req, SDFD_ELENGTH, "send the body with a Content-Length header");
     if (declared > srv->cfg.max_body_bytes)
         return sdfd_http_error(req, SDF_ELIMIT, "the body is %llu bytes, over the limit of %zu",
                                declared, srv->cfg.max_body_bytes);
@@ -243,7 +169,7 @@ static enum MHD_Result admit(request *req, const char *url)
      * counted against the budget of all connections until the request completes. */
     req->declared = (size_t)declared;
     if (sdfd_buffer_reserve(srv, req->declared + 1))
-        return sdfd_http_error(req, SDF_EBUSY, SDFD_BUFFER_BUSY_FMT, srv->cfg.max_buffered_bytes);
+        return sdfd_http_error(req, SDFD_EBUSY, SDFD_BUFFER_BUSY_FMT, srv->cfg.max_buffered_bytes);
     req->reserved = req->declared + 1;
     req->body = malloc(req->declared + 1);
     if (!req->body)
@@ -256,20 +182,7 @@ static enum MHD_Result admit(request *req, const char *url)
 
 static void query_done(sdfd_job *job)
 {
-    request *req = job->user;
-    atomic_store(&req->finished, 1);
-    MHD_resume_connection(req->conn);
-}
-
-/* A parameter from the body (JSON) or else the URL query string. */
-const char *sdfd_http_param(request *req, const char *body_value, size_t n, const char *key,
-                            char *buf, size_t cap)
-{
-    if (body_value) {
-        snprintf(buf, cap, "%.*s", (int)(n < cap ? n : cap - 1), body_value);
-        return buf;
-    }
-    return MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, key);
+    sdfd_http_resume(job->user);
 }
 
 /* URL argument `name` of a connection (for sdfd_filter_from_strings). */
@@ -278,50 +191,25 @@ static const char *url_argument(void *conn, const char *name)
     return MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, name);
 }
 
-int sdfd_http_reply_form(request *req, sdfd_form request_form)
+static enum MHD_Result reply_query(request *req)
 {
-    const char *accept = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
-                                                     MHD_HTTP_HEADER_ACCEPT);
-    int f = sdfd_form_from_type(accept);
-    return f >= 0 ? f : (int)request_form;
+    if (req->query.job.status)
+        return sdfd_http_error(req, req->query.job.status, "query failed: %s",
+                               req->query.job.message);
+    return sdfd_http_results(req);
 }
 
-/* Parse a query body of any form into req->points_buf. Returns 0, or -1 with the error
- * queued and its MHD result in *refused. */
-int sdfd_http_read_points(request *req, sdfd_form *form, sdfd_query_params *params, size_t *count,
-                          enum MHD_Result *refused)
-{
-    const char *type = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
-                                                   MHD_HTTP_HEADER_CONTENT_TYPE);
-    int f = sdfd_form_from_type(type);
-    if (f < 0) {
-        *refused = sdfd_http_error(req, SDF_EFORMAT,
-                                   "Content-Type must be application/json, "
-                                   "application/octet-stream or application/x-npy");
-        return -1;
-    }
-    *form = (sdfd_form)f;
-    *params = (sdfd_query_params){0};
-    char err[256];
-    int rc = sdfd_parse_points(*form, req->body, req->len, req->http->srv->cfg.max_points, params,
-                               &req->points_buf, count, &req->points_owned, err, sizeof err);
-    if (rc) {
-        *refused = sdfd_http_error(req, rc, "%s", err);
-        return -1;
-    }
-    return 0;
-}
-
+/* The HTTP spelling of a query (body, URL arguments, Accept) into the handler's terms. */
 static enum MHD_Result start_query(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     sdfd_form form;
     sdfd_query_params params;
     size_t count;
     enum MHD_Result refused;
     if (sdfd_http_read_points(req, &form, &params, &count, &refused))
         return refused;
-    char err[256], mode_buf[32], sign_buf[32];
+    char err[300], mode_buf[32], sign_buf[32];
     int rc;
     const char *mode =
         sdfd_http_param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
@@ -338,110 +226,33 @@ static enum MHD_Result start_query(request *req)
         return sdfd_http_error(req, SDF_EINVAL,
                                "unknown sign '%s' (auto, pseudonormal, winding, raycast, none)",
                                sign);
-    sdf_filter_options filter = {0};
+    sdfd_query *q = &req->query;
+    *q = (sdfd_query){.mesh_name = req->name, .mesh_name_len = strlen(req->name),
+                      .job = {.mode = m, .sign = s, .points = req->points_buf, .count = count,
+                              .done = query_done, .user = req}};
     char volume_name[SDFD_VOLUME_NAME_MAX + 1] = "";
     if (sdf_proto_mode_filtered(m)) {
-        rc = params.filter ? sdfd_filter_from_json(params.filter, params.filter_len, &filter,
+        sdf_filter_options *filter = &q->job.filter;
+        rc = params.filter ? sdfd_filter_from_json(params.filter, params.filter_len, filter,
                                                    volume_name, err, sizeof err)
-                           : sdfd_filter_from_strings(url_argument, req->conn, &filter,
+                           : sdfd_filter_from_strings(url_argument, req->conn, filter,
                                                       volume_name, err, sizeof err);
         if (rc)
             return sdfd_http_error(req, rc, "%s", err);
-        if (volume_name[0]) {
-            req->volume = sdfd_registry_get(srv->registry, volume_name, strlen(volume_name));
-            if (!req->volume)
-                return sdfd_http_error(req, SDF_ENOTFOUND, "no smoothing mesh named '%s'",
-                                       volume_name);
-            filter.smooth.mesh = req->volume;
-        }
+        if (volume_name[0])
+            q->smoothing_name = volume_name, q->smoothing_name_len = strlen(volume_name);
     }
-    sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
-    if (!mesh)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
-    if (sdf_proto_mode_filtered(m) &&
-        (rc = sdfd_filter_validate(mesh, &filter, count,
-                                   SDFD_FILTER_QUERIES_PER_POINT_LIMIT * srv->cfg.max_points, err,
-                                   sizeof err))) {
-        sdf_mesh_release(mesh);
+    if ((rc = sdfd_query_admit(srv, q, err, sizeof err)))
         return sdfd_http_error(req, rc, "%s", err);
-    }
     req->points = count;
     req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
-    if (sdfd_reply_init(&req->reply, req->reply_form, m, count)) {
-        sdf_mesh_release(mesh);
+    if (sdfd_reply_init(&req->reply, req->reply_form, m, count))
         return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
-    }
-    req->job = (sdfd_job){.mesh = mesh, .mode = m, .sign = s, .filter = filter,
-                          .points = req->points_buf,
-                          .count = count, .words = req->reply.words, .done = query_done,
-                          .user = req};
-    req->work = WORK_QUERY;
-    MHD_suspend_connection(req->conn); /* before submitting: the resume cannot come first */
-    size_t bad = 0;
-    rc = sdfd_batcher_submit(srv->batcher, &req->job, &bad);
-    if (rc) {
-        req->work = WORK_NONE;
-        MHD_resume_connection(req->conn);
-        if (rc == SDF_ENONFINITE)
-            return sdfd_http_error(req, rc, SDFD_BAD_POINT_MESSAGE, bad);
-        if (rc == SDF_EBUSY)
-            return sdfd_http_error(req, rc, "more than %zu points are waiting; retry later",
-                                   srv->cfg.max_queued_points);
-        return sdfd_http_error(req, rc, "%s", sdf_strerror(rc));
-    }
-    sdfd_metrics_points(srv->metrics, count);
-    return MHD_YES;
-}
-
-/* The filled req->reply in the reply form, with the point count in X-SDF-Count. */
-enum MHD_Result sdfd_http_results(request *req)
-{
-    size_t len;
-    char *body = sdfd_reply_render(&req->reply, req->reply_form, &len);
-    if (!body)
-        return sdfd_http_error(req, SDF_ENOMEM, "out of memory formatting %zu results",
-                               req->points);
-    char count[32];
-    snprintf(count, sizeof count, "%zu", req->points);
-    return sdfd_http_buffer(req, 200, sdfd_form_type(req->reply_form), body, len, count);
-}
-
-static enum MHD_Result reply_query(request *req)
-{
-    if (req->job.status)
-        return sdfd_http_error(req, req->job.status, "query failed: %s", req->job.message);
-    return sdfd_http_results(req);
-}
-
-/* ---- work on a thread of its own ---------------------------------------------------------- */
-
-static void *thread_main(void *arg)
-{
-    request *req = arg;
-    req->run(req);
-    atomic_store(&req->finished, 1);
-    MHD_resume_connection(req->conn);
-    return NULL;
-}
-
-/* Suspend the connection and run `run` on a new thread; `respond` answers after the resume. */
-enum MHD_Result sdfd_http_start_thread(request *req, sdfd_http_work run,
-                                       enum MHD_Result (*respond)(request *req))
-{
-    pthread_t t;
-    pthread_attr_t attr;
-    pthread_attr_init(&attr);
-    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
-    req->work = WORK_THREAD;
-    req->run = run;
-    req->respond = respond;
-    MHD_suspend_connection(req->conn);
-    int failed = pthread_create(&t, &attr, thread_main, req);
-    pthread_attr_destroy(&attr);
-    if (failed) {
-        req->work = WORK_NONE;
-        MHD_resume_connection(req->conn);
-        return sdfd_http_error(req, SDF_EUNAVAILABLE, "cannot start a worker thread");
+    q->job.words = req->reply.words;
+    sdfd_http_wait(req, reply_query);
+    if ((rc = sdfd_query_submit(srv, q, err, sizeof err))) {
+        sdfd_http_unwait(req);
+        return sdfd_http_error(req, rc, "%s", err);
     }
     return MHD_YES;
 }
@@ -452,7 +263,7 @@ static enum MHD_Result reply_upload(request *req);
 
 static void load_upload(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     sdf_mesh_options opts = {.max_triangles = srv->cfg.max_total_triangles};
     if (req->format[0] && sdf_format_from_name(req->format, &opts.format)) {
         req->work_rc = SDF_EFORMAT;
@@ -500,7 +311,7 @@ static enum MHD_Result status_reply(request *req, int status, const char *state)
 static enum MHD_Result list_meshes(request *req)
 {
     sdfd_entry *list;
-    size_t n = sdfd_registry_list(req->http->srv->registry, &list);
+    size_t n = sdfd_registry_list(req->srv->registry, &list);
     cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "meshes");
     for (size_t i = 0; i < n; i++) {
         sdf_mesh_report r;
@@ -518,7 +329,7 @@ static enum MHD_Result list_meshes(request *req)
 
 static enum MHD_Result mesh_route(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     if (!strcmp(req->method, "PUT"))
         return start_upload(req);
     if (!strcmp(req->method, "DELETE")) {
@@ -537,7 +348,7 @@ static enum MHD_Result mesh_route(request *req)
 
 static enum MHD_Result dispatch(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     switch (req->route) {
     case SDFD_ROUTE_HEALTH:
         return status_reply(req, 200, "ok");
@@ -595,7 +406,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         req = calloc(1, sizeof *req);
         if (!req)
             return MHD_NO;
-        req->http = http;
+        req->srv = http->srv;
         req->conn = conn;
         req->method = method;
         req->route = SDFD_ROUTE_OTHER;
@@ -619,10 +430,10 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         *upload_size = 0;
         return MHD_YES;
     }
-    if (req->work != WORK_NONE) { /* resumed: the work is done */
+    if (req->waiting) { /* resumed: the work is done */
         if (!atomic_load(&req->finished))
             return MHD_YES;
-        return req->work == WORK_QUERY ? reply_query(req) : req->respond(req);
+        return req->respond(req);
     }
     return dispatch(req);
 }
@@ -634,7 +445,7 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
     request *req = *state;
     if (!req)
         return;
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     double seconds = sdfd_now() - req->start;
     int status = req->answered ? req->status : 499; /* client went away */
     sdfd_metrics_request(srv->metrics, req->route, status, seconds);
@@ -642,9 +453,9 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
         req->route != SDFD_ROUTE_METRICS)
         sdfd_log_request("http", req->method, req->route_text, status, req->points, seconds * 1e6,
                          req->len, req->bytes_out);
-    sdf_mesh_release(req->job.mesh);
+    sdfd_query_release(&req->query);
+    sdfd_volume_query_release(&req->volume_query);
     sdf_mesh_release(req->uploaded);
-    sdf_mesh_release(req->volume);
     sdfd_volume_release(req->stored);
     free(req->out_body);
     if (req->points_owned)

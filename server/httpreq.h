@@ -1,6 +1,7 @@
-/* httpreq.h - what the two halves of the HTTP front end share (http.c: admission, mesh
- * queries and uploads, MHD callbacks; httpvolumes.c: bakes, jobs and volumes): the state of
- * one request and the helpers that answer it. Not used outside those two files. */
+/* httpreq.h - one HTTP request's state and how to answer it: the responses, the query-body
+ * helpers and the wait for work done elsewhere. Used by the route modules (http.c: admission,
+ * mesh routes and MHD's callbacks; httpvolumes.c: bakes, jobs and volumes), which call it and
+ * never the reverse. */
 #ifndef SDFD_HTTPREQ_H
 #define SDFD_HTTPREQ_H
 
@@ -9,22 +10,12 @@
 #include <stdatomic.h>
 
 #include "body.h"
-#include "http.h"
-
-struct sdfd_http {
-    sdfd_server *srv;
-    struct MHD_Daemon *daemon;
-    int listen_fd;
-    int quiesced; /* listen_fd handed back by MHD_quiesce_daemon: ours to close */
-};
-
-/* Work a request waits for: a batcher job, or a thread of its own running `run` (uploads,
- * volume queries and file encodings: not geometry for the batcher, but too slow for MHD's
- * I/O threads). */
-typedef enum sdfd_http_wait { WORK_NONE, WORK_QUERY, WORK_THREAD } sdfd_http_wait;
+#include "queries.h"
+#include "server.h"
 
 typedef struct sdfd_http_request sdfd_http_request;
 typedef void (*sdfd_http_work)(sdfd_http_request *req);
+typedef enum MHD_Result (*sdfd_http_respond)(sdfd_http_request *req);
 
 /* A response header beyond the type and count. */
 typedef struct sdfd_http_header {
@@ -33,7 +24,7 @@ typedef struct sdfd_http_header {
 } sdfd_http_header;
 
 struct sdfd_http_request {
-    sdfd_http *http;
+    sdfd_server *srv;
     struct MHD_Connection *conn;
     const char *method;
     sdfd_route route;
@@ -47,31 +38,33 @@ struct sdfd_http_request {
     char *body;
     size_t len, declared;
     size_t reserved;         /* of the server's --max-buffered-bytes, released at completion */
-    /* background work; `finished` is set by the worker before it resumes the connection */
-    sdfd_http_wait work;
+    /* work done elsewhere (sdfd_http_wait): `respond` answers once the worker has set
+     * `finished` and resumed the connection */
+    int waiting;
     atomic_int finished;
-    sdfd_job job;
+    sdfd_http_respond respond;
+    sdfd_query query;             /* a mesh query's; its references released at completion */
+    sdfd_volume_query volume_query;
     float *points_buf;
     int points_owned;
     sdfd_form reply_form;
     sdfd_reply reply;
     char format[16];              /* ?format= of an upload, copied on the MHD thread */
     sdf_mesh *uploaded;
-    sdf_mesh *volume; /* a filtered query's smoothing mesh, held until the request ends */
     int work_rc, replaced;        /* a thread's result: 0 or SDF_E* (message in diag) */
     sdf_diag diag;
-    /* WORK_THREAD: `run` leaves a status (0 or SDF_E*, message in diag) and a body */
+    /* sdfd_http_start_thread: `run` leaves a status (0 or SDF_E*, message in diag), a body */
     sdfd_http_work run;
-    enum MHD_Result (*respond)(
-        sdfd_http_request *req);  /* back on the MHD thread: queue the response */
-    sdfd_stored_volume *stored;   /* a volume query's or download's volume */
-    sdf_volume_filter interpolation;
+    sdfd_stored_volume *stored;   /* a download's volume */
     sdf_volume_file file_type;
     char *out_body;
     size_t out_len;
 };
 
-/* ---- responses (http.c) ---- */
+/* ---- responses ---- */
+
+/* The methods a route takes, as an Allow header lists them. */
+const char *sdfd_http_allowed_methods(sdfd_route route);
 
 /* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
 enum MHD_Result sdfd_http_queue(sdfd_http_request *req, int status, const char *type,
@@ -91,7 +84,7 @@ enum MHD_Result sdfd_http_error(sdfd_http_request *req, int code, const char *fm
 /* The filled req->reply in the reply form, with the point count in X-SDF-Count. */
 enum MHD_Result sdfd_http_results(sdfd_http_request *req);
 
-/* ---- query bodies (http.c) ---- */
+/* ---- query bodies ---- */
 
 /* A parameter from the body (JSON) or else the URL query string. */
 const char *sdfd_http_param(sdfd_http_request *req, const char *body_value, size_t n,
@@ -103,18 +96,17 @@ int sdfd_http_reply_form(sdfd_http_request *req, sdfd_form request_form);
 int sdfd_http_read_points(sdfd_http_request *req, sdfd_form *form, sdfd_query_params *params,
                           size_t *count, enum MHD_Result *refused);
 
+/* ---- work done elsewhere ---- */
+
+/* Suspend the connection before handing work over (so the resume cannot come first);
+ * `respond` answers once the worker has called sdfd_http_resume. */
+void sdfd_http_wait(sdfd_http_request *req, sdfd_http_respond respond);
+/* The handover failed: resume at once, to answer now. */
+void sdfd_http_unwait(sdfd_http_request *req);
+/* The worker's last word on the request: any thread. */
+void sdfd_http_resume(sdfd_http_request *req);
 /* Suspend the connection and run `run` on a new thread; `respond` answers after the resume. */
 enum MHD_Result sdfd_http_start_thread(sdfd_http_request *req, sdfd_http_work run,
-                                       enum MHD_Result (*respond)(sdfd_http_request *req));
-
-/* ---- the volume routes (httpvolumes.c) ---- */
-
-enum MHD_Result sdfd_http_bake(sdfd_http_request *req);         /* POST /v1/meshes/{name}/bake */
-enum MHD_Result sdfd_http_jobs(sdfd_http_request *req);         /* GET /v1/jobs */
-enum MHD_Result sdfd_http_job(sdfd_http_request *req);          /* GET, DELETE /v1/jobs/{id} */
-enum MHD_Result sdfd_http_volumes(sdfd_http_request *req);      /* GET /v1/volumes */
-enum MHD_Result sdfd_http_volume(sdfd_http_request *req);       /* GET, PUT, DELETE .../{name} */
-enum MHD_Result sdfd_http_volume_data(sdfd_http_request *req);  /* GET .../{name}/data */
-enum MHD_Result sdfd_http_volume_query(sdfd_http_request *req); /* POST .../{name}/query */
+                                       sdfd_http_respond respond);
 
 #endif

@@ -1,7 +1,7 @@
 /* httpvolumes.c - the HTTP routes of baked volumes (docs/api.md, "Volumes"): bake jobs
  * (volumes.h runs them), job status and cancellation, volume metadata, downloads (npy and
- * raw streamed from the stored volume, EXR compressed on a worker thread), uploads and
- * queries (evaluated on a worker thread: arithmetic, not the batcher's geometry). */
+ * raw streamed from the stored volume, EXR compressed on a worker thread), uploads, and
+ * queries (the handler's, queries.h, as for the binary protocol). */
 #include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
@@ -9,7 +9,8 @@
 #include <string.h>
 
 #include "bakeparams.h"
-#include "httpreq.h"
+#include "errors.h"
+#include "httpvolumes.h"
 #include "log.h"
 
 typedef sdfd_http_request request;
@@ -31,7 +32,7 @@ static cJSON *job_json(const sdfd_job_status *s)
         cJSON_AddBoolToObject(o, "cancel_requested", 1);
     if (s->state == SDFD_JOB_FAILED) {
         cJSON *err = cJSON_AddObjectToObject(o, "error");
-        cJSON_AddStringToObject(err, "code", sdf_errname(s->error));
+        cJSON_AddStringToObject(err, "code", sdfd_errname(s->error));
         cJSON_AddStringToObject(err, "message", s->message);
     }
     return o;
@@ -39,7 +40,7 @@ static cJSON *job_json(const sdfd_job_status *s)
 
 enum MHD_Result sdfd_http_bake(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     sdfd_bake_request bake; /* the body is JSON whatever its Content-Type says (curl -d) */
     sdfd_bake_names names;
     char err[512];
@@ -84,7 +85,7 @@ enum MHD_Result sdfd_http_bake(request *req)
 
 enum MHD_Result sdfd_http_job(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     sdfd_job_status s;
     int deleting = !strcmp(req->method, "DELETE");
     int rc = deleting ? sdfd_volumes_cancel(srv->volumes, req->name, &s)
@@ -97,7 +98,7 @@ enum MHD_Result sdfd_http_job(request *req)
 enum MHD_Result sdfd_http_jobs(request *req)
 {
     sdfd_job_status *jobs;
-    size_t n = sdfd_volumes_jobs(req->http->srv->volumes, &jobs);
+    size_t n = sdfd_volumes_jobs(req->srv->volumes, &jobs);
     cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "jobs");
     for (size_t i = 0; i < n; i++)
         cJSON_AddItemToArray(arr, job_json(&jobs[i]));
@@ -122,7 +123,7 @@ static cJSON *volume_json(const sdfd_stored_volume *s)
 enum MHD_Result sdfd_http_volumes(request *req)
 {
     sdfd_stored_volume **list;
-    size_t n = sdfd_volumes_list(req->http->srv->volumes, &list);
+    size_t n = sdfd_volumes_list(req->srv->volumes, &list);
     cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "volumes");
     for (size_t i = 0; i < n; i++)
         cJSON_AddItemToArray(arr, volume_json(list[i]));
@@ -152,7 +153,7 @@ static void load_volume(request *req)
                  exr.message);
     }
     if (!req->work_rc) {
-        req->work_rc = sdfd_volumes_put(req->http->srv->volumes, req->name, volume, "",
+        req->work_rc = sdfd_volumes_put(req->srv->volumes, req->name, volume, "",
                                         &req->replaced);
         if (req->work_rc)
             snprintf(req->diag.message, sizeof req->diag.message,
@@ -164,7 +165,7 @@ static enum MHD_Result reply_volume_upload(request *req)
 {
     if (req->work_rc)
         return sdfd_http_error(req, req->work_rc, "%s", req->diag.message);
-    sdfd_stored_volume *s = sdfd_volumes_get(req->http->srv->volumes, req->name);
+    sdfd_stored_volume *s = sdfd_volumes_get(req->srv->volumes, req->name);
     if (!s) /* deleted in between */
         return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
     sdfd_log("info", "volume_loaded", "%s: %s by upload", req->name,
@@ -176,7 +177,7 @@ static enum MHD_Result reply_volume_upload(request *req)
 
 enum MHD_Result sdfd_http_volume(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     if (!strcmp(req->method, "PUT"))
         return sdfd_http_start_thread(req, load_volume, reply_volume_upload);
     if (!strcmp(req->method, "DELETE")) {
@@ -303,7 +304,7 @@ enum MHD_Result sdfd_http_volume_data(request *req)
     const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
     if (sdf_volume_file_from_name(format ? format : "exr", &req->file_type))
         return sdfd_http_error(req, SDF_EINVAL, "unknown format '%s' (exr, npy, raw)", format);
-    req->stored = sdfd_volumes_get(req->http->srv->volumes, req->name);
+    req->stored = sdfd_volumes_get(req->srv->volumes, req->name);
     if (!req->stored)
         return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
     if (req->file_type != SDF_VOLUME_EXR)
@@ -312,55 +313,55 @@ enum MHD_Result sdfd_http_volume_data(request *req)
                                   reply_volume_data); /* compression takes a while */
 }
 
-static void evaluate_volume(request *req)
+static void volume_query_done(sdfd_volume_query *vq)
 {
-    size_t bad = 0;
-    req->work_rc = sdfd_volume_eval_words(req->stored->volume, req->points_buf, req->points,
-                                          req->interpolation, req->reply.mode == SDF_MODE_GRADIENT,
-                                          req->reply.words, &bad);
-    if (req->work_rc == SDF_ENONFINITE)
-        snprintf(req->diag.message, sizeof req->diag.message,
-                 "point %zu has a NaN or infinite coordinate", bad);
-    else if (req->work_rc)
-        snprintf(req->diag.message, sizeof req->diag.message, "%s", sdf_strerror(req->work_rc));
+    sdfd_http_resume(vq->user);
 }
 
 static enum MHD_Result reply_volume_query(request *req)
 {
-    if (req->work_rc)
-        return sdfd_http_error(req, req->work_rc, "%s", req->diag.message);
+    if (req->volume_query.status)
+        return sdfd_http_error(req, req->volume_query.status, "%s", req->volume_query.message);
     return sdfd_http_results(req);
 }
 
 enum MHD_Result sdfd_http_volume_query(request *req)
 {
-    sdfd_server *srv = req->http->srv;
+    sdfd_server *srv = req->srv;
     sdfd_form form;
     sdfd_query_params params;
     size_t count;
     enum MHD_Result refused;
     if (sdfd_http_read_points(req, &form, &params, &count, &refused))
         return refused;
-    char mode_buf[32], interp_buf[32];
+    char err[300], mode_buf[32], interp_buf[32];
     const char *mode =
         sdfd_http_param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
     const char *interp = sdfd_http_param(req, params.interpolation, params.interpolation_len,
                                          "interpolation", interp_buf, sizeof interp_buf);
-    int gradient = 0;
+    int gradient = 0, rc;
     if (mode && strcmp(mode, "value") && !(gradient = !strcmp(mode, "gradient")))
         return sdfd_http_error(req, SDF_EINVAL, "unknown volume mode '%s' (value, gradient)", mode);
-    req->interpolation = SDF_VOLUME_TRILINEAR;
-    if (interp && sdf_volume_filter_from_name(interp, &req->interpolation))
+    sdfd_volume_query *vq = &req->volume_query;
+    *vq = (sdfd_volume_query){.volume_name = req->name, .volume_name_len = strlen(req->name),
+                              .interpolation = SDF_VOLUME_TRILINEAR, .gradient = gradient,
+                              .points = req->points_buf, .count = count,
+                              .done = volume_query_done, .user = req};
+    if (interp && sdf_volume_filter_from_name(interp, &vq->interpolation))
         return sdfd_http_error(req, SDF_EINVAL, "unknown interpolation '%s' (trilinear, nearest)",
                                interp);
-    req->stored = sdfd_volumes_get(srv->volumes, req->name);
-    if (!req->stored)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    if ((rc = sdfd_volume_query_admit(srv, vq, err, sizeof err)))
+        return sdfd_http_error(req, rc, "%s", err);
     req->points = count;
     req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
     if (sdfd_reply_init(&req->reply, req->reply_form,
                         gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count))
         return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
-    sdfd_metrics_points(srv->metrics, count);
-    return sdfd_http_start_thread(req, evaluate_volume, reply_volume_query);
+    vq->words = req->reply.words;
+    sdfd_http_wait(req, reply_volume_query);
+    if ((rc = sdfd_volume_query_start(srv, vq, err, sizeof err))) {
+        sdfd_http_unwait(req);
+        return sdfd_http_error(req, rc, "%s", err);
+    }
+    return MHD_YES;
 }

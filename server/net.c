@@ -1,4 +1,6 @@
 /* net.c - listening sockets for both front ends. */
+#include "net.h"
+
 #include <errno.h>
 #include <netdb.h>
 #include <netinet/in.h>
@@ -6,8 +8,8 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "config.h"
 #include "log.h"
-#include "server.h"
 
 int sdfd_listen(const char *addr, int *port)
 {

@@ -49,8 +49,4 @@ static inline void sdfd_buffer_release(sdfd_server *srv, size_t n)
     atomic_fetch_sub(&srv->buffered, n);
 }
 
-/* Open a listening TCP socket on "HOST:PORT"; returns the fd (and the bound port in *port)
- * or -1 after logging why. */
-int sdfd_listen(const char *addr, int *port);
-
 #endif

@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "batcher.h" /* sdfd_now */
+#include "errors.h"
 #include "log.h"
 
 typedef struct job {
@@ -318,7 +319,7 @@ static void *run_job(void *arg)
     if (j->status.state == SDFD_JOB_FAILED) {
         j->status.error = rc;
         snprintf(j->status.message, sizeof j->status.message, "%s",
-                 diag.message[0] ? diag.message : sdf_strerror(rc));
+                 diag.message[0] ? diag.message : sdfd_strerror(rc));
     }
     if (!rc)
         atomic_store(&j->progress, 1.0);
@@ -404,14 +405,14 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
     size_t volume = rc ? 0 : volume_bytes(&planned), need = volume + working;
     pthread_mutex_lock(&v->lock);
     if (!rc && v->closing)
-        rc = SDF_EUNAVAILABLE, snprintf(err, err_cap, "the server is shutting down");
+        rc = SDFD_EUNAVAILABLE, snprintf(err, err_cap, "the server is shutting down");
     if (!rc && v->bytes + v->reserved + need > v->max_bytes)
         rc = SDF_ELIMIT, snprintf(err, err_cap,
                                   "the bake needs %zu bytes (%zu for the volume, %zu to work in); "
                                   "%zu of --max-volume-bytes %zu are held or promised",
                                   need, volume, working, v->bytes + v->reserved, v->max_bytes);
     if (!rc && v->job_count >= v->max_jobs && !(pruned = unlink_oldest_finished(v)))
-        rc = SDF_EBUSY, snprintf(err, err_cap, "%zu bake jobs are unfinished; retry later",
+        rc = SDFD_EBUSY, snprintf(err, err_cap, "%zu bake jobs are unfinished; retry later",
                                  v->job_count);
     if (!rc) {
         snprintf(j->status.id, sizeof j->status.id, "%08x-%lu", v->id_prefix, ++v->next_id);
@@ -419,7 +420,7 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         j->started = sdfd_now();
         j->reserved = need;
         if (pthread_create(&j->thread, NULL, run_job, j)) {
-            rc = SDF_EUNAVAILABLE, snprintf(err, err_cap, "cannot start a bake thread");
+            rc = SDFD_EUNAVAILABLE, snprintf(err, err_cap, "cannot start a bake thread");
         } else {
             v->reserved += need;
             j->next = v->jobs;

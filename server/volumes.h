@@ -99,7 +99,7 @@ typedef struct sdfd_bake_request {
  * released when the job ends) into the volume `volume_name`. Writes the job id into id.
  * Every admission rule is here: SDF_EINVAL for options the library refuses (its message),
  * SDF_ELIMIT when the bake would cost more distance queries than max_queries or break the
- * byte limit, SDF_EBUSY when max_jobs are still unfinished, SDF_EUNAVAILABLE when shutting
+ * byte limit, SDFD_EBUSY when max_jobs are still unfinished, SDFD_EUNAVAILABLE when shutting
  * down; on failure the references are released and `err` says why. */
 int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
                       const char *volume_name, sdfd_bake_request *req, char id[24], char *err,

@@ -1,5 +1,5 @@
-/* error.c - names, messages and HTTP statuses of the SDF_E* codes, all generated from the
- * single SDF_ERRNO_MAP table in sdf.h so they cannot drift apart; plus the sdf_diag helper
+/* error.c - names and messages of the SDF_E* codes, both generated from the single
+ * SDF_ERRNO_MAP table in sdf.h so they cannot drift apart; plus the sdf_diag helper
  * that every parser uses to say where an input went wrong. */
 #include "core/diag.h"
 
@@ -11,7 +11,7 @@ const char *sdf_strerror(int err)
 {
     switch (err) {
     case SDF_OK: return "success";
-#define SDF__ERRNO_MSG(name, value, http, msg) case SDF_##name: return msg;
+#define SDF__ERRNO_MSG(name, value, msg) case SDF_##name: return msg;
         SDF_ERRNO_MAP(SDF__ERRNO_MSG)
 #undef SDF__ERRNO_MSG
     default: return "unknown error";
@@ -22,21 +22,10 @@ const char *sdf_errname(int err)
 {
     switch (err) {
     case SDF_OK: return "OK";
-#define SDF__ERRNO_NAME(name, value, http, msg) case SDF_##name: return #name;
+#define SDF__ERRNO_NAME(name, value, msg) case SDF_##name: return #name;
         SDF_ERRNO_MAP(SDF__ERRNO_NAME)
 #undef SDF__ERRNO_NAME
     default: return "EUNKNOWN";
-    }
-}
-
-int sdf_http_status(int err)
-{
-    switch (err) {
-    case SDF_OK: return 200;
-#define SDF__ERRNO_HTTP(name, value, http, msg) case SDF_##name: return http;
-        SDF_ERRNO_MAP(SDF__ERRNO_HTTP)
-#undef SDF__ERRNO_HTTP
-    default: return 500;
     }
 }
 

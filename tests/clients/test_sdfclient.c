@@ -259,7 +259,7 @@ static void test_fake_server(void)
     CHECK(n > 0 && read_n(peer, got, n) == 0 && !memcmp(got, want, n), "VOLUME_QUERY frame bytes");
 
     /* an ERROR for the second, then a RESULT for the first whose count is wrong */
-    n = sdf_proto_encode_error(want, sizeof want, id2, SDF_ENOTFOUND, "no volume named 'knot'");
+    n = sdf_proto_encode_error(want, sizeof want, id2, 404, "ENOTFOUND", "no volume named 'knot'");
     CHECK(send(peer, want, n, 0) == (ssize_t)n, "send error");
     CHECK(sdfc_wait(c, id2) == SDFC_ESERVER && !strcmp(sdfc_server_error(c)->code, "ENOTFOUND") &&
               sdfc_server_error(c)->status == 404,
@@ -282,7 +282,7 @@ static void test_fake_server(void)
 
     /* a connection-level ERROR (request id 0), then the close */
     c = fake_pair(lfd, fport, 2000, &peer);
-    n = sdf_proto_encode_error(want, sizeof want, 0, SDF_EBUSY, "no room for this connection");
+    n = sdf_proto_encode_error(want, sizeof want, 0, 429, "EBUSY", "no room for this connection");
     CHECK(send(peer, want, n, 0) == (ssize_t)n, "send busy");
     close(peer);
     CHECK(sdfc_query(c, "m", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 10, out, sizeof out) ==

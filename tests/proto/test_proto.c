@@ -180,7 +180,7 @@ static void test_result(void)
 
 static void test_error_and_hello(void)
 {
-    size_t n = sdf_proto_encode_error(frame, sizeof frame, 9, SDF_ENOTFOUND, "no mesh 'x'");
+    size_t n = sdf_proto_encode_error(frame, sizeof frame, 9, 404, "ENOTFOUND", "no mesh 'x'");
     sdf_proto_header h;
     sdf_proto_error e;
     const char *why;
@@ -190,8 +190,9 @@ static void test_error_and_hello(void)
           "error round trip");
     for (size_t len = 0; len < h.length; len++)
         CHECK(sdf_proto_decode_error(frame + 16, len, &e, &why) != 0, "error prefix %zu", len);
-    n = sdf_proto_encode_error(frame, 40, 9, SDF_EINVAL, "a long message that cannot fit in forty bytes");
+    n = sdf_proto_encode_error(frame, 40, 9, 422, "EINVAL", "a long message that cannot fit in forty bytes");
     CHECK(n == 40, "truncated error message: %zu", n);
+    CHECK(sdf_proto_encode_error(frame, 30, 9, 404, "ENOTFOUND", "") == 0, "no room for the code");
 
     sdf_proto_hello hello = {1, 5000, 400, "sdfd 0.1", 8}, back;
     n = sdf_proto_encode_hello_ok(frame, sizeof frame, 1, &hello);
@@ -297,7 +298,7 @@ static size_t valid_payload(int kind, unsigned char *out)
         memcpy(frame + n, pts, 4 * 4 * 3);
         n += 4 * 4 * 3;
     } else if (kind == MUTATE_ERROR) {
-        n = sdf_proto_encode_error(frame, sizeof frame, 1, SDF_ENOTFOUND, "no mesh named x");
+        n = sdf_proto_encode_error(frame, sizeof frame, 1, 404, "ENOTFOUND", "no mesh named x");
     } else if (kind == MUTATE_HELLO) {
         sdf_proto_hello h = {.version = 1, .max_payload = 1 << 20, .max_points = 400,
                              .server = "sdfd", .server_len = 4};

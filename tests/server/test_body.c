@@ -16,6 +16,7 @@
 
 #include "../common/check.h"
 #include "../../server/body.h"
+#include "../../server/errors.h"
 #include "../../server/numtext.h"
 
 static unsigned long long rng = 0x2545f4914f6cdd1dull;
@@ -127,7 +128,7 @@ static void test_errors(void)
 
     t = make_body(n, 1, NULL, bad, NOT_A_NUMBER, &at);
     snprintf(want, sizeof want, "malformed JSON at byte %zu: expected a number", at);
-    CHECK(parse(&t, 1000000, &got, &count, err, sizeof err, &params) == SDF_ESYNTAX &&
+    CHECK(parse(&t, 1000000, &got, &count, err, sizeof err, &params) == SDFD_ESYNTAX &&
               !strcmp(err, want),
           "a late syntax error: '%s', expected '%s'", err, want);
     free(t.s);

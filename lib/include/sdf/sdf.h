@@ -30,35 +30,29 @@ extern "C" {
 #define SDF_VERSION_PATCH 0
 
 /* ---------------------------------------------------------------------------------------
- * Errors. One table makes the enum, the names, the messages and the HTTP statuses, for the
- * library and for the server built on it (whose binary protocol sends name and status).
- * X(NAME, value, http_status, message)
+ * Errors. One table makes the enum, the names and the messages.
+ * X(NAME, value, message)
+ * Values -13..-19 are left to the layers built on the library, which extend this table
+ * with codes of their own; a new code here takes -21 on.
  * ------------------------------------------------------------------------------------- */
 #define SDF_ERRNO_MAP(X)                                                                  \
-    X(EINVAL, -1, 422, "invalid argument")                                                \
-    X(ENOMEM, -2, 503, "out of memory")                                                   \
-    X(EIO, -3, 500, "cannot read file")                                                   \
-    X(EFORMAT, -4, 415, "unknown or unsupported file format")                             \
-    X(EPARSE, -5, 422, "malformed data")                                                  \
-    X(ETRUNC, -6, 422, "truncated data")                                                  \
-    X(ELIMIT, -7, 413, "size limit exceeded")                                             \
-    X(EEMPTY, -8, 422, "mesh has no triangles")                                           \
-    X(ENONFINITE, -9, 422, "coordinate is NaN, Inf or beyond +-1e18")                     \
-    X(EINDEX, -10, 422, "index out of range")                                             \
-    X(EBVH, -11, 500, "BVH library (Embree) error")                                       \
-    X(ENOTFOUND, -12, 404, "not found")                                                   \
-    X(EPROTO, -13, 400, "protocol error")                                                 \
-    X(EUNAUTHORIZED, -14, 401, "missing or wrong bearer token")                           \
-    X(EMETHOD, -15, 405, "method not allowed")                                            \
-    X(ELENGTH, -16, 411, "Content-Length required")                                       \
-    X(EBUSY, -17, 429, "too many requests")                                               \
-    X(EUNAVAILABLE, -18, 503, "service unavailable (loading or shutting down)")           \
-    X(ESYNTAX, -19, 400, "malformed request")                                             \
-    X(ECANCELED, -20, 409, "canceled")
+    X(EINVAL, -1, "invalid argument")                                                     \
+    X(ENOMEM, -2, "out of memory")                                                        \
+    X(EIO, -3, "cannot read file")                                                        \
+    X(EFORMAT, -4, "unknown or unsupported file format")                                  \
+    X(EPARSE, -5, "malformed data")                                                       \
+    X(ETRUNC, -6, "truncated data")                                                       \
+    X(ELIMIT, -7, "size limit exceeded")                                                  \
+    X(EEMPTY, -8, "mesh has no triangles")                                                \
+    X(ENONFINITE, -9, "coordinate is NaN, Inf or beyond +-1e18")                          \
+    X(EINDEX, -10, "index out of range")                                                  \
+    X(EBVH, -11, "BVH library (Embree) error")                                            \
+    X(ENOTFOUND, -12, "not found")                                                        \
+    X(ECANCELED, -20, "canceled")
 
 typedef enum sdf_error {
     SDF_OK = 0,
-#define SDF__ERRNO_ENUM(name, value, http, msg) SDF_##name = (value),
+#define SDF__ERRNO_ENUM(name, value, msg) SDF_##name = (value),
     SDF_ERRNO_MAP(SDF__ERRNO_ENUM)
 #undef SDF__ERRNO_ENUM
 } sdf_error;
@@ -67,8 +61,6 @@ typedef enum sdf_error {
 const char *sdf_strerror(int err);
 /* The code's name without prefix, e.g. "EPARSE"; "OK" for 0, "EUNKNOWN" for others. */
 const char *sdf_errname(int err);
-/* The HTTP status that reports this code (200 for SDF_OK, 500 for unknown codes). */
-int sdf_http_status(int err);
 
 /* Where and why an input was rejected. Filled by functions that take an sdf_diag * (NULL
  * is allowed). `message` is self-contained, e.g. "OFF line 7: face 2 has vertex index 9,

@@ -1,0 +1,205 @@
+/* httpreq.c - answering one HTTP request (httpreq.h): responses with the route's usual
+ * headers, JSON errors in sdfd's codes, query bodies read in any form, and the wait for work
+ * done off MHD's threads (the connection is suspended before the work is handed over, so the
+ * worker's resume can never come first). */
+#include "httpreq.h"
+
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "errors.h"
+
+typedef sdfd_http_request request;
+
+/* ---- responses --------------------------------------------------------------------------- */
+
+const char *sdfd_http_allowed_methods(sdfd_route route)
+{
+    switch (route) {
+    case SDFD_ROUTE_MESH:
+    case SDFD_ROUTE_VOLUME:
+        return "GET, HEAD, PUT, DELETE"; /* HEAD wherever GET: MHD drops the body */
+    case SDFD_ROUTE_QUERY:
+    case SDFD_ROUTE_BAKE:
+    case SDFD_ROUTE_VOLUME_QUERY:
+        return "POST";
+    case SDFD_ROUTE_JOB:
+        return "GET, HEAD, DELETE";
+    default:
+        return "GET, HEAD";
+    }
+}
+
+/* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
+enum MHD_Result sdfd_http_queue(request *req, int status, const char *type, struct MHD_Response *r,
+                                size_t len, const sdfd_http_header *extra, int n_extra)
+{
+    MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type);
+    for (int i = 0; i < n_extra; i++)
+        MHD_add_response_header(r, extra[i].name, extra[i].value);
+    if (status == MHD_HTTP_UNAUTHORIZED)
+        MHD_add_response_header(r, MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
+    if (status == MHD_HTTP_METHOD_NOT_ALLOWED)
+        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW, sdfd_http_allowed_methods(req->route));
+    if (atomic_load(&req->srv->draining))
+        MHD_add_response_header(r, MHD_HTTP_HEADER_CONNECTION, "close");
+    enum MHD_Result ok = MHD_queue_response(req->conn, (unsigned)status, r);
+    MHD_destroy_response(r);
+    req->answered = 1;
+    req->status = status;
+    req->bytes_out = len;
+    return ok;
+}
+
+enum MHD_Result sdfd_http_send(request *req, int status, const char *type, char *body, size_t len,
+                               const sdfd_http_header *extra, int n_extra)
+{
+    struct MHD_Response *r = MHD_create_response_from_buffer(len, body, MHD_RESPMEM_MUST_FREE);
+    if (!r) {
+        free(body);
+        return MHD_NO;
+    }
+    return sdfd_http_queue(req, status, type, r, len, extra, n_extra);
+}
+
+enum MHD_Result sdfd_http_buffer(request *req, int status, const char *type, char *body, size_t len,
+                                 const char *count)
+{
+    sdfd_http_header h = {"X-SDF-Count", ""};
+    if (count)
+        snprintf(h.value, sizeof h.value, "%s", count);
+    return sdfd_http_send(req, status, type, body, len, &h, count ? 1 : 0);
+}
+
+enum MHD_Result sdfd_http_json(request *req, int status, cJSON *json)
+{
+    char *text = cJSON_PrintUnformatted(json);
+    cJSON_Delete(json);
+    if (!text)
+        return MHD_NO;
+    return sdfd_http_buffer(req, status, "application/json", text, strlen(text), NULL);
+}
+
+enum MHD_Result sdfd_http_error(request *req, int code, const char *fmt, ...)
+{
+    char message[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(message, sizeof message, fmt, ap);
+    va_end(ap);
+    cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
+    cJSON_AddStringToObject(err, "code", sdfd_errname(code));
+    cJSON_AddStringToObject(err, "message", message);
+    return sdfd_http_json(req, sdfd_http_status(code), root);
+}
+
+/* The filled req->reply in the reply form, with the point count in X-SDF-Count. */
+enum MHD_Result sdfd_http_results(request *req)
+{
+    size_t len;
+    char *body = sdfd_reply_render(&req->reply, req->reply_form, &len);
+    if (!body)
+        return sdfd_http_error(req, SDF_ENOMEM, "out of memory formatting %zu results",
+                               req->points);
+    char count[32];
+    snprintf(count, sizeof count, "%zu", req->points);
+    return sdfd_http_buffer(req, 200, sdfd_form_type(req->reply_form), body, len, count);
+}
+
+/* ---- query bodies ------------------------------------------------------------------------ */
+
+/* A parameter from the body (JSON) or else the URL query string. */
+const char *sdfd_http_param(request *req, const char *body_value, size_t n, const char *key,
+                            char *buf, size_t cap)
+{
+    if (body_value) {
+        snprintf(buf, cap, "%.*s", (int)(n < cap ? n : cap - 1), body_value);
+        return buf;
+    }
+    return MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, key);
+}
+
+int sdfd_http_reply_form(request *req, sdfd_form request_form)
+{
+    const char *accept = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                     MHD_HTTP_HEADER_ACCEPT);
+    int f = sdfd_form_from_type(accept);
+    return f >= 0 ? f : (int)request_form;
+}
+
+/* Parse a query body of any form into req->points_buf. Returns 0, or -1 with the error
+ * queued and its MHD result in *refused. */
+int sdfd_http_read_points(request *req, sdfd_form *form, sdfd_query_params *params, size_t *count,
+                          enum MHD_Result *refused)
+{
+    const char *type = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
+                                                   MHD_HTTP_HEADER_CONTENT_TYPE);
+    int f = sdfd_form_from_type(type);
+    if (f < 0) {
+        *refused = sdfd_http_error(req, SDF_EFORMAT,
+                                   "Content-Type must be application/json, "
+                                   "application/octet-stream or application/x-npy");
+        return -1;
+    }
+    *form = (sdfd_form)f;
+    *params = (sdfd_query_params){0};
+    char err[256];
+    int rc = sdfd_parse_points(*form, req->body, req->len, req->srv->cfg.max_points, params,
+                               &req->points_buf, count, &req->points_owned, err, sizeof err);
+    if (rc) {
+        *refused = sdfd_http_error(req, rc, "%s", err);
+        return -1;
+    }
+    return 0;
+}
+
+/* ---- work done elsewhere ------------------------------------------------------------------ */
+
+void sdfd_http_wait(request *req, sdfd_http_respond respond)
+{
+    req->waiting = 1;
+    req->respond = respond;
+    MHD_suspend_connection(req->conn);
+}
+
+void sdfd_http_unwait(request *req)
+{
+    req->waiting = 0;
+    MHD_resume_connection(req->conn);
+}
+
+void sdfd_http_resume(request *req)
+{
+    atomic_store(&req->finished, 1);
+    MHD_resume_connection(req->conn);
+}
+
+static void *thread_main(void *arg)
+{
+    request *req = arg;
+    req->run(req);
+    sdfd_http_resume(req);
+    return NULL;
+}
+
+/* Suspend the connection and run `run` on a new thread; `respond` answers after the resume. */
+enum MHD_Result sdfd_http_start_thread(request *req, sdfd_http_work run,
+                                       sdfd_http_respond respond)
+{
+    pthread_t t;
+    pthread_attr_t attr;
+    pthread_attr_init(&attr);
+    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+    req->run = run;
+    sdfd_http_wait(req, respond);
+    int failed = pthread_create(&t, &attr, thread_main, req);
+    pthread_attr_destroy(&attr);
+    if (failed) {
+        sdfd_http_unwait(req);
+        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "cannot start a worker thread");
+    }
+    return MHD_YES;
+}
