@@ -269,7 +269,7 @@ export class BinaryClient {
   }
 
   /** QUERY: the same result object as Client.query's. */
-  query(name, points, { mode = 'signed', sign = 'auto', filter, signal } = {}) {
+  async query(name, points, { mode = 'signed', sign = 'auto', filter, signal } = {}) {
     const m = modeCode(mode);
     const p = toPoints(points);
     const block = m === 4 || m === 5 ? filterBlock(filter) : new Uint8Array(0);
@@ -280,7 +280,7 @@ export class BinaryClient {
   }
 
   /** VOLUME_QUERY: {count, distance} and with gradient: true {gradient} too. */
-  queryVolume(name, points, { interpolation = 'trilinear', gradient = false, signal } = {}) {
+  async queryVolume(name, points, { interpolation = 'trilinear', gradient = false, signal } = {}) {
     const i = INTERPOLATIONS[interpolation];
     if (i === undefined || !Object.hasOwn(INTERPOLATIONS, interpolation))
       throw new TypeError(`interpolation must be "trilinear" or "nearest", not ${JSON.stringify(interpolation)}`);

@@ -202,7 +202,7 @@ export class Client {
 
   /** POST /v1/meshes/{name}/query: points (flat or triples) in the body form `form`
    * ("octet", "json" or "npy"), answered in form `accept` (default: the same). */
-  query(name, points, options = {}) {
+  async query(name, points, options = {}) {
     const { mode = 'signed', sign = 'auto', filter } = options;
     const w = WORDS[modeCode(mode)];
     signCode(sign);
@@ -223,7 +223,7 @@ export class Client {
   }
 
   /** POST /v1/volumes/{name}/query: the baked volume's value (and gradient) at the points. */
-  queryVolume(name, points, options = {}) {
+  async queryVolume(name, points, options = {}) {
     const { interpolation = 'trilinear', gradient = false } = options;
     const mode = gradient ? 'gradient' : 'value';
     return this.#points(`/v1/volumes/${seg(name)}/query`, points, VOLUME_MODES[mode], false,
