@@ -9,6 +9,7 @@ import assert from 'node:assert/strict';
 import net from 'node:net';
 import path from 'node:path';
 import { after, before, describe, test } from 'node:test';
+import { setTimeout as sleep } from 'node:timers/promises';
 import { BinaryClient, Client, SdfError } from 'sdfd-client';
 import { DATA, Server, randomPoints, sameBits } from './harness.js';
 
@@ -30,10 +31,12 @@ function isSdfError(status, code) {
 /* A loopback proxy to `port`. Connection i follows plan[i] (the last entry for the rest):
  * "pass" relays both ways; "cut" relays the handshake (client bytes up to `handshake`) and
  * its replies, then swallows replies and closes both ends once the client has sent `cutAt`
- * bytes, so that every request it carried dies in flight. */
+ * bytes, so that every request it carried dies in flight; "hold" stops reading from the
+ * client after the handshake until resume(), so that the client's writes fill the socket. */
 async function proxy(port, plan, handshake, cutAt) {
   let n = 0;
   const sockets = new Set();
+  const held = [];
   const server = net.createServer((client) => {
     const mode = plan[Math.min(n++, plan.length - 1)];
     const upstream = net.connect({ host: '127.0.0.1', port });
@@ -46,9 +49,13 @@ async function proxy(port, plan, handshake, cutAt) {
         client.destroy();
         upstream.destroy();
       }
+      if (mode === 'hold' && sent > handshake && !held.includes(client)) {
+        client.pause();
+        held.push(client);
+      }
     });
     upstream.on('data', (d) => {
-      if (mode === 'pass' || sent <= handshake)
+      if (mode !== 'cut' || sent <= handshake)
         client.write(d);
     });
     for (const s of [client, upstream]) {
@@ -65,6 +72,7 @@ async function proxy(port, plan, handshake, cutAt) {
     get connections() {
       return n;
     },
+    resume: () => held.forEach((s) => s.resume()),
     close: () => {
       for (const s of sockets)
         s.destroy();
@@ -73,7 +81,7 @@ async function proxy(port, plan, handshake, cutAt) {
   };
 }
 
-describe('binary client', () => {
+describe('binary client', { timeout: 120000 }, () => {
   let server, http, b;
   const points = randomPoints(400, 21);
 
@@ -167,16 +175,26 @@ describe('binary client', () => {
     await c.close();
   });
 
-  test('large requests wait for drain and still arrive whole', async () => {
-    const c = new BinaryClient({ port: server.binPort, maxInFlight: 1000 });
-    const all = randomPoints(20 * 50000, 4);
+  test('writes wait for drain while the peer does not read, and arrive whole', async () => {
+    /* 18 MB of requests against a proxy that stops reading: more than loopback's socket
+     * buffers hold, so socket.write must report a full buffer before the proxy resumes */
+    const px = await proxy(server.binPort, ['hold'], 16 + 'sdfd-client.js'.length);
+    const c = new BinaryClient({ port: px.port, maxInFlight: 1000 });
+    const all = randomPoints(30 * 50000, 4);
     const part = (i) => all.subarray(150000 * i, 150000 * (i + 1));
-    const answers = await Promise.all(Array.from({ length: 20 }, (_, i) => c.query('fandisk', part(i))));
-    for (let i = 0; i < 20; i++)
-      assert.ok(sameBits(answers[i].distance, (await http.query('fandisk', part(i))).distance), `request ${i}`);
+    await c.hello();
+    const pending = Promise.all(Array.from({ length: 30 }, (_, i) => c.query('fandisk', part(i))));
+    for (let t = 0; t < 500 && c.stats.backpressure === 0; t++)
+      await sleep(10);
     assert.ok(c.stats.backpressure > 0, 'socket.write reported a full buffer');
-    assert.ok(c.stats.maxInFlight > 1);
+    px.resume();
+    const answers = await pending;
+    for (let i = 0; i < 30; i++)
+      assert.ok(sameBits(answers[i].distance, (await http.query('fandisk', part(i))).distance), `request ${i}`);
+    assert.equal(c.stats.maxInFlight, 30);
+    assert.equal(c.stats.connects, 1);
     await c.close();
+    await px.close();
   });
 
   test('AbortSignal: a queued request never leaves, an answered-late one is skipped', async () => {
@@ -237,7 +255,7 @@ describe('binary client', () => {
   });
 });
 
-describe('binary client across a server restart and with --token', () => {
+describe('binary client across a server restart and with --token', { timeout: 60000 }, () => {
   test('an idle connection the server closed is replaced on the next request', async () => {
     let server = await Server.start(['--mesh', `fandisk=${FANDISK}`]);
     const port = server.binPort;

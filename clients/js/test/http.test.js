@@ -33,7 +33,7 @@ async function rejectsWith(promise, status, code) {
   });
 }
 
-describe('HTTP client', () => {
+describe('HTTP client', { timeout: 120000 }, () => {
   let server, c;
   const points = randomPoints(500, 11);
 
@@ -258,7 +258,7 @@ describe('HTTP client', () => {
   });
 });
 
-describe('HTTP client against a server with --token and a 1 s idle timeout', () => {
+describe('HTTP client against a server with --token and a 1 s idle timeout', { timeout: 60000 }, () => {
   let server;
   before(async () => {
     server = await Server.start(['--mesh', `fandisk=${FANDISK}`, '--token', 'sesame', '--auth-queries', '--timeout', '1']);
