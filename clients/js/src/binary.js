@@ -189,7 +189,7 @@ function filterBlock(filter) {
 
 /* A frame with its header's room in front: the payload's fixed fields from `head`, then the
  * name padded to 4, `block`, and the points. The request id goes in when it is written. */
-function pointsFrame(type, head, name, block, points) {
+function pointsFrame(head, name, block, points) {
   const size = 8 + pad4(name.length) + block.length + points.byteLength;
   const frame = new Uint8Array(HEADER + size);
   const v = new DataView(frame.buffer);
@@ -273,7 +273,7 @@ export class BinaryClient {
     const m = modeCode(mode);
     const p = toPoints(points);
     const block = m === 4 || m === 5 ? filterBlock(filter) : new Uint8Array(0);
-    const frame = pointsFrame(QUERY, [m, signCode(sign)], nameBytes(name, 'a mesh name'), block, p);
+    const frame = pointsFrame([m, signCode(sign)], nameBytes(name, 'a mesh name'), block, p);
     const count = p.length / 3, w = WORDS[m];
     return this.#submit(frame, QUERY, Math.max(8 + 4 * w * count, ERROR_MAX),
       (type, payload) => parseResult(type, payload, count, w), signal);
@@ -285,7 +285,7 @@ export class BinaryClient {
     if (i === undefined || !Object.hasOwn(INTERPOLATIONS, interpolation))
       throw new TypeError(`interpolation must be "trilinear" or "nearest", not ${JSON.stringify(interpolation)}`);
     const p = toPoints(points);
-    const frame = pointsFrame(VOLUME_QUERY, [gradient ? 1 : 0, i], nameBytes(name, 'a volume name'),
+    const frame = pointsFrame([gradient ? 1 : 0, i], nameBytes(name, 'a volume name'),
       new Uint8Array(0), p);
     const count = p.length / 3, w = gradient ? 4 : 1;
     return this.#submit(frame, VOLUME_QUERY, Math.max(8 + 4 * w * count, ERROR_MAX),
