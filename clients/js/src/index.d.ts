@@ -1,0 +1,231 @@
+// index.d.ts - types of sdfd-client's browser entry (src/index.js): the HTTP client, SdfError
+// and the wire helpers. Hand-written beside the plain JavaScript; test/types.ts checks them.
+
+export type Mode = 'signed' | 'distance' | 'gradient' | 'closest' | 'filtered' | 'filtered-gradient';
+export type Sign = 'auto' | 'pseudonormal' | 'winding' | 'raycast' | 'none';
+export type Form = 'octet' | 'json' | 'npy';
+export type Interpolation = 'trilinear' | 'nearest';
+
+/** Points: a flat Float32Array (or any number array) of 3N coordinates, or [x, y, z] triples. */
+export type Points = Float32Array | ArrayLike<number> | ReadonlyArray<readonly [number, number, number] | ArrayLike<number>>;
+
+/** The filtered modes' parameters (docs/filtered.md); each optional. */
+export interface FilterParams {
+  kernel?: 'gaussian' | 'bump';
+  cap?: number;
+  a?: number;
+  b?: number;
+  samples?: number;
+  min_samples?: number;
+  medial?: number;
+  grid?: boolean;
+  unsigned?: boolean;
+  allow_wide_bump?: boolean;
+  sample_gradient?: boolean;
+  seed?: number | bigint;
+  smooth?: SmoothVolume;
+}
+
+export type SmoothVolume = (
+  | { sphere: readonly [number, number, number, number] | ArrayLike<number> }
+  | { box: readonly [number, number, number, number, number, number] | ArrayLike<number> }
+  | { mesh: string }
+) & { depth?: number; scale?: number };
+
+/** A query's answer: `distance` always (the filtered value g in the filtered modes, the
+ * volume's value for volume queries); flat 3N `gradient` (modes gradient and
+ * filtered-gradient, volume queries with gradient); `closest` and `triangle` (mode closest). */
+export interface QueryResult {
+  count: number;
+  distance: Float32Array;
+  gradient?: Float32Array;
+  closest?: Float32Array;
+  triangle?: Uint32Array;
+}
+
+export interface RequestOptions {
+  signal?: AbortSignal;
+}
+
+export interface QueryOptions extends RequestOptions {
+  mode?: Mode;
+  sign?: Sign;
+  filter?: FilterParams;
+  /** The request body's form (default "octet"). */
+  form?: Form;
+  /** The answer's form (default: the body's). */
+  accept?: Form;
+}
+
+export interface VolumeQueryOptions extends RequestOptions {
+  interpolation?: Interpolation;
+  gradient?: boolean;
+  form?: Form;
+  accept?: Form;
+}
+
+export interface ClientOptions {
+  /** Sent as "Authorization: Bearer <token>" (sdfd's --token). */
+  token?: string;
+  /** A fetch to use instead of globalThis.fetch. */
+  fetch?: typeof fetch;
+  /** Headers added to every request. */
+  headers?: Record<string, string>;
+}
+
+export interface MeshSummary {
+  name: string;
+  triangles: number;
+  closed: boolean;
+  sign: string;
+}
+
+/** GET /v1/meshes/{name} (docs/api.md, The mesh report). */
+export interface MeshReport {
+  name: string;
+  format: string;
+  vertices: number;
+  input_vertices: number;
+  triangles: number;
+  bbox: { min: [number, number, number]; max: [number, number, number] };
+  diagonal: number;
+  closed: boolean;
+  edge_manifold: boolean;
+  self_intersecting: boolean;
+  flipped: boolean;
+  degenerate_triangles: number;
+  boundary_edges: number;
+  nonmanifold_edges: number;
+  misoriented_edges: number;
+  volume: number;
+  sign: string;
+  index_bytes: number;
+  build_seconds: number;
+  [key: string]: unknown;
+}
+
+export type JobState = 'queued' | 'running' | 'done' | 'failed' | 'canceled';
+
+export interface Job {
+  id: string;
+  href?: string;
+  state: JobState;
+  progress: number;
+  percent?: number;
+  mesh: string;
+  volume: string;
+  seconds?: number;
+  cancel_requested?: boolean;
+  error?: { code: string; message: string };
+  [key: string]: unknown;
+}
+
+/** POST /v1/meshes/{name}/bake's body (docs/api.md, Baking); every key optional. */
+export interface BakeParams {
+  volume?: string;
+  bounds?: { min: [number, number, number]; max: [number, number, number] };
+  margin?: number;
+  resolution?: number | [number, number, number];
+  order?: 0 | 1;
+  H?: number;
+  delta?: number;
+  normalize?: 'plane' | 'gradient';
+  field?: 'raw' | 'filtered';
+  filter?: FilterParams;
+  encoding?: 'float32' | 'packed32';
+  sign?: Sign;
+}
+
+export interface WaitOptions extends RequestOptions {
+  /** Milliseconds before an Error named "TimeoutError" (default 600000). */
+  timeout?: number;
+  /** Milliseconds between polls (default 50). */
+  interval?: number;
+  onProgress?: (job: Job) => void;
+}
+
+/** GET /v1/volumes/{name} (docs/api.md). */
+export interface VolumeInfo {
+  name: string;
+  dims: [number, number, number];
+  origin: [number, number, number];
+  spacing: [number, number, number];
+  order: 0 | 1;
+  encoding: 'float32' | 'packed32';
+  channels: number;
+  dtype: string;
+  bytes: number;
+  mesh: string;
+  [key: string]: unknown;
+}
+
+export type VolumeFormat = 'exr' | 'npy' | 'raw';
+
+export interface VolumeDownload {
+  format: VolumeFormat;
+  bytes: Uint8Array;
+  /** N, M, K from X-SDF-Dims. */
+  dims: number[];
+  order: number;
+  encoding: string;
+  /** npy and raw: the node words (Float32Array, or Uint32Array for packed32), K x M x N
+   * (x 4 for first order), node (i, j, k) at ((k M + j) N + i) (x 4). */
+  values?: Float32Array | Uint32Array;
+  shape?: number[];
+}
+
+export declare class SdfError extends Error {
+  constructor(status: number, code: string, message: string);
+  readonly name: 'SdfError';
+  /** The HTTP status (400, 401, 404, 413, 422, 429, 503, ...). */
+  status: number;
+  /** The server's error code: "ENOTFOUND", "EINVAL", "ENONFINITE", ... */
+  code: string;
+}
+
+export declare class Client {
+  constructor(url?: string, options?: ClientOptions);
+  readonly url: string;
+
+  health(options?: RequestOptions): Promise<{ status: string }>;
+  ready(options?: RequestOptions): Promise<{ ready: boolean; status: string }>;
+  metrics(options?: RequestOptions): Promise<string>;
+
+  meshes(options?: RequestOptions): Promise<MeshSummary[]>;
+  mesh(name: string, options?: RequestOptions): Promise<MeshReport>;
+  putMesh(name: string, data: Uint8Array | ArrayBuffer | Blob | string,
+    options?: RequestOptions & { format?: 'obj' | 'ply' | 'stl' | 'off' }): Promise<MeshReport & { created: boolean }>;
+  deleteMesh(name: string, options?: RequestOptions): Promise<void>;
+  query(name: string, points: Points, options?: QueryOptions): Promise<QueryResult>;
+
+  bake(name: string, params?: BakeParams, options?: RequestOptions): Promise<Job>;
+  job(id: number | string, options?: RequestOptions): Promise<Job>;
+  jobs(options?: RequestOptions): Promise<Job[]>;
+  cancelJob(id: number | string, options?: RequestOptions): Promise<Job>;
+  waitJob(job: Job | number | string, options?: WaitOptions): Promise<Job>;
+
+  volumes(options?: RequestOptions): Promise<VolumeInfo[]>;
+  volume(name: string, options?: RequestOptions): Promise<VolumeInfo>;
+  putVolume(name: string, exr: Uint8Array | ArrayBuffer | Blob,
+    options?: RequestOptions): Promise<VolumeInfo & { created: boolean }>;
+  deleteVolume(name: string, options?: RequestOptions): Promise<void>;
+  download(name: string, options?: RequestOptions & { format?: VolumeFormat }): Promise<VolumeDownload>;
+  queryVolume(name: string, points: Points, options?: VolumeQueryOptions): Promise<QueryResult>;
+}
+
+export declare const MODES: Readonly<Record<Mode, number>>;
+export declare const SIGNS: Readonly<Record<Sign, number>>;
+/** Words per point of each mode's answer, by mode number. */
+export declare const WORDS: readonly number[];
+
+/** Points as a flat Float32Array (a Float32Array itself is returned as it is). */
+export declare function toPoints(points: Points): Float32Array;
+/** A .npy file of shape (N, 3) float32 holding 3N coordinates. */
+export declare function encodeNpy(points: Float32Array): Uint8Array;
+/** A .npy file's header and the bytes after it. */
+export declare function parseNpy(bytes: Uint8Array | ArrayBuffer): {
+  descr: string;
+  fortranOrder: boolean;
+  shape: number[];
+  data: Uint8Array;
+};
