@@ -1,5 +1,5 @@
 /* exact.test.js - the JavaScript client's answers against the Python client's
- * (clients/python/sdfclient.py, run by python3 as a subprocess on the same points file, the
+ * (clients/python/sdfclient/, run by python3 as a subprocess on the same points file, the
  * same server): every query mode and a volume query, through each of the JavaScript
  * client's ways (HTTP octet, JSON and npy bodies, the binary protocol), must give the same
  * float32 bits as Python's HTTP npy answer and its binary-protocol answer. The Python client

@@ -1,0 +1,171 @@
+"""clients/python as an installed package: a virtual environment (with the system's site
+packages, for Debian's numpy) in a temporary directory, `pip install --no-build-isolation
+--no-index` of a copy of clients/python into it (offline: no package index), then, in fresh
+processes whose working directory is outside the source tree, checks that `import sdfclient`
+finds the installed copy (in the venv's site-packages, byte-equal to the source, with py.typed
+and the version pyproject.toml reads from the package); that it queries a real sdfd over HTTP
+and the binary protocol with answers bit-equal to the server's plain JSON answers; that the
+examples in clients/python/README.md run; and that pyflakes and mypy --strict pass on the
+package, while mypy, run as a user's project would, sees the installed type hints: it accepts
+the README's examples and rejects calls that break them.
+
+The source is copied first because pip builds in place and would leave build/ and egg-info
+in the source tree."""
+import ast
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import unittest
+import urllib.request
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SOURCE = os.path.normpath(os.path.join(HERE, "..", "..", "clients", "python"))
+sys.path.insert(0, os.path.join(HERE, "..", "server"))
+from harness import Server  # noqa: E402
+
+
+def run(args, cwd, timeout=240, expect=0):
+    """Run a command with no PYTHONPATH (so nothing but the venv can supply sdfclient);
+    its stdout, after checking its exit code."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    p = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    if p.returncode != expect:
+        raise AssertionError(f"{args[:4]} exited {p.returncode}, expected {expect}:\n"
+                             f"{p.stdout[-4000:]}\n{p.stderr[-4000:]}")
+    return p.stdout
+
+
+def readme_examples():
+    """The ```python blocks of clients/python/README.md."""
+    with open(os.path.join(SOURCE, "README.md")) as f:
+        return re.findall(r"```python\n(.*?)```", f.read(), re.S)
+
+
+class InstalledPackage(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.elsewhere = os.path.join(cls.tmp.name, "elsewhere")  # cwd: not the source tree
+        os.mkdir(cls.elsewhere)
+        src = os.path.join(cls.tmp.name, "src")
+        shutil.copytree(SOURCE, src, ignore=shutil.ignore_patterns(
+            "build", "*.egg-info", "__pycache__", ".mypy_cache"))
+        cls.venv = os.path.join(cls.tmp.name, "venv")
+        run([sys.executable, "-m", "venv", "--system-site-packages", cls.venv], cls.elsewhere)
+        cls.python = os.path.join(cls.venv, "bin", "python")
+        run([cls.python, "-m", "pip", "install", "--no-build-isolation", "--no-index",
+             "--disable-pip-version-check", "-q", src], cls.elsewhere)
+        cls.purelib = run([cls.python, "-c", "import sysconfig; print(sysconfig.get_paths()"
+                           "['purelib'])"], cls.elsewhere).strip()
+        cls.server = Server()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.server.stop()
+        cls.tmp.cleanup()
+
+    def venv_python(self, code):
+        """Run `code` in the venv's Python, in a fresh process outside the source tree."""
+        return run([self.python, "-c", code], self.elsewhere)
+
+    def test_imports_the_installed_copy(self):
+        got = json.loads(self.venv_python(
+            "import importlib.metadata, json, os, sdfclient\n"
+            "print(json.dumps({'file': sdfclient.__file__, 'version': sdfclient.__version__,"
+            " 'dist': importlib.metadata.version('sdfclient'),"
+            " 'requires': importlib.metadata.requires('sdfclient'),"
+            " 'error': sdfclient.SdfError.__module__ + '.' + sdfclient.SdfError.__name__}))"))
+        package = os.path.dirname(got["file"])
+        self.assertEqual(package, os.path.join(self.purelib, "sdfclient"))
+        self.assertTrue(os.path.isfile(os.path.join(package, "py.typed")), "py.typed not installed")
+        self.assertEqual(got["requires"], ["numpy"])
+        self.assertEqual(got["error"], "sdfclient.SdfError")
+        with open(os.path.join(SOURCE, "sdfclient", "__init__.py")) as f:
+            version = [n.value.value for n in ast.parse(f.read()).body if isinstance(n, ast.Assign)
+                       and [t.id for t in n.targets] == ["__version__"]]
+        self.assertEqual([got["version"], got["dist"]], version * 2)
+        # Every source file of the package is installed, unchanged, and nothing else is.
+        sources = sorted(f for f in os.listdir(os.path.join(SOURCE, "sdfclient"))
+                         if f.endswith(".py") or f == "py.typed")
+        self.assertEqual(sorted(f for f in os.listdir(package) if f != "__pycache__"), sources)
+        for name in sources:
+            with open(os.path.join(SOURCE, "sdfclient", name), "rb") as a, \
+                    open(os.path.join(package, name), "rb") as b:
+                self.assertEqual(a.read(), b.read(), name)
+
+    def test_queries_sdfd(self):
+        points = np.random.default_rng(5).uniform(-3, 3, (64, 3)).astype(np.float32)
+        out = os.path.join(self.tmp.name, "answers.npz")
+        self.venv_python(
+            "import numpy as np, sdfclient\n"
+            f"p = np.array({points.tolist()!r}, np.float32)\n"
+            f"c = sdfclient.Client({self.server.url!r})\n"
+            f"b = sdfclient.BinaryClient('127.0.0.1', {self.server.bin_port})\n"
+            "assert [m['name'] for m in c.meshes()] == ['demo'], c.meshes()\n"
+            "try:\n"
+            "    c.query('no-such-mesh', p)\n"
+            "    raise SystemExit('no SdfError')\n"
+            "except sdfclient.SdfError as e:\n"
+            "    assert (e.status, e.code) == (404, 'ENOTFOUND'), e\n"
+            "h = c.query('demo', p, mode='gradient')\n"
+            "w = b.query('demo', p, mode='gradient')\n"
+            f"np.savez({out!r}, hd=h['distance'], hg=h['gradient'], bd=w['distance'],"
+            " bg=w['gradient'])\n")
+        body = json.dumps({"points": points.tolist(), "mode": "gradient"}).encode()
+        req = urllib.request.Request(f"{self.server.url}/v1/meshes/demo/query", body,
+                                     {"Content-Type": "application/json"})
+        with urllib.request.urlopen(req, timeout=60) as r:
+            ref = json.load(r)
+        distance = np.asarray(ref["distance"], np.float32)
+        gradient = np.asarray(ref["gradient"], np.float32).reshape(-1, 3)
+        self.assertGreater(len(np.unique(distance)), 32)  # distinct answers, not one constant
+        with np.load(out) as got:
+            for key, want in (("hd", distance), ("bd", distance), ("hg", gradient),
+                              ("bg", gradient)):
+                self.assertEqual(got[key].dtype, np.float32, key)
+                self.assertEqual(got[key].tobytes(), want.tobytes(), key)
+
+    def test_readme_examples_run(self):
+        blocks = readme_examples()
+        self.assertEqual(len(blocks), 2)
+        for code in blocks:
+            live = code.replace('"http://127.0.0.1:8080"', repr(self.server.url)) \
+                .replace('("127.0.0.1", 9090)', f'("127.0.0.1", {self.server.bin_port})')
+            self.assertNotEqual(live, code, "the example names no server address to replace")
+            self.venv_python(live)
+
+    def test_pyflakes(self):
+        run([sys.executable, "-m", "pyflakes", os.path.join(SOURCE, "sdfclient")], self.elsewhere)
+
+    def test_mypy(self):
+        cache = ["--cache-dir", os.path.join(self.tmp.name, "mypy-cache")]
+        run([sys.executable, "-m", "mypy", "--strict", *cache, os.path.join(SOURCE, "sdfclient")],
+            self.elsewhere)
+        # A user's project: the venv's Python, whose site-packages hold the installed package;
+        # without py.typed mypy would refuse it ("missing library stubs or py.typed marker").
+        good = os.path.join(self.elsewhere, "good.py")
+        with open(good, "w") as f:
+            f.write("\n".join(readme_examples()))
+        run([self.python, "-m", "mypy", "--strict", *cache, good], self.elsewhere)
+        bad = os.path.join(self.elsewhere, "bad.py")
+        with open(bad, "w") as f:
+            f.write("import sdfclient\n"
+                    "c = sdfclient.Client('http://127.0.0.1:1')\n"
+                    "n: int = c.metrics()\n"
+                    "r = c.query('demo', [[0, 0, 0]], mode='sideways')\n")
+        text = run([self.python, "-m", "mypy", "--strict", *cache, bad], self.elsewhere, expect=1)
+        self.assertIn('bad.py:3: error: Incompatible types in assignment (expression has type '
+                      '"str", variable has type "int")', text)
+        self.assertRegex(text, r'bad.py:4: error: Argument "mode" to "query" of "Client" has '
+                               r'incompatible type "Literal\[.sideways.\]"')
+        self.assertIn("Found 2 errors", text)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
