@@ -9,7 +9,7 @@
 #include <sys/types.h>
 
 #include "core/diag.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 
 struct sdf__bvh {
     RTCDevice device;

@@ -13,19 +13,10 @@
 
 #include <embree3/rtcore.h>
 
+#include "geom/triangle.h" /* sdf__hit */
 #include "sdf/sdf.h"
 
 typedef struct sdf__bvh sdf__bvh;
-
-/* The closest point found for one query. */
-typedef struct sdf__hit {
-    double point[3];
-    double bary[3];
-    double dist2;
-    double face_normal[3]; /* (b - a) x (c - a) of the triangle, not normalized */
-    uint32_t triangle;
-    int feature; /* enum sdf__feature */
-} sdf__hit;
 
 /* The device, for a scene over `positions` (padded, see topology.h) and `triangles`; both
  * must outlive the bvh. */

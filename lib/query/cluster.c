@@ -6,7 +6,7 @@
 
 #include "core/simd.h"
 #include "query/lanes.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 
 /* Every float comparison that must not lose a triangle is widened by lanes.h's slack. */
 #define SLACK_REL SDF__LANE_SLACK_REL

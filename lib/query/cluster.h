@@ -23,7 +23,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "bvh/embree.h" /* sdf__hit */
+#include "geom/triangle.h" /* sdf__hit */
 #include "bvh/tree.h"
 
 #define SDF__CLUSTER_MAX 64 /* points of one cluster, at most */

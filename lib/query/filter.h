@@ -8,7 +8,7 @@
 #ifndef SDF_QUERY_FILTER_H
 #define SDF_QUERY_FILTER_H
 
-#include "bvh/embree.h" /* sdf__hit */
+#include "geom/triangle.h" /* sdf__hit */
 #include "sdf/sdf.h"
 
 typedef struct sdf__samples {

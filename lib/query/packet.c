@@ -1,7 +1,7 @@
 /* packet.c - packet traversal and the single-point walk (see packet.h).
  *
  * The float tests here only choose candidates, within margins ~16x their rounding, and the
- * exact double test (query/triangle.c, another file) decides every answer, so their
+ * exact double test (geom/triangle.c, another file) decides every answer, so their
  * multiply-adds may fuse where the CPU has FMA: the answers stay bit for bit the same, and
  * the walks ran 2-5 % faster (2 threads, 1M band and box points on fandisk and
  * refined_elephant, 2 alternating runs each). The rest of the library keeps ISO C's unfused
@@ -16,7 +16,7 @@
 #include "bvh/wide.h"
 #include "core/simd.h"
 #include "query/lanes.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 #include "sdf/sdf.h"
 
 /* ---- packet traversal -------------------------------------------------------------------- */

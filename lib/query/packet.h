@@ -15,7 +15,7 @@
  *     and a triangle is tested only in the groups with a lane near its box.
  * The float distances only choose candidates: every triangle within a rounding margin of a
  * lane's best float distance gets the same exact double-precision test as the single-point
- * path (query/triangle.c), so distances are identical to it; only exact ties may name a
+ * path (geom/triangle.c), so distances are identical to it; only exact ties may name a
  * different (equally close) triangle. */
 #ifndef SDF_QUERY_PACKET_H
 #define SDF_QUERY_PACKET_H
@@ -23,7 +23,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "bvh/embree.h" /* sdf__hit */
+#include "geom/triangle.h" /* sdf__hit */
 #include "bvh/tree.h"
 
 #define SDF__PACKET 32
@@ -37,7 +37,7 @@ typedef struct sdf__packet {
 
 /* Closest points of a packet's points over `tree`; `extent` is the mesh's bounding-box
  * diagonal (the scale of float rounding). Candidates are found with a float test on all
- * lanes at once and decided by the exact double test (query/triangle.c). A point the packet
+ * lanes at once and decided by the exact double test (geom/triangle.c). A point the packet
  * could not decide (a bound rounding made too small, or more near-equal candidates than it
  * holds) comes back with hit.dist2 == INFINITY and must be asked again (sdf__closest_exact). */
 void sdf__closest_packet(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
@@ -51,7 +51,7 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
 void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                         float extent, const float p[3], double bound2, sdf__hit *hit);
 
-/* The closest point to p over `tree` by the exact double test alone (query/triangle.c: every
+/* The closest point to p over `tree` by the exact double test alone (geom/triangle.c: every
  * triangle whose box is as near as the best so far), with the searches' tie rule: slow and
  * always decided. It answers the rare points the float searches hand back. */
 void sdf__closest_exact(const sdf__tree *tree, const float *positions, const uint32_t *triangles,

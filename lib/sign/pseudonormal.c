@@ -6,7 +6,7 @@
 
 #include "core/parallel.h"
 #include "mesh/topology.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 #include "sdf/sdf.h"
 
 static void load(const float *positions, uint32_t v, double out[3])

@@ -12,7 +12,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "bvh/embree.h"     /* sdf__hit */
+#include "geom/triangle.h" /* sdf__hit */
 #include "core/parallel.h"  /* SDF__MAX_THREADS */
 #include "volume/regions.h"
 #include "volume/scan.h"

@@ -13,7 +13,7 @@
 #include "core/parallel.h"
 #include "mesh/mesh.h"
 #include "query/filter.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 #include "sign/pseudonormal.h"
 #include "volume/regions.h"
 

@@ -16,7 +16,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "bvh/embree.h"
 #include "core/bigmem.h"
 #include "core/parallel.h"
 #include "core/workspace.h"
@@ -25,7 +24,7 @@
 #include "volume/regions.h"
 #include "query/filter.h"
 #include "query/packet.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 #include "volume/raster.h"
 #include "volume/scan.h"
 
@@ -116,7 +115,7 @@ static int ensure_zspans(sdf__scan *s, sdf__scan_call *st)
 }
 
 /* The exact test of the triangles in `list`, kept in *hit where nearer (ties: the lower id,
- * the searches' rule: query/triangle.h). */
+ * the searches' rule: geom/triangle.h). */
 static void exact_tests(const sdf__scan *s, const uint32_t *list, size_t count, const double p[3],
                         sdf__hit *hit)
 {

@@ -11,7 +11,7 @@
  * truncated), and the nearest of those is the closest. The regions are necessary conditions
  * taken with a rounding slack, so a node can only get extra candidates, never miss its
  * closest feature. Zero order: the winner's distance is then the exact double test of
- * query/triangle.c, and sign and float output are sdf_query's own (sdf__query_finish), so a
+ * geom/triangle.c, and sign and float output are sdf_query's own (sdf__query_finish), so a
  * node gets the same float as sdf_query at the same point; a node whose winner was an extra
  * candidate (its exact distance exceeds the region's estimate) is asked again through
  * sdf_query's search. When distances alone are asked for, a node well inside its winner's

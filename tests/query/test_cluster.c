@@ -24,7 +24,7 @@
 #include "mesh/mesh.h"
 #include "query/cluster.h"
 #include "query/filter.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 
 static double diagonal_of(const sdf_mesh *m)
 {
