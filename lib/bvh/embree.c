@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <sys/types.h>
 
+#include <embree3/rtcore.h>
+
 #include "core/diag.h"
 #include "geom/triangle.h"
 

@@ -4,14 +4,13 @@
  * own double-precision triangle test) and ray-crossing counts (raycast sign). Neither is the
  * default, so the scene is committed on first use (sdf__bvh_ready): it took ~25 % of a
  * mesh's build time and half its index memory. Embree errors are caught by the device's
- * error callback and turned into SDF_EBVH. */
+ * error callback and turned into SDF_EBVH. Embree's own headers are included by bvh/'s .c
+ * files alone, so nothing above bvh/ depends on them. */
 #ifndef SDF_BVH_EMBREE_H
 #define SDF_BVH_EMBREE_H
 
 #include <stddef.h>
 #include <stdint.h>
-
-#include <embree3/rtcore.h>
 
 #include "geom/triangle.h" /* sdf__hit */
 #include "sdf/sdf.h"
@@ -24,8 +23,9 @@ int sdf__bvh_create(const float *positions, size_t vertex_count, const uint32_t 
                     size_t triangle_count, sdf__bvh **out, sdf_diag *diag);
 void sdf__bvh_destroy(sdf__bvh *bvh);
 
-/* The device, for building further trees (see tree.h). */
-RTCDevice sdf__bvh_device(const sdf__bvh *bvh);
+/* The device (Embree's RTCDevice, named by its struct so that this header needs none of
+ * Embree's: they stay inside bvh/), for building further trees (tree.c). */
+struct RTCDeviceTy *sdf__bvh_device(const sdf__bvh *bvh);
 /* Bytes Embree holds for this mesh (device memory monitor). */
 size_t sdf__bvh_memory(const sdf__bvh *bvh);
 /* Did Embree report an error since creation? Returns SDF_EBVH with its message. */

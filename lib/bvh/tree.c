@@ -10,6 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <embree3/rtcore.h>
+
+#include "bvh/embree.h"
 #include "core/parallel.h"
 #include "sdf/sdf.h"
 
@@ -207,7 +210,7 @@ static float mean_leaf_diagonal(const sdf__tree *t)
     return leaves ? (float)(sum / (double)leaves) : 0.0f;
 }
 
-int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *triangles,
+int sdf__tree_build(const sdf__bvh *embree, const float *positions, const uint32_t *triangles,
                     size_t triangle_count, unsigned max_leaf, sdf__tree *out)
 {
     memset(out, 0, sizeof *out);
@@ -233,7 +236,7 @@ int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *tr
         root.upper_y = hi[1] > root.upper_y ? hi[1] : root.upper_y;
         root.upper_z = hi[2] > root.upper_z ? hi[2] : root.upper_z;
     }
-    RTCBVH bvh = rtcNewBVH(device);
+    RTCBVH bvh = rtcNewBVH(sdf__bvh_device(embree));
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM;
     args.maxBranchingFactor = 2;

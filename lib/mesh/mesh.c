@@ -79,7 +79,7 @@ static int step_trees(build *b, sdf_diag *diag)
     int rc = sdf__bvh_create(m->positions, r->vertices, m->triangles, r->triangles, &m->bvh, diag);
     if (rc)
         return rc;
-    rc = sdf__tree_build(sdf__bvh_device(m->bvh), m->positions, m->triangles, r->triangles, 8,
+    rc = sdf__tree_build(m->bvh, m->positions, m->triangles, r->triangles, 8,
                          &m->tree);
     if (!rc)
         rc = sdf__bvh_check(m->bvh, diag);
