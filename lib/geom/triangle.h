@@ -17,6 +17,10 @@ enum sdf__feature {
     SDF__VERT0 = 4, SDF__VERT1 = 5, SDF__VERT2 = 6,
 };
 
+/* A mesh numbers its edges, 3 ids per triangle in the order above (mesh/topology.h); a
+ * triangle with a repeated corner has none and takes this id for all three. */
+#define SDF__NO_EDGE UINT32_MAX
+
 /* The closest point found for one query: what every search (bvh/, points/, scan/) hands on
  * to the sign and the outputs. */
 typedef struct sdf__hit {

@@ -109,8 +109,8 @@ static int step_pseudonormals(build *b, sdf_diag *diag)
 {
     sdf_mesh *m = b->m;
     int rc = sdf__pseudonormals_create(m->positions, m->report.vertices, m->triangles,
-                                       m->report.triangles, &b->faces, m->edge_count,
-                                       &m->normals);
+                                       m->report.triangles, b->faces.start, b->faces.face,
+                                       m->edge_count, &m->normals);
     if (rc)
         return sdf__diag_set(diag, rc, 0, -1, "out of memory for the sign data");
     return 0;
