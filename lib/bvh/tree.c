@@ -109,7 +109,7 @@ static int flatten(flattener *f, const build_node *src, size_t index, int depth)
  * and by the same fraction of themselves: a float evaluation of the distance to a cylinder
  * at points within ~10 diagonals of the mesh rounds by less (a few ulps of the point's
  * offset from the centre); farther out the searches' own relative tie margin (1e-5,
- * query/lanes.h) dwarfs the rounding. */
+ * points/lanes.h) dwarfs the rounding. */
 #define DISC_SLACK 4e-6
 
 /* The cylinder of the leaf holding prims[first .. first + count) (tree.h): the axis along

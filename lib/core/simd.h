@@ -1,6 +1,6 @@
 /* simd.h - wider vectors where the CPU has them, one portable binary everywhere.
  *
- * The hot lane loops (query/packet.c) are plain C that the compiler vectorizes. Built for
+ * The hot lane loops (points/packet.c) are plain C that the compiler vectorizes. Built for
  * baseline x86-64 they use 4-wide SSE2; SDF__SIMD_CLONES asks GCC (and clang >= 14) to also
  * compile the function for x86-64-v3 (AVX2 + FMA, 8 floats per vector) and pick the version
  * when the program loads (an ifunc), so no -march flag is needed and old CPUs still run.

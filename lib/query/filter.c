@@ -17,8 +17,10 @@
 #include "core/diag.h"
 #include "core/parallel.h"
 #include "core/workspace.h"
-#include "query/morton.h"
-#include "query/packet.h"
+#include "points/morton.h"
+#include "points/points.h"
+#include "query/query.h"
+#include "points/packet.h"
 
 #define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (~37 MB of scratch) */
 #define DEFAULT_CAP_OF_DIAGONAL 0.02
@@ -323,7 +325,7 @@ typedef struct scratch {
 } scratch;
 
 /* Sample k's gradient, or zeros when no gradient is asked for (g's value needs none, and
- * without one the samples whose sign is known need no exact closest point, query/cluster.h). */
+ * without one the samples whose sign is known need no exact closest point, points/cluster.h). */
 static const float *sample_gradient(const scratch *s, size_t k)
 {
     static const float none[3] = {0, 0, 0};

@@ -18,9 +18,10 @@
 #include "core/diag.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
+#include "points/points.h"
 #include "query/filter.h"
 #include "volume/pack.h"
-#include "volume/scan.h"
+#include "scan/scan.h"
 #include "volume/volume.h"
 
 #define DEFAULT_DIM 64
@@ -489,7 +490,7 @@ static int fit_samples(void *user, size_t first, size_t count, float *f, int wor
 }
 
 /* The scan takes the raw field on closed meshes signed by pseudonormals or unsigned
- * (volume/scan.h), in runs of whole z-slices that fit its scratch. */
+ * (scan/scan.h), in runs of whole z-slices that fit its scratch. */
 static int scannable(const bake_plan *plan)
 {
     const sdf_volume_info *in = &plan->info;
@@ -498,7 +499,7 @@ static int scannable(const bake_plan *plan)
                           plan->query.threads);
 }
 
-/* The raw field on a closed mesh by closest-feature scan conversion (volume/scan.h), in runs
+/* The raw field on a closed mesh by closest-feature scan conversion (scan/scan.h), in runs
  * of whole z-slices: zero order gives sdf_query's floats at the nodes, first order the fine
  * samples that the planes are fitted to. */
 static int scan_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options *opts,

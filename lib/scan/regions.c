@@ -12,10 +12,10 @@
 
 #include "core/parallel.h"
 #include "mesh/mesh.h"
-#include "query/filter.h"
+#include "points/points.h"
 #include "geom/triangle.h"
 #include "sign/pseudonormal.h"
-#include "volume/regions.h"
+#include "scan/regions.h"
 
 /* Corners 0-2 and 3-5 of a triangular prism are its two ends, i and i + 3 joined. */
 static const uint8_t prism_edges[9][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5},

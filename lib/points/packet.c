@@ -7,7 +7,7 @@
  * refined_elephant, 2 alternating runs each). The rest of the library keeps ISO C's unfused
  * arithmetic, so its floats do not depend on the CPU. */
 #pragma GCC optimize("fp-contract=fast")
-#include "query/packet.h"
+#include "points/packet.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -15,7 +15,7 @@
 
 #include "bvh/wide.h"
 #include "core/simd.h"
-#include "query/lanes.h"
+#include "points/lanes.h"
 #include "geom/triangle.h"
 #include "sdf/sdf.h"
 

@@ -1,5 +1,5 @@
 /* raster.c - the scan's inner loop: one feature's region over the nodes of a call (see
- * raster.h and volume/scan.h). Slices run across the region's thinnest axis, rows across the
+ * raster.h and scan/scan.h). Slices run across the region's thinnest axis, rows across the
  * middle one, each row along its longest; a row's interval comes from the region's planes,
  * and its nodes take the feature's distance as a quadratic along the row. */
 #include <math.h>
@@ -7,11 +7,11 @@
 #include <string.h>
 
 #include "core/simd.h"
-#include "volume/raster.h"
+#include "scan/raster.h"
 
 /* Zero order, distances only: a node that lies inside its winner's region by more than this
  * much of the scene's size (beyond the planes' slack), and off the surface by more than
- * SURE_SIGN_OF_EXTENT, is "sure" (see rows_range in volume/scan.c). Double rounding of the
+ * SURE_SIGN_OF_EXTENT, is "sure" (see rows_range in scan/scan.c). Double rounding of the
  * plane values is ~1e-16 of the scene's size; a float pseudonormal's rounding ~1e-7 of an
  * edge's length. */
 #define SURE_INSIDE_OF_EXTENT 1e-9

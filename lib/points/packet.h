@@ -11,14 +11,14 @@
  *     a node is skipped only when it is farther than every point's current bound;
  *  3. data layout: the packet's coordinates are SoA arrays, so the per-node box tests and
  *     a branchless float point-triangle distance run on eight lanes at once (GCC vector
- *     types, no intrinsics: query/lanes.h; AVX2 clones where the CPU has it, core/simd.h),
+ *     types, no intrinsics: points/lanes.h; AVX2 clones where the CPU has it, core/simd.h),
  *     and a triangle is tested only in the groups with a lane near its box.
  * The float distances only choose candidates: every triangle within a rounding margin of a
  * lane's best float distance gets the same exact double-precision test as the single-point
  * path (geom/triangle.c), so distances are identical to it; only exact ties may name a
  * different (equally close) triangle. */
-#ifndef SDF_QUERY_PACKET_H
-#define SDF_QUERY_PACKET_H
+#ifndef SDF_POINTS_PACKET_H
+#define SDF_POINTS_PACKET_H
 
 #include <stddef.h>
 #include <stdint.h>

@@ -4,8 +4,8 @@
  * items are visited together. The sort is a least-significant-digit radix sort (no
  * comparisons), split over the batch's threads for large batches: before, it ran on one
  * core while the other idled, 5-14 % of a 1M-point query's wall time on 2 cores. */
-#ifndef SDF_QUERY_MORTON_H
-#define SDF_QUERY_MORTON_H
+#ifndef SDF_POINTS_MORTON_H
+#define SDF_POINTS_MORTON_H
 
 #include <stddef.h>
 #include <stdint.h>

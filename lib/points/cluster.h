@@ -17,8 +17,8 @@
  * sdf_query's. A caller may take the float distance instead, and skip the exact test where
  * it needs no closest point (the filtered field's samples whose sign is known), except very
  * near the surface, where float rounding is large next to the distance. */
-#ifndef SDF_QUERY_CLUSTER_H
-#define SDF_QUERY_CLUSTER_H
+#ifndef SDF_POINTS_CLUSTER_H
+#define SDF_POINTS_CLUSTER_H
 
 #include <stddef.h>
 #include <stdint.h>

@@ -7,7 +7,7 @@
  * node can be from the surface (`reach_front` on the outward side, `reach_back` inside),
  * which a coarse lattice of exact queries bounds. Worker threads take runs of features in
  * the mesh tree's order, each into its own per-node "best so far" arrays (no locks; the loop
- * over one region's nodes is volume/raster.c); the rows are then finished in parallel, the
+ * over one region's nodes is scan/raster.c); the rows are then finished in parallel, the
  * workers' bests merged by (distance, feature id) so the result does not depend on how the
  * features were shared out. */
 #include <float.h>
@@ -21,12 +21,12 @@
 #include "core/workspace.h"
 #include "mesh/mesh.h"
 #include "mesh/topology.h"
-#include "volume/regions.h"
-#include "query/filter.h"
-#include "query/packet.h"
+#include "scan/regions.h"
+#include "points/points.h"
+#include "points/packet.h"
 #include "geom/triangle.h"
-#include "volume/raster.h"
-#include "volume/scan.h"
+#include "scan/raster.h"
+#include "scan/scan.h"
 
 #define COARSE_STEP 8      /* nodes between the coarse lattice's nodes */
 #define FEATURE_CHUNK 256  /* features per work item */

@@ -1,11 +1,11 @@
 /* cluster.c - closest triangles of a cluster of nearby points (see cluster.h). */
-#include "query/cluster.h"
+#include "points/cluster.h"
 
 #include <math.h>
 #include <stdlib.h>
 
 #include "core/simd.h"
-#include "query/lanes.h"
+#include "points/lanes.h"
 #include "geom/triangle.h"
 
 /* Every float comparison that must not lose a triangle is widened by lanes.h's slack. */
