@@ -44,24 +44,6 @@
 #define VISIT_COPY_CHUNK 65536 /* points per work item of the copy in visit order */
 #define COPY_AHEAD 32          /* the copies' reads (and writes) prefetched this far ahead */
 
-static const char *const sign_names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
-
-int sdf_sign_from_name(const char *name, sdf_sign_method *out)
-{
-    for (int s = SDF_SIGN_AUTO; s <= SDF_SIGN_NONE && name; s++) {
-        if (!strcmp(name, sign_names[s])) {
-            *out = (sdf_sign_method)s;
-            return 0;
-        }
-    }
-    return SDF_EINVAL;
-}
-
-const char *sdf_sign_name(sdf_sign_method method)
-{
-    return method >= SDF_SIGN_AUTO && method <= SDF_SIGN_NONE ? sign_names[method] : "?";
-}
-
 typedef struct batch {
     const sdf_mesh *mesh;
     const char *points;

@@ -91,9 +91,13 @@ typedef enum sdf_format {
     SDF_FORMAT_OFF,
 } sdf_format;
 
-/* "obj", "ply", "stl", "off" (case-insensitive) -> format; SDF_EINVAL otherwise. */
+/* Names of this header's enums, every pair alike: *_from_name matches a name whatever its
+ * case and writes its value, or returns SDF_EINVAL (NULL or an unknown name; *out
+ * unchanged); *_name gives a value's name in lower case, "?" for a value outside the enum. */
+
+/* "auto", "obj", "ply", "stl", "off" -> format ("auto": from the extension or the bytes). */
 int sdf_format_from_name(const char *name, sdf_format *out);
-const char *sdf_format_name(sdf_format format); /* "auto", "obj", ... */
+const char *sdf_format_name(sdf_format format);
 
 typedef enum sdf_sign_method {
     SDF_SIGN_AUTO = 0,     /* pseudonormal for closed meshes that do not intersect
@@ -104,7 +108,7 @@ typedef enum sdf_sign_method {
     SDF_SIGN_NONE,         /* unsigned distance */
 } sdf_sign_method;
 
-/* "auto", "pseudonormal", "winding", "raycast", "none" -> method; SDF_EINVAL otherwise. */
+/* "auto", "pseudonormal", "winding", "raycast", "none" -> method (as sdf_format_from_name). */
 int sdf_sign_from_name(const char *name, sdf_sign_method *out);
 const char *sdf_sign_name(sdf_sign_method method);
 
@@ -341,7 +345,7 @@ typedef enum sdf_volume_encoding {
                                  packed_center +- packed_range; d = value - (a, b, c) . node */
 } sdf_volume_encoding;
 
-/* "float32", "packed32" -> encoding; SDF_EINVAL otherwise. */
+/* "float32", "packed32" -> encoding (as sdf_format_from_name). */
 int sdf_encoding_from_name(const char *name, sdf_volume_encoding *out);
 const char *sdf_encoding_name(sdf_volume_encoding encoding);
 
@@ -372,7 +376,7 @@ typedef struct sdf_volume_info {
     int filtered;            /* 1: baked from the convolution-filtered field */
 } sdf_volume_info;
 
-/* "plane", "gradient" -> normalisation; SDF_EINVAL otherwise. */
+/* "plane", "gradient" -> normalisation (as sdf_format_from_name). */
 int sdf_normalize_from_name(const char *name, sdf_tdf_normalize *out);
 const char *sdf_normalize_name(sdf_tdf_normalize normalize);
 
@@ -437,8 +441,9 @@ typedef enum sdf_volume_filter {
     SDF_VOLUME_NEAREST,       /* the nearest node's value (order 0) or plane at the point */
 } sdf_volume_filter;
 
-/* "trilinear", "nearest" -> filter; SDF_EINVAL otherwise. */
+/* "trilinear", "nearest" -> filter (as sdf_format_from_name). */
 int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out);
+const char *sdf_volume_filter_name(sdf_volume_filter filter);
 
 /* The volume's field at `count` points (packed xyz): value[count] and, if not NULL,
  * gradient[3 count] - the exact gradient of the reconstructed field (zero order nearest:
@@ -460,8 +465,9 @@ int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
  *  RAW: the node words alone, little-endian (sdf_volume_describe_json gives the metadata). */
 typedef enum sdf_volume_file { SDF_VOLUME_EXR = 0, SDF_VOLUME_NPY, SDF_VOLUME_RAW } sdf_volume_file;
 
-/* "exr", "npy", "raw" -> file type; SDF_EINVAL otherwise. */
+/* "exr", "npy", "raw" -> file type (as sdf_format_from_name). */
 int sdf_volume_file_from_name(const char *name, sdf_volume_file *out);
+const char *sdf_volume_file_name(sdf_volume_file type);
 
 /* Encode the volume as a file in a new malloc'ed buffer (*data, *size; release with free). */
 int sdf_volume_save_memory(const sdf_volume *volume, sdf_volume_file type, void **data,
