@@ -6,6 +6,7 @@
  * sits in a triangle or a rectangle, a cone in the pyramid of its generators (the planes'
  * pairwise intersections that satisfy every plane) or, when wide, in a box. */
 #include <float.h>
+#include <assert.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -348,21 +349,12 @@ static int flat_vertex(const sdf__features *s, const double p[3], const double (
     return 1;
 }
 
-/* The cone at vertex v: directions x with x . (w - v) <= 0 for every neighbour w. Its
- * generators are the planes' pairwise intersections that satisfy every plane; the region is
- * the pyramid they span, capped at the reach along its axis. */
-static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
+/* Vertex v's unit edge directions (to its neighbours; at most SDF__REGION_PLANES - 2), each
+ * also a plane x . (w - v) <= 0 of r. Returns how many. */
+static int vertex_edges(const sdf__features *s, size_t v, const double p[3], sdf__region *r,
+                        double e[][3])
 {
-    const double *p = vertex(s, (uint32_t)v);
     uint32_t first = s->vert_first[v], count = s->vert_first[v + 1] - first;
-    if (count == 0)
-        return 0;
-    r->kind = SDF__REGION_VERTEX;
-    memcpy(r->origin, p, sizeof r->origin);
-    for (int a = 0; a < 3; a++)
-        r->sign_dir[a] = s->vertex_normal[3 * v + (size_t)a];
-    r->planes = 0;
-    double e[SDF__REGION_PLANES][3];
     int n = 0;
     for (uint32_t k = 0; k < count && n < SDF__REGION_PLANES - 2; k++) {
         const double *w = vertex(s, s->vert_nbr[first + k]);
@@ -373,19 +365,25 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
         add_plane_at(s, r, dir, p, 0);
         n++;
     }
-    double gen[SDF__REGION_CORNERS - 1][3], axis[3] = {0, 0, 0};
-    int g = 0, pointed = 1;
-    for (int i = 0; i < n && pointed; i++)
-        for (int j = i + 1; j < n && pointed; j++) {
+    return n;
+}
+
+/* The cone's generators: the unit pairwise intersections of the n planes (normals e) that
+ * satisfy every plane, each once. Returns how many; *pointed becomes 0 when there are more
+ * than a region's corners hold. */
+static int cone_generators(const double e[][3], int n, double gen[][3], int *pointed)
+{
+    int g = 0;
+    for (int i = 0; i < n && *pointed; i++)
+        for (int j = i + 1; j < n && *pointed; j++) {
             double ray[3];
             sdf__cross3(ray, e[i], e[j]);
             double len = sqrt(sdf__dot3(ray, ray));
             if (len < 1e-9)
                 continue;
             /* The ray and its opposite against every plane in one pass, before the ray is
-             * made a unit vector, so the pairs that fail (82 % on refined_elephant, 53 % on
-             * fandisk) skip its divisions: the opposite's products are the ray's negated,
-             * exactly. */
+             * made a unit vector, so the pairs that fail (most of them) skip its divisions:
+             * the opposite's products are the ray's negated, exactly. */
             int ok_minus = 1, ok_plus = 1;
             double tolerance = 1e-9 * len;
             for (int l = 0; l < n && (ok_minus || ok_plus); l++) {
@@ -404,12 +402,96 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
                 if (!ok)
                     continue;
                 if (g == SDF__REGION_CORNERS - 1) {
-                    pointed = 0;
+                    *pointed = 0;
                     break;
                 }
                 memcpy(gen[g++], cand, sizeof cand);
             }
         }
+    return g;
+}
+
+/* Order the generators around the axis, so the base polygon's edges are neighbours. */
+static void order_around(double gen[][3], int g, const double axis[3])
+{
+    double b1[3], b2[3], any[3] = {1, 0, 0}, angle[SDF__REGION_CORNERS - 1];
+    if (fabs(axis[0]) > 0.9)
+        any[0] = 0, any[1] = 1;
+    sdf__cross3(b1, axis, any);
+    normalize3(b1);
+    sdf__cross3(b2, axis, b1);
+    for (int h = 0; h < g; h++) { /* a pseudo-angle: monotone in the angle, no atan2 */
+        double x = sdf__dot3(gen[h], b1), y = sdf__dot3(gen[h], b2), l1 = fabs(x) + fabs(y);
+        double q = l1 > 0 ? x / l1 : 1;
+        angle[h] = y >= 0 ? 1 - q : 3 + q;
+    }
+    for (int h = 1; h < g; h++) /* insertion sort: a handful of generators */
+        for (int k = h; k > 0 && angle[k - 1] > angle[k]; k--) {
+            double ta = angle[k], tg[3];
+            angle[k] = angle[k - 1], angle[k - 1] = ta;
+            memcpy(tg, gen[k], sizeof tg);
+            memcpy(gen[k], gen[k - 1], sizeof tg);
+            memcpy(gen[k - 1], tg, sizeof tg);
+        }
+}
+
+/* The pyramid from apex p along the ordered generators to the cap at `reach` along the
+ * axis: its corners (the apex first) and edges. */
+static void cone_pyramid(sdf__region *r, const double p[3], const double gen[][3], int g,
+                         const double axis[3], double reach)
+{
+    assert(g >= 1 && g + 1 <= SDF__REGION_CORNERS && 2 * g <= SDF__REGION_EDGES);
+    r->corners = g + 1;
+    memcpy(r->corner[0], p, sizeof r->corner[0]);
+    r->edges = 0;
+    for (int h = 0; h < g; h++) {
+        double len = reach / sdf__dot3(gen[h], axis);
+        for (int a = 0; a < 3; a++)
+            r->corner[h + 1][a] = p[a] + len * gen[h][a];
+        r->edge[r->edges][0] = 0, r->edge[r->edges][1] = (uint8_t)(h + 1), r->edges++;
+        if (g > 1) {
+            r->edge[r->edges][0] = (uint8_t)(h + 1);
+            r->edge[r->edges][1] = (uint8_t)((h + 1) % g + 1);
+            r->edges++;
+        }
+    }
+}
+
+/* A wide cone's cap reaches far out: its corners become their box within the reach's cube
+ * around p. */
+static void clip_wide_cone(sdf__region *r, const double p[3], double reach)
+{
+    double lo[3], hi[3], unit[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    for (int a = 0; a < 3; a++) {
+        lo[a] = hi[a] = p[a];
+        for (int c = 1; c < r->corners; c++) {
+            lo[a] = sdf__min2(lo[a], r->corner[c][a]);
+            hi[a] = sdf__max2(hi[a], r->corner[c][a]);
+        }
+        lo[a] = sdf__max2(lo[a], p[a] - reach), hi[a] = sdf__min2(hi[a], p[a] + reach);
+    }
+    double span_x[2] = {lo[0], hi[0]}, span_z[2] = {lo[2], hi[2]};
+    double origin[3] = {0, 0.5 * (lo[1] + hi[1]), 0};
+    box_corners(r, origin, unit[0], span_x, unit[1], 0.5 * (hi[1] - lo[1]), unit[2], span_z);
+}
+
+/* The cone at vertex v: directions x with x . (w - v) <= 0 for every neighbour w. Its
+ * generators are the planes' pairwise intersections that satisfy every plane; the region is
+ * the pyramid they span, capped at the reach along its axis. */
+static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
+{
+    const double *p = vertex(s, (uint32_t)v);
+    if (s->vert_first[v + 1] == s->vert_first[v])
+        return 0;
+    r->kind = SDF__REGION_VERTEX;
+    memcpy(r->origin, p, sizeof r->origin);
+    for (int a = 0; a < 3; a++)
+        r->sign_dir[a] = s->vertex_normal[3 * v + (size_t)a];
+    r->planes = 0;
+    double e[SDF__REGION_PLANES][3];
+    int n = vertex_edges(s, v, p, r, e);
+    double gen[SDF__REGION_CORNERS - 1][3], axis[3] = {0, 0, 0};
+    int pointed = 1, g = cone_generators((const double (*)[3])e, n, gen, &pointed);
     if (g == 0 && pointed)
         return 0; /* the cone is the vertex itself (or a line its faces' regions border) */
     for (int h = 0; h < g; h++)
@@ -433,54 +515,10 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
     reach = truncate_reach(s, p, axis, 0, sqrt(sdf__max2(0.0, 2 - 2 * widest)),
                            side > 0 ? s->reach_front : s->reach_back);
     add_plane_at(s, r, axis, p, reach);
-    /* Order the generators around the axis, so the base polygon's edges are neighbours. */
-    double b1[3], b2[3], any[3] = {1, 0, 0}, angle[SDF__REGION_CORNERS - 1];
-    if (fabs(axis[0]) > 0.9)
-        any[0] = 0, any[1] = 1;
-    sdf__cross3(b1, axis, any);
-    normalize3(b1);
-    sdf__cross3(b2, axis, b1);
-    for (int h = 0; h < g; h++) { /* a pseudo-angle: monotone in the angle, no atan2 */
-        double x = sdf__dot3(gen[h], b1), y = sdf__dot3(gen[h], b2), l1 = fabs(x) + fabs(y);
-        double q = l1 > 0 ? x / l1 : 1;
-        angle[h] = y >= 0 ? 1 - q : 3 + q;
-    }
-    for (int h = 1; h < g; h++) /* insertion sort: a handful of generators */
-        for (int k = h; k > 0 && angle[k - 1] > angle[k]; k--) {
-            double ta = angle[k], tg[3];
-            angle[k] = angle[k - 1], angle[k - 1] = ta;
-            memcpy(tg, gen[k], sizeof tg);
-            memcpy(gen[k], gen[k - 1], sizeof tg);
-            memcpy(gen[k - 1], tg, sizeof tg);
-        }
-    r->corners = g + 1;
-    memcpy(r->corner[0], p, sizeof r->corner[0]);
-    r->edges = 0;
-    for (int h = 0; h < g; h++) {
-        double len = reach / sdf__dot3(gen[h], axis);
-        for (int a = 0; a < 3; a++)
-            r->corner[h + 1][a] = p[a] + len * gen[h][a];
-        r->edge[r->edges][0] = 0, r->edge[r->edges][1] = (uint8_t)(h + 1), r->edges++;
-        if (g > 1) {
-            r->edge[r->edges][0] = (uint8_t)(h + 1);
-            r->edge[r->edges][1] = (uint8_t)((h + 1) % g + 1);
-            r->edges++;
-        }
-    }
-    if (widest < 0.5) { /* a wide cone's cap reaches far out: its box within the reach's cube */
-        double lo[3], hi[3], unit[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-        for (int a = 0; a < 3; a++) {
-            lo[a] = hi[a] = p[a];
-            for (int c = 1; c < r->corners; c++) {
-                lo[a] = sdf__min2(lo[a], r->corner[c][a]);
-                hi[a] = sdf__max2(hi[a], r->corner[c][a]);
-            }
-            lo[a] = sdf__max2(lo[a], p[a] - reach), hi[a] = sdf__min2(hi[a], p[a] + reach);
-        }
-        double span_x[2] = {lo[0], hi[0]}, span_z[2] = {lo[2], hi[2]};
-        double origin[3] = {0, 0.5 * (lo[1] + hi[1]), 0};
-        box_corners(r, origin, unit[0], span_x, unit[1], 0.5 * (hi[1] - lo[1]), unit[2], span_z);
-    }
+    order_around(gen, g, axis);
+    cone_pyramid(r, p, (const double (*)[3])gen, g, axis, reach);
+    if (widest < 0.5)
+        clip_wide_cone(r, p, reach);
     return 1;
 }
 
