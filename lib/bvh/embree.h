@@ -1,11 +1,11 @@
 /* embree.h - the Embree 3 side of a mesh: one device per mesh (no global state), which
  * builds our own tree (bvh/tree.h), and a triangle scene for the two things only Embree's
- * traversal does here: the one-rtcPointQuery-per-point path (SDF_TRAVERSAL_SINGLE, with our
- * own double-precision triangle test) and ray-crossing counts (raycast sign). Neither is the
- * default, so the scene is committed on first use (sdf__bvh_ready): it took ~25 % of a
- * mesh's build time and half its index memory. Embree errors are caught by the device's
- * error callback and turned into SDF_EBVH. Embree's own headers are included by bvh/'s .c
- * files alone, so nothing above bvh/ depends on them. */
+ * traversal does here: the one-rtcPointQuery-per-point path (SDF_TRAVERSAL_SINGLE, with our own
+ * double-precision triangle test) and ray-crossing counts (raycast sign). Neither is the
+ * default, so the scene is committed on first use (sdf__bvh_ready): it would otherwise add a
+ * large share of every mesh's build time and index memory. Embree errors are caught by the
+ * device's error callback and turned into SDF_EBVH. Embree's own headers are included by bvh/'s
+ * .c files alone, so nothing above bvh/ depends on them. */
 #ifndef SDF_BVH_EMBREE_H
 #define SDF_BVH_EMBREE_H
 

@@ -176,8 +176,7 @@ typedef struct discs_job {
 } discs_job;
 
 /* Leaves only: at inner nodes (subtrees of up to 16..256 triangles) the cylinders cut the
- * nodes visited by up to 20 % but cost more than that saved (refined_elephant, 1 thread: box
- * 0.59 -> 0.52-0.57 Mq/s, band within noise). */
+ * nodes visited, but the extra test costs more than the visits it saves. */
 static void discs_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
@@ -243,7 +242,7 @@ int sdf__tree_build(const sdf__bvh *embree, const float *positions, const uint32
     args.maxDepth = SDF__TREE_MAX_DEPTH;
     /* A node visit costs about as much as 8 triangle tests in our traversals: the SAH then
      * makes leaves of ~6 triangles instead of ~2, which halves the node count (memory) and
-     * measured faster (refined_elephant, packets: band 0.61 -> 0.73 Mq/s, box 0.30 -> 0.36). */
+     * shortens the walks, whose cost is the node visits' dependent loads. */
     args.traversalCost = 8.0f;
     args.maxLeafSize = max_leaf < 1 ? 1 : (max_leaf > SDF__TREE_MAX_LEAF ? SDF__TREE_MAX_LEAF : max_leaf);
     args.bvh = bvh;

@@ -1,12 +1,11 @@
 /* workspace.h - a caller's scratch kept between batch calls (sdf_workspace, sdf.h).
  *
- * A batch call's large arrays (the Morton order and its keys, the points and answers in
- * visit order, a filtered call's per-point and per-block arrays, the per-node bests of a
- * lattice that the scan answers) used to be allocated and freed by every call, and their
- * fresh pages faulted in afresh each time: on this project's virtual machines ~10 % of a
- * 1M-point band query (perf: clear_page under the Morton keys, the visit-order copies and the
- * answers' scatter). A workspace keeps each array in a slot of its own, grown when a call
- * needs more, until the workspace is destroyed.
+ * A batch call's large arrays (the Morton order and its keys, the points and answers in visit
+ * order, a filtered call's per-point and per-block arrays, the per-node bests of a lattice that
+ * the scan answers) used to be allocated and freed by every call, and their fresh pages faulted
+ * in afresh each time, costly on virtual machines (the kernel clearing pages under the Morton
+ * keys, the visit-order copies and the answers' scatter). A workspace keeps each array in a
+ * slot of its own, grown when a call needs more, until the workspace is destroyed.
  *
  * The public entry points claim the workspace named in their options (sdf__ws_enter), so one
  * call at a time uses it; a call that finds it claimed runs as if it had none. Internal

@@ -12,7 +12,7 @@
 #define SLACK_REL SDF__LANE_SLACK_REL
 
 /* A float distance is taken only above this many slack_abs (relative error <~ 1/64 at worst,
- * ~1e-5 measured); nearer points are rare (band samples: a few %) and get the exact test. */
+ * far less in practice); nearer points are rare and get the exact test. */
 #define FLOAT_DISTANCE_MIN 64.0f
 
 #define BUCKETS 32 /* reach classes of the candidates' visit order */

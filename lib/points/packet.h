@@ -2,7 +2,7 @@
  *
  * Sec. 3 of the convolution paper ("packet sampling"): nearby queries go through the same
  * branches of the tree, so they are grouped and the tree is traversed once for all of them.
- * Three levers, in order of payoff (DESIGN.md):
+ * Three levers, in order of payoff (docs/design.md):
  *  1. bounds: no search starts at infinity. Points are visited in Morton order, and a
  *     point's search radius starts at min(d_prev + |p - p_prev|, |p - c_prev|), an upper
  *     bound of its distance by the triangle inequality (p_prev: the last point answered

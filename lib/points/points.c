@@ -30,15 +30,14 @@
 #define PACKET_CHUNK 4096  /* most Morton-ordered points per work item, packet traversal */
 /* A packet is traversed together only if its points lie within this many times (their
  * distance bound + the mean leaf size) of each other: sparse batches (1,000 points over a
- * mesh) share too little of their traversals. Measured on fandisk, 2 threads, 1k and 64k
- * box and band points: 1 slows dense batches 1.6x, 6 slows sparse band 1.4x, 3 is near the
- * best of both. Without the leaf size, near-surface points (d_prev ~ 0) fell back needlessly:
- * refined_elephant 1M band 0.85 -> 1.24 Mq/s (1 thread) with it. */
+ * mesh) share too little of their traversals. A smaller factor sends dense batches one at a
+ * time, a larger one makes sparse batches walk together for nothing; 3 is near the best of
+ * both (docs/performance.md). The leaf size keeps near-surface points (d_prev ~ 0), which
+ * share their leaves, from falling back needlessly. */
 #define PACKET_SPREAD 3.0
 /* Candidate triangles one cluster of seeded points may hold (points/cluster.h); a cluster
- * that could be nearest to more takes the packets. Measured, 64-sample filtering of band
- * points, one thread: 256 sent 27 % of refined_elephant's clusters to the packets (0.0246
- * Mq/s), 1024 2 % (0.0270-0.0281), 4096 no faster; fandisk within noise. */
+ * that could be nearest to more takes the packets. Fewer sent many of a fine mesh's
+ * clusters to the slower packets; more did not pay for their scratch. */
 #define CLUSTER_CANDIDATES 1024
 #define SEEDED_CHUNK 1024 /* seeded points per work item */
 #define VISIT_COPY_CHUNK 65536 /* points per work item of the copy in visit order */
@@ -147,8 +146,7 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
 /* Sign and outputs of point i (at p), given its closest point (and its winding number, or
  * NAN).
  * The hit is read in place: a local copy of it made the pseudonormal's first read of the
- * face normal stall (fandisk band, one thread: sdf__pseudonormal 12.7 % of the run; 1.2 %
- * without the copy). */
+ * face normal stall on the copy's stores. */
 static void finish(const batch *b, size_t i, const float p[3], const sdf__hit *hit,
                    double winding)
 {
@@ -298,9 +296,7 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
     double prev[3] = {first[0], first[1], first[2]}, prev_d = sqrt(hits[0].dist2);
     /* That point's closest point is on the surface, so its distance from any point bounds
      * that point's distance as well; beside each other over the surface it is the tighter
-     * of the two bounds (refined_elephant, 2 threads: 64,000 band points and 1M box points
-     * +5 %, 1M band within noise; the nearest of the last packet's 32 closest points gained
-     * no more). */
+     * of the two bounds (the nearest of the last packet's closest points gained no more). */
     double near[3] = {hits[0].point[0], hits[0].point[1], hits[0].point[2]};
     for (size_t k = begin + 1; k < end; k += SDF__PACKET) {
         pk.n = (int)(end - k < SDF__PACKET ? end - k : SDF__PACKET);
@@ -312,7 +308,7 @@ static void packet_range(void *ctx, size_t begin, size_t end, int worker)
         for (int i = 0; i < pk.n; i++) {
             const float *p = visit_point(b, k + (size_t)i);
             /* Answers land in request order, scattered by the Morton order: ask for the line
-             * now, so finish() does not wait on it (fandisk band, one thread: +5-20 %). */
+             * now, so finish() does not wait on it. */
             if (b->out->distance && !b->final)
                 __builtin_prefetch(b->out->distance + b->order[k + (size_t)i], 1);
             pk.x[i] = p[0], pk.y[i] = p[1], pk.z[i] = p[2];
@@ -502,8 +498,7 @@ int sdf__query_points(const sdf_mesh *mesh, const float *points, size_t count,
 
 /* The points copied in visit order (batch.visit_xyz), so that packets read them in turn. In
  * the batch's own order the Morton order scatters each packet's reads over the whole array,
- * and each missed the cache and the TLB while the packets waited (fandisk 1M band points, 2
- * threads: 7.2-8.2 Mq/s, against 8.8-9.0 for the same points given already sorted). */
+ * and each missed the cache and the TLB while the packets waited. */
 static void copy_in_visit_order(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;

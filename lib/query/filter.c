@@ -1,5 +1,5 @@
 /* filter.c - the convolution-filtered signed distance and its gradient (see sdf.h and
- * filter.h; paper: ../shared/papers/convolution-filtering-sdf.md).
+ * filter.h; paper: docs/papers/convolution-filtering-sdf.md).
  *
  * Evaluation is batches of ordinary queries: f and grad f at the points themselves (for the
  * kernel size h), the medial stencil when adaptive, then every displaced sample p - s_i h(p).
@@ -379,9 +379,9 @@ static void displace(const float *p, const double offset[3], double h, double fp
 static double smoothstep(double t) { return t >= 1 ? 1 : t <= 0 ? 0 : t * t * (3 - 2 * t); }
 static double smoothstep_slope(double t) { return t >= 1 || t <= 0 ? 0 : 6 * t * (1 - t); }
 
-/* One block of a filtered call, for its per-point loops (each point's work is its own, so
- * the floats do not depend on how the points are shared out). On one thread these loops were
- * ~10 % of a 2-thread fandisk run's CPU time while the other core waited. */
+/* One block of a filtered call, for its per-point loops, which run on every thread: on one,
+ * the other cores would wait on them (each point's work is its own, so the floats do not
+ * depend on how the points are shared out). */
 typedef struct block_work {
     const sdf_filter_options *f;
     scratch *s;

@@ -1,5 +1,5 @@
 /* filter.h - the sample sets of the convolution-filtered field (sdf_query_filtered in
- * sdf.h; the paper is ../shared/papers/convolution-filtering-sdf.md, sec. 4-5).
+ * sdf.h; the paper is docs/papers/convolution-filtering-sdf.md, sec. 4-5).
  *
  * A sample set is drawn once per request from its seed: displacements s_i with weights w_i
  * summing to 1 (1/n for samples drawn from the kernel's density, eq. 10; w(s_i) normalised

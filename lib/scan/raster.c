@@ -141,9 +141,9 @@ SDF__HOT_INLINE void offer_fat_pending(float *best, const sdf__fat_region *fr, i
 /* Zero order: the region's visits wait here (first order: in its sdf__fat_region), their
  * nodes prefetched, and are offered to the nodes' bests SDF__PENDING_VISITS at a time. The
  * bests are a worker's whole copy of the call's nodes, tens of MiB, and each visit's load
- * missed the cache in turn while the region's geometry waited on it (a third of the scan's
- * time, refined_elephant 128^3); apart, the loads overlap each other and the slicing. A
- * region holds each node once, so the order of its offers does not matter. */
+ * missed the cache in turn while the region's geometry waited on it; apart, the loads overlap
+ * each other and the slicing. A region holds each node once, so the order of its offers does
+ * not matter. */
 typedef struct pending_visit {
     size_t node;
     double d2;

@@ -96,8 +96,8 @@ static double cut_by_point(const double u[3], const double axis[3], double offse
  * nearest the axis, one per step of the march, each solved for exactly where it wins
  * (cut_by_point), so the cut is not rounded up to a step. Before, the bound at each step was
  * the nearest node's distance plus the way there, up to half a coarse cell's diagonal
- * looser (refined_elephant 128^3: 5.4 M node evaluations -> 3.9 M; all eight corners of a
- * cell were hardly tighter, 3.8 M, and cost more than they saved). */
+ * looser, so the scan evaluated more nodes (all eight corners of a cell were hardly
+ * tighter, and cost more than they saved). */
 static double truncate_reach(const sdf__features *s, const double base[3], const double axis[3],
                              double offset, double spread, double reach)
 {
@@ -621,10 +621,8 @@ int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *co
     for (int a = 0; a < 3; a++)
         f->bound_dims[a] = n[a], f->bound_coord[a] = bound_coord[a];
     /* Any surface point gives a valid cut (a later one only scans more), so the march need
-     * not be fine: a whole coarse cell instead of half took fandisk's 1M-node grid from
-     * 11.8-13.8 to 15.0-17.0 Mq/s (refined_elephant within noise; two steps of a cell were no
-     * better; with closest points, half a cell or coarse nodes every 4th or 6th node instead
-     * of every 8th were within noise). */
+     * not be fine: a whole coarse cell a step costs fewer cuts than half a cell and loses
+     * little of their tightness. */
     f->march = (double)step * finest;
     /* Widened past the float rounding of the coarse distances. */
     double widen = sqrt(half_diag2) * (1 + 1e-6) + f->slack;

@@ -1,5 +1,5 @@
 /* bake.c - baking distance volumes (sdf_volume_bake in sdf.h; the TDF paper is
- * ../shared/papers/first-order-sdf-taylor.md).
+ * docs/papers/first-order-sdf-taylor.md).
  *
  * Zero order: the signed distance at every node, one batched query per slab of nodes.
  * First order (Algorithm 1): around every node x_i the distances on a fine (2H+1)^3 grid of

@@ -6,7 +6,7 @@
  *
  * Anything not declared here is not API.
  *
- * Conventions (see DESIGN.md):
+ * Conventions (see docs/design.md):
  *  - Every function that can fail returns int: 0 (SDF_OK) or a negative SDF_E* code.
  *    sdf_strerror() names it. Bad input never aborts the process.
  *  - Handles are opaque. A loaded sdf_mesh is immutable and may be queried from any number
@@ -202,7 +202,7 @@ typedef enum sdf_traversal {
  * sdf_winding_numbers need large arrays for big batches (the points' Morton order, the points
  * and answers in visit order, a filtered call's samples: tens of MB for a million points).
  * Without a workspace each call allocates them and frees them at its end, and their fresh
- * pages fault in again next call (on a virtual machine ~10 % of a 1M-point query). Given one
+ * pages fault in again next call (costly on virtual machines). Given one
  * in sdf_query_options.workspace, a call takes its arrays from it and leaves them there,
  * grown to the largest call's needs, for the next (a lattice that the scan answers keeps its
  * per-node arrays there too). Answers are the same with or without one.
