@@ -139,16 +139,14 @@ void sdf__samples_free(sdf__samples *s)
 
 static int positive(double v) { return isfinite(v) && v > 0; }
 
-int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
-                        sdf_filter_options *out, sdf_diag *diag)
+/* The kernel, its cap and widths of `out` (sdf_filter_options), defaults filled in for a
+ * mesh of this diagonal. 0 or SDF_EINVAL with its message. */
+static int resolve_kernel(sdf_filter_options *out, double diagonal, sdf_diag *diag)
 {
-    sdf_mesh_report r;
-    sdf_mesh_get_report(mesh, &r);
-    *out = in ? *in : (sdf_filter_options){0};
     if (out->kernel != SDF_KERNEL_GAUSSIAN && out->kernel != SDF_KERNEL_BUMP)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown kernel %d", (int)out->kernel);
     if (out->cap == 0)
-        out->cap = DEFAULT_CAP_OF_DIAGONAL * (r.diagonal > 0 ? r.diagonal : 1);
+        out->cap = DEFAULT_CAP_OF_DIAGONAL * (diagonal > 0 ? diagonal : 1);
     if (!positive(out->cap))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "cap (f_c) must be a positive number");
     /* The kernel widths default to the cap's scale; a cap so small or large that they would
@@ -174,11 +172,12 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
     if (!positive(out->b))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                              "the bump's width b must be a positive number");
-    if (out->samples == 0)
-        out->samples = SDF_FILTER_DEFAULT_SAMPLES;
-    if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
-        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "samples must be 1..%d, not %d",
-                             SDF_FILTER_MAX_SAMPLES, out->samples);
+    return 0;
+}
+
+/* The smoothing volume of `out`, checked, with its depth and scale defaults. */
+static int resolve_volume(sdf_filter_options *out, sdf_diag *diag)
+{
     sdf_smoothing_volume *v = &out->smooth;
     switch (v->shape) {
     case SDF_VOLUME_NONE:
@@ -212,6 +211,23 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                  "smoothing depth and scale must be positive numbers");
     }
+    return 0;
+}
+
+/* The sample count of `out`, checked, with its default. */
+static int resolve_samples(sdf_filter_options *out, sdf_diag *diag)
+{
+    if (out->samples == 0)
+        out->samples = SDF_FILTER_DEFAULT_SAMPLES;
+    if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "samples must be 1..%d, not %d",
+                             SDF_FILTER_MAX_SAMPLES, out->samples);
+    return 0;
+}
+
+/* Adaptive quality (min_samples) of `out`, checked, with its medial default. */
+static int resolve_adaptive(sdf_filter_options *out, sdf_diag *diag)
+{
     if (out->min_samples != 0) {
         if (out->min_samples < 1 || out->min_samples > out->samples)
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
@@ -225,6 +241,25 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
         if (!positive(out->medial))
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "medial must be a positive number");
     }
+    return 0;
+}
+
+int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
+                        sdf_filter_options *out, sdf_diag *diag)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    *out = in ? *in : (sdf_filter_options){0};
+    int rc = resolve_kernel(out, r.diagonal, diag);
+    if (!rc)
+        rc = resolve_samples(out, diag);
+    if (!rc)
+        rc = resolve_volume(out, diag);
+    if (!rc)
+        rc = resolve_adaptive(out, diag);
+    if (rc)
+        return rc;
+    const sdf_smoothing_volume *v = &out->smooth;
     /* Eq. (7): the kernel must not reach across the surface, b h(p) <= |f(p)| for all p. It
      * bounds eq. (4)'s kernel size; localized smoothing edits the surface on purpose. */
     if (v->shape == SDF_VOLUME_NONE && out->kernel == SDF_KERNEL_BUMP && !out->allow_wide_bump &&

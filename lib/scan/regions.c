@@ -195,26 +195,13 @@ static int face_region(const sdf__features *s, size_t t, sdf__region *r)
     return 1;
 }
 
-/* The wedge beside edge e: points whose foot on the edge's line lies on the edge and which
- * lie on no incident face's side of the edge. Its cross-section, a sector of the reach's
- * radius, is bounded by a triangle (narrow sectors) or a rectangle. */
-static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
+/* The planes of edge e's incident faces (from a along the unit direction d): for each face
+ * with area, its unit direction u across the edge, a plane u . (p - a) <= 0 of r. The first
+ * two faces' u and unit normals are kept. Returns how many faces had area. */
+static int edge_face_planes(const sdf__features *s, size_t e, const double a[3],
+                            const double d[3], sdf__region *r, double u[2][3],
+                            double normals[2][3])
 {
-    const double *a = vertex(s, s->edge_end[2 * e]), *b = vertex(s, s->edge_end[2 * e + 1]);
-    double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    double len = normalize3(d);
-    if (len == 0)
-        return 0;
-    r->kind = SDF__REGION_EDGE;
-    memcpy(r->origin, a, sizeof r->origin);
-    memcpy(r->dir, d, sizeof r->dir);
-    for (int x = 0; x < 3; x++)
-        r->sign_dir[x] = s->edge_normal[3 * e + (size_t)x];
-    r->planes = 0;
-    double minus_d[3] = {-d[0], -d[1], -d[2]};
-    add_plane_at(s, r, minus_d, a, 0);
-    add_plane_at(s, r, d, b, 0);
-    double u[2][3], normals[2][3];
     int valid = 0;
     for (uint32_t k = s->edge_first[e]; k < s->edge_first[e + 1]; k++) {
         const uint32_t *tri = s->triangles + 3 * (size_t)s->edge_tri[k];
@@ -239,8 +226,16 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
         }
         valid++;
     }
-    /* Cross-section: t in [t0, t1] along m, |w| <= half_width along q = d x m. */
-    double reach = sdf__max2(s->reach_front, s->reach_back), m[3], t[2], half_width;
+    return valid;
+}
+
+/* The wedge's cross-section before truncation: t in [t0, t1] along the unit m, |w| <=
+ * *half_width across it, from the faces' directions u and normals (valid of them). */
+static void edge_section(const sdf__features *s, const double d[3], const double u[2][3],
+                         const double normals[2][3], int valid, double m[3], double t[2],
+                         double *half_width)
+{
+    double reach = sdf__max2(s->reach_front, s->reach_back);
     if (valid == 2) { /* a closed mesh's edge has two faces */
         double sum[3] = {u[0][0] + u[1][0], u[0][1] + u[1][1], u[0][2] + u[1][2]};
         double spread = sqrt(sdf__dot3(sum, sum)); /* 2 cos(beta / 2), beta between u0 and u1 */
@@ -250,11 +245,11 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
             double side = sdf__dot3(m, normals[0]) + sdf__dot3(m, normals[1]);
             reach = side > 0 ? s->reach_front : s->reach_back;
             t[0] = 0, t[1] = reach;
-            half_width = reach * sdf__min2(1.0, 0.5 * spread);
+            *half_width = reach * sdf__min2(1.0, 0.5 * spread);
         } else { /* flat: the plane of the normals, both sides */
-            memcpy(m, normals[0], sizeof m);
+            memcpy(m, normals[0], 3 * sizeof *m);
             t[0] = -s->reach_back, t[1] = s->reach_front;
-            half_width = reach * spread;
+            *half_width = reach * spread;
         }
     } else { /* a face without area beside it: a cylinder around the edge */
         double any[3] = {1, 0, 0};
@@ -262,8 +257,52 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
             any[0] = 0, any[1] = 1;
         sdf__cross3(m, d, any);
         normalize3(m);
-        t[0] = -reach, t[1] = reach, half_width = reach;
+        t[0] = -reach, t[1] = reach, *half_width = reach;
     }
+}
+
+/* A sector of half-angle gamma <= 60 degrees (sin_g its sine) reaching t1 along m: inside
+ * the triangle (0, 0), (t1, +-t1 tan gamma) of the (m, q) plane, its sides the faces'
+ * planes; the prism of that triangle along the edge (a, direction d, length len). */
+static void edge_prism(sdf__region *r, const double a[3], const double d[3], double len,
+                       const double m[3], const double q[3], double t1, double sin_g)
+{
+    double spread_w = t1 * sin_g / sqrt(1 - sin_g * sin_g);
+    r->corners = 6;
+    for (int end = 0; end < 2; end++)
+        for (int x = 0; x < 3; x++) {
+            double at = a[x] + (end ? len : 0) * d[x];
+            r->corner[3 * end][x] = at;
+            r->corner[3 * end + 1][x] = at + t1 * m[x] - spread_w * q[x];
+            r->corner[3 * end + 2][x] = at + t1 * m[x] + spread_w * q[x];
+        }
+    r->edges = 9;
+    memcpy(r->edge, prism_edges, sizeof prism_edges);
+}
+
+/* The wedge beside edge e: points whose foot on the edge's line lies on the edge and which
+ * lie on no incident face's side of the edge. Its cross-section, a sector of the reach's
+ * radius, is bounded by a triangle (narrow sectors) or a rectangle. */
+static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
+{
+    const double *a = vertex(s, s->edge_end[2 * e]), *b = vertex(s, s->edge_end[2 * e + 1]);
+    double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double len = normalize3(d);
+    if (len == 0)
+        return 0;
+    r->kind = SDF__REGION_EDGE;
+    memcpy(r->origin, a, sizeof r->origin);
+    memcpy(r->dir, d, sizeof r->dir);
+    for (int x = 0; x < 3; x++)
+        r->sign_dir[x] = s->edge_normal[3 * e + (size_t)x];
+    r->planes = 0;
+    double minus_d[3] = {-d[0], -d[1], -d[2]};
+    add_plane_at(s, r, minus_d, a, 0);
+    add_plane_at(s, r, d, b, 0);
+    double u[2][3], normals[2][3], m[3], t[2], half_width;
+    int valid = edge_face_planes(s, e, a, d, r, u, normals);
+    edge_section(s, d, (const double (*)[3])u, (const double (*)[3])normals, valid, m, t,
+                 &half_width);
     /* Truncated where the bound shows the edge has lost: the sector's points at distance t
      * lie within len / 2 + 2 sin(gamma / 2) t of mid + t m. */
     double mid[3] = {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
@@ -281,19 +320,7 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
         minus_q[x] = -q[x];
     add_plane_at(s, r, m, a, t[1]);
     if (t[0] == 0 && sin_g <= 0.866) {
-        /* A sector of half-angle gamma <= 60 degrees: inside the triangle (0, 0),
-         * (reach, +-reach tan gamma) of the (m, q) plane, its sides the faces' planes. */
-        double spread_w = t[1] * sin_g / sqrt(1 - sin_g * sin_g);
-        r->corners = 6;
-        for (int end = 0; end < 2; end++)
-            for (int x = 0; x < 3; x++) {
-                double at = a[x] + (end ? len : 0) * d[x];
-                r->corner[3 * end][x] = at;
-                r->corner[3 * end + 1][x] = at + t[1] * m[x] - spread_w * q[x];
-                r->corner[3 * end + 2][x] = at + t[1] * m[x] + spread_w * q[x];
-            }
-        r->edges = 9;
-        memcpy(r->edge, prism_edges, sizeof prism_edges);
+        edge_prism(r, a, d, len, m, q, t[1], sin_g);
         return 1;
     }
     add_plane_at(s, r, minus_m, a, -t[0]);

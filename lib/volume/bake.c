@@ -48,25 +48,22 @@ typedef struct bake_plan {
 
 /* ---- options ----------------------------------------------------------------------------- */
 
-static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *plan,
-                   sdf_diag *diag)
+/* The bake's corner nodes lo and hi: the options' bounds, or the mesh's box (r) grown by the
+ * margin. 0 or SDF_EINVAL with its message. */
+static int resolve_bounds(const sdf_bake_options *o, const sdf_mesh_report *r, double lo[3],
+                          double hi[3], sdf_diag *diag)
 {
-    sdf_mesh_report r;
-    sdf_mesh_get_report(mesh, &r);
-    sdf_volume_info *in = &plan->info;
-    memset(in, 0, sizeof *in);
-    double lo[3], hi[3];
     int default_box = 1;
     for (int a = 0; a < 3; a++)
         default_box = default_box && o->lo[a] == 0 && o->hi[a] == 0;
     if (default_box) {
         double margin = o->margin;
         if (margin == 0)
-            margin = DEFAULT_MARGIN_OF_DIAGONAL * r.diagonal;
+            margin = DEFAULT_MARGIN_OF_DIAGONAL * r->diagonal;
         if (!(isfinite(margin) && margin >= 0))
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "margin must be a length >= 0");
         for (int a = 0; a < 3; a++) {
-            lo[a] = r.bbox_min[a] - margin, hi[a] = r.bbox_max[a] + margin;
+            lo[a] = r->bbox_min[a] - margin, hi[a] = r->bbox_max[a] + margin;
             if (!(fabs(lo[a]) <= SDF_MAX_COORDINATE && fabs(hi[a]) <= SDF_MAX_COORDINATE))
                 return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                      "the default bounds (the mesh's box grown by a margin of "
@@ -83,6 +80,51 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
                                      "every axis (%c)", "xyz"[a]);
         }
     }
+    return 0;
+}
+
+/* First order: the fitting grid's H, Delta and normalisation, checked, and its reach past
+ * the bounds lo..hi. */
+static int resolve_first_order(const sdf_bake_options *o, const double lo[3],
+                               const double hi[3], sdf_volume_info *in, sdf_diag *diag)
+{
+    in->fine_half = o->fine_half ? o->fine_half : 1;
+    in->fine_spacing = o->fine_spacing != 0 ? o->fine_spacing : DEFAULT_FINE_SPACING;
+    if (in->fine_half < 1 || in->fine_half > MAX_FINE_HALF)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "H (fine_half) must be 1..%d, not %d",
+                             MAX_FINE_HALF, in->fine_half);
+    in->normalize = o->normalize;
+    if ((unsigned)in->normalize > SDF_NORMALIZE_GRADIENT)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown normalisation %d",
+                             (int)in->normalize);
+    if (!(in->fine_spacing > 0 && in->fine_spacing <= 0.5))
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                             "Delta (fine_spacing) must be in (0, 0.5] cells, not %g",
+                             in->fine_spacing);
+    /* The fitting grids of the corner nodes reach H Delta cells past the bounds: checked
+     * here, so such a bake is refused before it starts rather than failing half-way. */
+    for (int a = 0; a < 3; a++) {
+        double reach = in->fine_half * in->fine_spacing * in->spacing[a];
+        if (!(lo[a] - reach >= -SDF_MAX_COORDINATE && hi[a] + reach <= SDF_MAX_COORDINATE))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "the first-order fitting grids (H Delta = %g cells) reach "
+                                 "past +-1e18 on %c; give bounds further inside",
+                                 in->fine_half * in->fine_spacing, "xyz"[a]);
+    }
+    return 0;
+}
+
+static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *plan,
+                   sdf_diag *diag)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    sdf_volume_info *in = &plan->info;
+    memset(in, 0, sizeof *in);
+    double lo[3], hi[3];
+    int rc = resolve_bounds(o, &r, lo, hi, diag);
+    if (rc)
+        return rc;
     for (int a = 0; a < 3; a++) {
         in->dims[a] = o->dims[a] ? o->dims[a] : DEFAULT_DIM;
         if (in->dims[a] < 2 || in->dims[a] > SDF_VOLUME_MAX_DIM)
@@ -98,35 +140,11 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
     in->order = o->order;
     in->encoding = o->encoding;
     in->filtered = o->filter != NULL;
-    if (in->order == 1) {
-        in->fine_half = o->fine_half ? o->fine_half : 1;
-        in->fine_spacing = o->fine_spacing != 0 ? o->fine_spacing : DEFAULT_FINE_SPACING;
-        if (in->fine_half < 1 || in->fine_half > MAX_FINE_HALF)
-            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "H (fine_half) must be 1..%d, not %d",
-                                 MAX_FINE_HALF, in->fine_half);
-        in->normalize = o->normalize;
-        if ((unsigned)in->normalize > SDF_NORMALIZE_GRADIENT)
-            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown normalisation %d",
-                                 (int)in->normalize);
-        if (!(in->fine_spacing > 0 && in->fine_spacing <= 0.5))
-            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
-                                 "Delta (fine_spacing) must be in (0, 0.5] cells, not %g",
-                                 in->fine_spacing);
-        /* The fitting grids of the corner nodes reach H Delta cells past the bounds: checked
-         * here, so such a bake is refused before it starts rather than failing half-way. */
-        for (int a = 0; a < 3; a++) {
-            double reach = in->fine_half * in->fine_spacing * in->spacing[a];
-            if (!(lo[a] - reach >= -SDF_MAX_COORDINATE && hi[a] + reach <= SDF_MAX_COORDINATE))
-                return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
-                                     "the first-order fitting grids (H Delta = %g cells) reach "
-                                     "past +-1e18 on %c; give bounds further inside",
-                                     in->fine_half * in->fine_spacing, "xyz"[a]);
-        }
-    }
+    if (in->order == 1 && (rc = resolve_first_order(o, lo, hi, in, diag)))
+        return rc;
     if (in->encoding == SDF_ENCODING_PACKED32)
         in->packed_range = 1; /* placeholder for the check; set from the data when baked */
-    int rc = sdf__volume_check_info(in, diag);
-    if (rc)
+    if ((rc = sdf__volume_check_info(in, diag)))
         return rc;
     plan->queries_per_point = 1;
     if (o->filter) {
