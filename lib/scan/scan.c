@@ -10,6 +10,7 @@
  * over one region's nodes is scan/raster.c); the rows are then finished in parallel, the
  * workers' bests merged by (distance, feature id) so the result does not depend on how the
  * features were shared out. */
+#include <assert.h>
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
@@ -299,6 +300,7 @@ static void clear_range(void *ctx, size_t begin, size_t end, int worker)
 
 int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result *out)
 {
+    assert(k0 < k1 && k1 <= s->dims[2]);
     size_t nx = s->dims[0], rows = (k1 - k0) * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, nodes = rows * nx;
@@ -365,6 +367,7 @@ static void merge_samples(void *ctx, size_t begin, size_t end, int worker)
 int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_spacing,
                       sdf__sample_fn consume, void *user)
 {
+    assert(k0 < k1 && k1 <= s->dims[2] && half >= 1 && 2 * half + 1 <= SDF__SCAN_MAX_W);
     size_t w3 = SDF__POW3(2 * half + 1), nodes = (k1 - k0) * s->dims[0] * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, scratch = w * nodes * w3;
