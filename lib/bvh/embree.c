@@ -8,8 +8,10 @@
 #include <stdlib.h>
 #include <sys/types.h>
 
+#include <embree3/rtcore.h>
+
 #include "core/diag.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 
 struct sdf__bvh {
     RTCDevice device;

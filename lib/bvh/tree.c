@@ -10,6 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <embree3/rtcore.h>
+
+#include "bvh/embree.h"
 #include "core/parallel.h"
 #include "sdf/sdf.h"
 
@@ -106,7 +109,7 @@ static int flatten(flattener *f, const build_node *src, size_t index, int depth)
  * and by the same fraction of themselves: a float evaluation of the distance to a cylinder
  * at points within ~10 diagonals of the mesh rounds by less (a few ulps of the point's
  * offset from the centre); farther out the searches' own relative tie margin (1e-5,
- * query/lanes.h) dwarfs the rounding. */
+ * points/lanes.h) dwarfs the rounding. */
 #define DISC_SLACK 4e-6
 
 /* The cylinder of the leaf holding prims[first .. first + count) (tree.h): the axis along
@@ -173,8 +176,7 @@ typedef struct discs_job {
 } discs_job;
 
 /* Leaves only: at inner nodes (subtrees of up to 16..256 triangles) the cylinders cut the
- * nodes visited by up to 20 % but cost more than that saved (refined_elephant, 1 thread: box
- * 0.59 -> 0.52-0.57 Mq/s, band within noise). */
+ * nodes visited, but the extra test costs more than the visits it saves. */
 static void discs_range(void *ctx, size_t begin, size_t end, int worker)
 {
     (void)worker;
@@ -207,7 +209,7 @@ static float mean_leaf_diagonal(const sdf__tree *t)
     return leaves ? (float)(sum / (double)leaves) : 0.0f;
 }
 
-int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *triangles,
+int sdf__tree_build(const sdf__bvh *embree, const float *positions, const uint32_t *triangles,
                     size_t triangle_count, unsigned max_leaf, sdf__tree *out)
 {
     memset(out, 0, sizeof *out);
@@ -233,14 +235,14 @@ int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *tr
         root.upper_y = hi[1] > root.upper_y ? hi[1] : root.upper_y;
         root.upper_z = hi[2] > root.upper_z ? hi[2] : root.upper_z;
     }
-    RTCBVH bvh = rtcNewBVH(device);
+    RTCBVH bvh = rtcNewBVH(sdf__bvh_device(embree));
     struct RTCBuildArguments args = rtcDefaultBuildArguments();
     args.buildQuality = RTC_BUILD_QUALITY_MEDIUM;
     args.maxBranchingFactor = 2;
     args.maxDepth = SDF__TREE_MAX_DEPTH;
     /* A node visit costs about as much as 8 triangle tests in our traversals: the SAH then
      * makes leaves of ~6 triangles instead of ~2, which halves the node count (memory) and
-     * measured faster (refined_elephant, packets: band 0.61 -> 0.73 Mq/s, box 0.30 -> 0.36). */
+     * shortens the walks, whose cost is the node visits' dependent loads. */
     args.traversalCost = 8.0f;
     args.maxLeafSize = max_leaf < 1 ? 1 : (max_leaf > SDF__TREE_MAX_LEAF ? SDF__TREE_MAX_LEAF : max_leaf);
     args.bvh = bvh;

@@ -13,9 +13,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include <embree3/rtcore.h>
-
 #include "bvh/wide.h"
+
+typedef struct sdf__bvh sdf__bvh;
 
 typedef struct sdf__tree_node {
     float lo[3];
@@ -52,9 +52,10 @@ typedef struct sdf__tree {
 #define SDF__TREE_MAX_DEPTH 64
 #define SDF__TREE_MAX_LEAF 32 /* triangles per leaf, at most */
 
-/* Build over all triangles with at most `max_leaf` (1..32) per leaf. Returns 0, SDF_ENOMEM,
- * or SDF_EBVH (Embree failed, or the tree is deeper than SDF__TREE_MAX_DEPTH). */
-int sdf__tree_build(RTCDevice device, const float *positions, const uint32_t *triangles,
+/* Build over all triangles with at most `max_leaf` (1..32) per leaf, by the builder of
+ * `bvh`'s Embree device (bvh/embree.h). Returns 0, SDF_ENOMEM, or SDF_EBVH (Embree failed, or the
+ * tree is deeper than SDF__TREE_MAX_DEPTH). */
+int sdf__tree_build(const sdf__bvh *bvh, const float *positions, const uint32_t *triangles,
                     size_t triangle_count, unsigned max_leaf, sdf__tree *out);
 void sdf__tree_free(sdf__tree *tree);
 

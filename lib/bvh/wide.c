@@ -83,8 +83,8 @@ int sdf__wide_build(const sdf__tree_node *nodes, size_t node_count, sdf__wide *o
     collapser c = {nodes, out};
     out->count = 1;
     collapse(&c, 0, 0);
-    /* Nodes fill ~4 of their 8 slots (refined_elephant: 4,730 wide nodes for 30,421 binary
-     * ones), so give back the rest of the worst-case allocation. */
+    /* Nodes fill about half of their 8 slots, so give back the rest of the worst-case
+     * allocation. */
     sdf__wide_node *fitted = realloc(out->nodes, out->count * sizeof *out->nodes);
     if (fitted)
         out->nodes = fitted;

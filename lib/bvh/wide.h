@@ -1,7 +1,7 @@
 /* wide.h - an eight-wide view of the binary BVH (bvh/tree.h) for walks of one point.
  *
  * One point walking the binary tree tests two boxes per level, one at a time, and a level
- * is a dependent load: refined_elephant's band queries visited ~60 nodes each. Collapsing
+ * is a dependent load, and a query near the surface visits dozens of them. Collapsing
  * the tree so that each node holds up to eight descendants, their boxes stored as arrays
  * over the eight (SoA), tests all eight with one vector operation per axis and takes a
  * third of the levels. The leaves stay the binary tree's (their triangles, their cylinders),

@@ -3,9 +3,8 @@
  * Batch calls allocate their scratch (a query's visit-order copies and Morton keys, a
  * filtered block's samples, a bake's per-worker bests) and free it before they return. Arrays
  * that large come fresh from the kernel each call and are first touched page by page: on the
- * virtualised machines this project runs on, a 4 KiB page fault costs microseconds: a 128^3
- * zero-order bake of refined_elephant ran ~45 % faster once its scratch was advised (perf
- * had the faults in clear_range, the per-worker bests' first writes). 2 MiB pages take 512
+ * virtualised machines this project runs on, a 4 KiB page fault costs microseconds, and a
+ * bake's per-worker bests took their faults on their first writes. 2 MiB pages take 512
  * times fewer faults. Linux usually offers transparent huge pages only where a range is
  * advised (THP "madvise" mode), so these allocations are aligned to 2 MiB and advised;
  * elsewhere the advice is a no-op. */

@@ -1,10 +1,10 @@
 /* simd.h - wider vectors where the CPU has them, one portable binary everywhere.
  *
- * The hot lane loops (query/packet.c) are plain C that the compiler vectorizes. Built for
+ * The hot lane loops (points/packet.c) are plain C that the compiler vectorizes. Built for
  * baseline x86-64 they use 4-wide SSE2; SDF__SIMD_CLONES asks GCC (and clang >= 14) to also
  * compile the function for x86-64-v3 (AVX2 + FMA, 8 floats per vector) and pick the version
  * when the program loads (an ifunc), so no -march flag is needed and old CPUs still run.
- * Measured: refined_elephant, packets, 1 thread, box 0.26 -> 0.38 Mq/s. Elsewhere the macro
+ * Elsewhere the macro
  * is empty. Only float pre-filters run in cloned code: every answer is decided by the
  * double-precision triangle test, compiled once, so results do not depend on the CPU. */
 #ifndef SDF_CORE_SIMD_H

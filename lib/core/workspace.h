@@ -1,12 +1,11 @@
 /* workspace.h - a caller's scratch kept between batch calls (sdf_workspace, sdf.h).
  *
- * A batch call's large arrays (the Morton order and its keys, the points and answers in
- * visit order, a filtered call's per-point and per-block arrays, the per-node bests of a
- * lattice that the scan answers) used to be allocated and freed by every call, and their
- * fresh pages faulted in afresh each time: on this project's virtual machines ~10 % of a
- * 1M-point band query (perf: clear_page under the Morton keys, the visit-order copies and the
- * answers' scatter). A workspace keeps each array in a slot of its own, grown when a call
- * needs more, until the workspace is destroyed.
+ * A batch call's large arrays (the Morton order and its keys, the points and answers in visit
+ * order, a filtered call's per-point and per-block arrays, the per-node bests of a lattice that
+ * the scan answers) used to be allocated and freed by every call, and their fresh pages faulted
+ * in afresh each time, costly on virtual machines (the kernel clearing pages under the Morton
+ * keys, the visit-order copies and the answers' scatter). A workspace keeps each array in a
+ * slot of its own, grown when a call needs more, until the workspace is destroyed.
  *
  * The public entry points claim the workspace named in their options (sdf__ws_enter), so one
  * call at a time uses it; a call that finds it claimed runs as if it had none. Internal
@@ -22,10 +21,10 @@
 /* One slot per array that lives at the same time as another: a call's arrays never share a
  * slot with an array of an inner call that is still alive. */
 typedef enum sdf__ws_slot {
-    SDF__WS_ORDER,        /* query.c: the visit order */
+    SDF__WS_ORDER,        /* points/points.c: the visit order */
     SDF__WS_MORTON_KEYS,  /* morton.c: the radix sort's keys, both halves */
-    SDF__WS_VISIT_XYZ,    /* query.c: the points in visit order */
-    SDF__WS_VISIT_OUT,    /* query.c: the answers in visit order */
+    SDF__WS_VISIT_XYZ,    /* points/points.c: the points in visit order */
+    SDF__WS_VISIT_OUT,    /* points/points.c: the answers in visit order */
     SDF__WS_FILTER_ORDER, /* filter.c: the points' visit order, alive across inner queries */
     SDF__WS_CENTRE_F,     /* filter.c: f and grad f at the points */
     SDF__WS_CENTRE_GRAD,
@@ -37,8 +36,8 @@ typedef enum sdf__ws_slot {
     SDF__WS_SAMPLE_BOUND,
     SDF__WS_SAMPLE_SIGN,
     SDF__WS_SAMPLE_RUN,
-    SDF__WS_SCAN_BESTS,   /* volume/scan.c: the zero order's per-worker bests */
-    SDF__WS_SCAN_SAMPLES, /* volume/scan.c: the first order's per-worker sample bests */
+    SDF__WS_SCAN_BESTS,   /* scan/scan.c: the zero order's per-worker bests */
+    SDF__WS_SCAN_SAMPLES, /* scan/scan.c: the first order's per-worker sample bests */
     SDF__WS_SLOTS
 } sdf__ws_slot;
 

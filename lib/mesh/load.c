@@ -14,24 +14,6 @@
 #include "mesh/mesh.h"
 #include "mesh/parsers.h"
 
-static const char *const format_names[] = {"auto", "obj", "ply", "stl", "off"};
-
-int sdf_format_from_name(const char *name, sdf_format *out)
-{
-    for (int f = SDF_FORMAT_AUTO; f <= SDF_FORMAT_OFF && name; f++) {
-        if (!strcasecmp(name, format_names[f])) {
-            *out = (sdf_format)f;
-            return 0;
-        }
-    }
-    return SDF_EINVAL;
-}
-
-const char *sdf_format_name(sdf_format format)
-{
-    return format >= SDF_FORMAT_AUTO && format <= SDF_FORMAT_OFF ? format_names[format] : "?";
-}
-
 static int starts_with(const char *data, size_t size, const char *prefix)
 {
     size_t n = strlen(prefix);

@@ -1,19 +1,18 @@
 /* mesh.c - the sdf_mesh handle: building the index from a triangle soup, sharing it
  * (retain/release) and reporting on it.
  *
- * The build is a fixed graph of named steps: weld; then, side by side, analyse the edges
- * and build our own tree (with Embree's builder); orient (flip a closed inside-out mesh,
- * which needs both done: the tree reads the corners the flip swaps); then, side by side, the
+ * The build is a fixed graph of named steps: weld; then, side by side, analyse the edges and
+ * build our own tree (with Embree's builder); orient (flip a closed inside-out mesh, which
+ * needs both done: the tree reads the corners the flip swaps); then, side by side, the
  * pseudonormals and the search for self-intersections (they decide what `auto` signs with);
- * last the winding-number moments where `auto` needs them. Each pair runs on its own thread
- * and the caller's because neither step is parallel throughout (a sequential part of one
- * fills the core the other leaves idle: 1.4M triangles, 20 alternating runs, mean 1.61 s ->
- * 1.52 s). Every step is always done, so any sign method can be asked for on any mesh
- * and the mesh is immutable (hence lock-free) once built. Two caches are the
+ * last the winding-number moments where `auto` needs them. Each pair runs on its own thread and
+ * the caller's because neither step is parallel throughout (a sequential part of one fills the
+ * core the other leaves idle). Every step is always done, so any sign method can be asked for
+ * on any mesh and the mesh is immutable (hence lock-free) once built. Two caches are the
  * exceptions, made on first use and not counted in the report's index bytes: Embree's own
  * scene, which only the raycast sign and SDF_TRAVERSAL_SINGLE use (bvh/embree.h), and, on
  * meshes that `auto` signs by pseudonormals, the winding-number moments (22 bytes per
- * triangle, ~10 % of the build). */
+ * triangle). */
 #include "mesh/mesh.h"
 
 #include <float.h>
@@ -79,7 +78,7 @@ static int step_trees(build *b, sdf_diag *diag)
     int rc = sdf__bvh_create(m->positions, r->vertices, m->triangles, r->triangles, &m->bvh, diag);
     if (rc)
         return rc;
-    rc = sdf__tree_build(sdf__bvh_device(m->bvh), m->positions, m->triangles, r->triangles, 8,
+    rc = sdf__tree_build(m->bvh, m->positions, m->triangles, r->triangles, 8,
                          &m->tree);
     if (!rc)
         rc = sdf__bvh_check(m->bvh, diag);
@@ -109,8 +108,8 @@ static int step_pseudonormals(build *b, sdf_diag *diag)
 {
     sdf_mesh *m = b->m;
     int rc = sdf__pseudonormals_create(m->positions, m->report.vertices, m->triangles,
-                                       m->report.triangles, &b->faces, m->edge_count,
-                                       &m->normals);
+                                       m->report.triangles, b->faces.start, b->faces.face,
+                                       m->edge_count, &m->normals);
     if (rc)
         return sdf__diag_set(diag, rc, 0, -1, "out of memory for the sign data");
     return 0;

@@ -11,9 +11,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "geom/triangle.h" /* SDF__NO_EDGE */
 #include "sdf/sdf.h"
-
-#define SDF__NO_EDGE UINT32_MAX
 
 /* Merge bit-identical vertices (+0 and -0 are equal). Rewrites `triangles` in place and
  * returns a new position array in *out (3 floats per vertex plus one float of padding, as

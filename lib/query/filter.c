@@ -1,5 +1,5 @@
 /* filter.c - the convolution-filtered signed distance and its gradient (see sdf.h and
- * filter.h; paper: ../shared/papers/convolution-filtering-sdf.md).
+ * filter.h; paper: docs/papers/convolution-filtering-sdf.md).
  *
  * Evaluation is batches of ordinary queries: f and grad f at the points themselves (for the
  * kernel size h), the medial stencil when adaptive, then every displaced sample p - s_i h(p).
@@ -17,8 +17,10 @@
 #include "core/diag.h"
 #include "core/parallel.h"
 #include "core/workspace.h"
-#include "query/morton.h"
-#include "query/packet.h"
+#include "points/morton.h"
+#include "points/points.h"
+#include "query/query.h"
+#include "points/packet.h"
 
 #define BLOCK_SAMPLES (1u << 20) /* displaced points per internal batch (~37 MB of scratch) */
 #define DEFAULT_CAP_OF_DIAGONAL 0.02
@@ -137,16 +139,14 @@ void sdf__samples_free(sdf__samples *s)
 
 static int positive(double v) { return isfinite(v) && v > 0; }
 
-int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
-                        sdf_filter_options *out, sdf_diag *diag)
+/* The kernel, its cap and widths of `out` (sdf_filter_options), defaults filled in for a
+ * mesh of this diagonal. 0 or SDF_EINVAL with its message. */
+static int resolve_kernel(sdf_filter_options *out, double diagonal, sdf_diag *diag)
 {
-    sdf_mesh_report r;
-    sdf_mesh_get_report(mesh, &r);
-    *out = in ? *in : (sdf_filter_options){0};
     if (out->kernel != SDF_KERNEL_GAUSSIAN && out->kernel != SDF_KERNEL_BUMP)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown kernel %d", (int)out->kernel);
     if (out->cap == 0)
-        out->cap = DEFAULT_CAP_OF_DIAGONAL * (r.diagonal > 0 ? r.diagonal : 1);
+        out->cap = DEFAULT_CAP_OF_DIAGONAL * (diagonal > 0 ? diagonal : 1);
     if (!positive(out->cap))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "cap (f_c) must be a positive number");
     /* The kernel widths default to the cap's scale; a cap so small or large that they would
@@ -172,11 +172,12 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
     if (!positive(out->b))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                              "the bump's width b must be a positive number");
-    if (out->samples == 0)
-        out->samples = SDF_FILTER_DEFAULT_SAMPLES;
-    if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
-        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "samples must be 1..%d, not %d",
-                             SDF_FILTER_MAX_SAMPLES, out->samples);
+    return 0;
+}
+
+/* The smoothing volume of `out`, checked, with its depth and scale defaults. */
+static int resolve_volume(sdf_filter_options *out, sdf_diag *diag)
+{
     sdf_smoothing_volume *v = &out->smooth;
     switch (v->shape) {
     case SDF_VOLUME_NONE:
@@ -210,6 +211,23 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                  "smoothing depth and scale must be positive numbers");
     }
+    return 0;
+}
+
+/* The sample count of `out`, checked, with its default. */
+static int resolve_samples(sdf_filter_options *out, sdf_diag *diag)
+{
+    if (out->samples == 0)
+        out->samples = SDF_FILTER_DEFAULT_SAMPLES;
+    if (out->samples < 1 || out->samples > SDF_FILTER_MAX_SAMPLES)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "samples must be 1..%d, not %d",
+                             SDF_FILTER_MAX_SAMPLES, out->samples);
+    return 0;
+}
+
+/* Adaptive quality (min_samples) of `out`, checked, with its medial default. */
+static int resolve_adaptive(sdf_filter_options *out, sdf_diag *diag)
+{
     if (out->min_samples != 0) {
         if (out->min_samples < 1 || out->min_samples > out->samples)
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
@@ -223,6 +241,25 @@ int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
         if (!positive(out->medial))
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "medial must be a positive number");
     }
+    return 0;
+}
+
+int sdf__filter_resolve(const sdf_mesh *mesh, const sdf_filter_options *in,
+                        sdf_filter_options *out, sdf_diag *diag)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    *out = in ? *in : (sdf_filter_options){0};
+    int rc = resolve_kernel(out, r.diagonal, diag);
+    if (!rc)
+        rc = resolve_samples(out, diag);
+    if (!rc)
+        rc = resolve_volume(out, diag);
+    if (!rc)
+        rc = resolve_adaptive(out, diag);
+    if (rc)
+        return rc;
+    const sdf_smoothing_volume *v = &out->smooth;
     /* Eq. (7): the kernel must not reach across the surface, b h(p) <= |f(p)| for all p. It
      * bounds eq. (4)'s kernel size; localized smoothing edits the surface on purpose. */
     if (v->shape == SDF_VOLUME_NONE && out->kernel == SDF_KERNEL_BUMP && !out->allow_wide_bump &&
@@ -323,7 +360,7 @@ typedef struct scratch {
 } scratch;
 
 /* Sample k's gradient, or zeros when no gradient is asked for (g's value needs none, and
- * without one the samples whose sign is known need no exact closest point, query/cluster.h). */
+ * without one the samples whose sign is known need no exact closest point, points/cluster.h). */
 static const float *sample_gradient(const scratch *s, size_t k)
 {
     static const float none[3] = {0, 0, 0};
@@ -377,9 +414,9 @@ static void displace(const float *p, const double offset[3], double h, double fp
 static double smoothstep(double t) { return t >= 1 ? 1 : t <= 0 ? 0 : t * t * (3 - 2 * t); }
 static double smoothstep_slope(double t) { return t >= 1 || t <= 0 ? 0 : 6 * t * (1 - t); }
 
-/* One block of a filtered call, for its per-point loops (each point's work is its own, so
- * the floats do not depend on how the points are shared out). On one thread these loops were
- * ~10 % of a 2-thread fandisk run's CPU time while the other core waited. */
+/* One block of a filtered call, for its per-point loops, which run on every thread: on one,
+ * the other cores would wait on them (each point's work is its own, so the floats do not
+ * depend on how the points are shared out). */
 typedef struct block_work {
     const sdf_filter_options *f;
     scratch *s;
@@ -617,6 +654,104 @@ static void accumulate_range(void *ctx, size_t begin, size_t end, int worker)
     }
 }
 
+/* f and grad f at the points (which this also checks: NaN -> SDF_ENONFINITE and its index
+ * in out->bad_index), and with a mesh smoothing volume f_s and grad f_s from its mesh, into
+ * s's centre and volume arrays. 0 or the code, with its message in *diag. */
+static int centre_fields(const sdf_mesh *mesh, const float *points, size_t count,
+                         const sdf_filter_options *f, const sdf_query_options *centre_opts,
+                         scratch *s, sdf_query_result *out, sdf_diag *diag)
+{
+    s->centre_f = sdf__ws_alloc(s->ws, SDF__WS_CENTRE_F, (count + 1) * sizeof(float));
+    s->centre_grad = sdf__ws_alloc(s->ws, SDF__WS_CENTRE_GRAD, (3 * count + 1) * sizeof(float));
+    if (!s->centre_f || !s->centre_grad)
+        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for %zu points", count);
+    sdf_query_result centre = {.distance = s->centre_f, .gradient = s->centre_grad};
+    int rc = sdf__query(mesh, points, count, centre_opts, &centre);
+    if (rc) {
+        out->bad_index = centre.bad_index;
+        return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
+    }
+    if (f->smooth.shape != SDF_VOLUME_MESH)
+        return 0;
+    s->volume_f = sdf__ws_alloc(s->ws, SDF__WS_VOLUME_F, (count + 1) * sizeof(float));
+    s->volume_grad = sdf__ws_alloc(s->ws, SDF__WS_VOLUME_GRAD, (3 * count + 1) * sizeof(float));
+    sdf_query_result vol = {.distance = s->volume_f, .gradient = s->volume_grad};
+    sdf_query_options vol_opts = *centre_opts;
+    vol_opts.sign = SDF_SIGN_AUTO;
+    rc = s->volume_f && s->volume_grad
+             ? sdf__query(f->smooth.mesh, points, count, &vol_opts, &vol)
+             : SDF_ENOMEM;
+    if (rc)
+        return sdf__diag_set(diag, rc, 0, -1, "smoothing mesh: %s", sdf_strerror(rc));
+    return 0;
+}
+
+/* The sample arrays of one block of `per_block` samples (gradients only when asked for).
+ * 0 or SDF_ENOMEM. */
+static int alloc_samples(scratch *s, size_t per_block, int gradient)
+{
+    sdf_workspace *ws = s->ws;
+    s->sample_p = sdf__ws_alloc(ws, SDF__WS_SAMPLE_P, 3 * per_block * sizeof(float));
+    s->sample_f = sdf__ws_alloc(ws, SDF__WS_SAMPLE_F, per_block * sizeof(float));
+    s->sample_grad =
+        gradient ? sdf__ws_alloc(ws, SDF__WS_SAMPLE_GRAD, 3 * per_block * sizeof(float)) : NULL;
+    s->sample_bound = sdf__ws_alloc(ws, SDF__WS_SAMPLE_BOUND, per_block * sizeof(double));
+    s->sample_sign = sdf__ws_alloc(ws, SDF__WS_SAMPLE_SIGN, per_block * sizeof(int8_t));
+    s->sample_run = sdf__ws_alloc(ws, SDF__WS_SAMPLE_RUN, per_block * sizeof(uint8_t));
+    return s->sample_p && s->sample_f && (!gradient || s->sample_grad) && s->sample_bound &&
+                   s->sample_sign && s->sample_run
+               ? 0
+               : SDF_ENOMEM;
+}
+
+/* The points in Morton order, so consecutive points' samples touch the same parts of the
+ * tree; NULL without memory for it (then the given order: the same floats). */
+static uint32_t *filter_order(const float *points, size_t stride, size_t count, int threads,
+                              sdf_workspace *ws)
+{
+    uint32_t *order = count > 1 && count <= UINT32_MAX
+                          ? sdf__ws_alloc(ws, SDF__WS_FILTER_ORDER, count * sizeof *order)
+                          : NULL;
+    if (order && sdf__morton_order((const char *)points, stride, count, threads, ws, order)) {
+        sdf__ws_free(ws, order);
+        order = NULL;
+    }
+    return order;
+}
+
+/* One block of m points from work->first: their plans, samples, the samples' queries and
+ * the filtered values. 0 or a query's code. */
+static int filter_block(const sdf_mesh *mesh, const sdf_query_options *inner, block_work *work,
+                        size_t m)
+{
+    point_plan *plan = work->plan;
+    sdf__parallel_for(m, POINTS_CHUNK, inner->threads, plan_range, work);
+    if (work->adaptive) { /* sec. 5.2: the stencil first, then how many samples each point gets */
+        int rc = plan_samples(mesh, inner, work, m);
+        if (rc)
+            return rc;
+    }
+    /* Each point's samples, consecutive. A point with h = 0 (on the surface, or outside a
+     * smoothing volume) needs none: there every sample is p itself and g = f. */
+    size_t at = 0;
+    for (size_t j = 0; j < m; j++) {
+        plan[j].first = at;
+        plan[j].used = plan[j].h == 0 ? 0 : plan[j].full + (plan[j].frac > 0);
+        at += (size_t)plan[j].used;
+    }
+    sdf__parallel_for(m, POINTS_CHUNK, inner->threads, displace_range, work);
+    /* Packet sampling (sec. 3): a point's samples are consecutive, so they make coherent
+     * packets, each search bounded by |f(p)| + |x - p| (Lipschitz). */
+    const scratch *s = work->s;
+    sdf_query_result res = {.distance = s->sample_f, .gradient = s->sample_grad};
+    int rc = sdf__query_seeded(mesh, s->sample_p, s->sample_bound, s->sample_sign, s->sample_run,
+                               at, inner, &res);
+    if (rc) /* out of memory, or a kernel so wide that samples pass SDF_MAX_COORDINATE */
+        return rc;
+    sdf__parallel_for(m, POINTS_CHUNK, inner->threads, accumulate_range, work);
+    return 0;
+}
+
 /* sdf_query_filtered with its options' workspace claimed (or none). */
 static int query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                           const sdf_query_options *opts, const sdf_filter_options *filter,
@@ -635,105 +770,40 @@ static int query_filtered(const sdf_mesh *mesh, const float *points, size_t coun
     sdf_query_options inner = opts ? *opts : (sdf_query_options){0};
     inner.point_stride = 0;
     scratch s = {.ws = inner.workspace};
-    sdf_workspace *ws = s.ws;
     sdf_mesh_report report;
     sdf_mesh_get_report(mesh, &report);
     s.closed = report.closed;
-    s.centre_f = sdf__ws_alloc(ws, SDF__WS_CENTRE_F, (count + 1) * sizeof(float));
-    s.centre_grad = sdf__ws_alloc(ws, SDF__WS_CENTRE_GRAD, (3 * count + 1) * sizeof(float));
-    if (!s.centre_f || !s.centre_grad) {
-        free_scratch(&s);
-        return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for %zu points", count);
-    }
-    /* f and grad f at the points; this also checks them (NaN -> SDF_ENONFINITE, index). */
     sdf_query_options centre_opts = inner;
     centre_opts.point_stride = stride;
-    sdf_query_result centre = {.distance = s.centre_f, .gradient = s.centre_grad};
-    rc = sdf__query(mesh, points, count, &centre_opts, &centre);
-    if (rc) {
-        out->bad_index = centre.bad_index;
+    if ((rc = centre_fields(mesh, points, count, &f, &centre_opts, &s, out, diag))) {
         free_scratch(&s);
-        return sdf__diag_set(diag, rc, 0, -1, "%s", sdf_strerror(rc));
-    }
-    if (f.smooth.shape == SDF_VOLUME_MESH) { /* f_s and grad f_s from the volume's mesh */
-        s.volume_f = sdf__ws_alloc(ws, SDF__WS_VOLUME_F, (count + 1) * sizeof(float));
-        s.volume_grad = sdf__ws_alloc(ws, SDF__WS_VOLUME_GRAD, (3 * count + 1) * sizeof(float));
-        sdf_query_result vol = {.distance = s.volume_f, .gradient = s.volume_grad};
-        sdf_query_options vol_opts = centre_opts;
-        vol_opts.sign = SDF_SIGN_AUTO;
-        rc = s.volume_f && s.volume_grad
-                 ? sdf__query(f.smooth.mesh, points, count, &vol_opts, &vol)
-                 : SDF_ENOMEM;
-        if (rc) {
-            free_scratch(&s);
-            return sdf__diag_set(diag, rc, 0, -1, "smoothing mesh: %s", sdf_strerror(rc));
-        }
+        return rc;
     }
     sdf__samples samples;
     if (sdf__samples_draw(&f, &samples)) {
         free_scratch(&s);
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for the samples");
     }
-    int n = samples.n, adaptive = f.min_samples > 0;
-    size_t per_point = (size_t)n + (adaptive ? STENCIL : 0);
-    size_t block = points_per_block(per_point, count), per_block = block * per_point;
-    s.sample_p = sdf__ws_alloc(ws, SDF__WS_SAMPLE_P, 3 * per_block * sizeof(float));
-    s.sample_f = sdf__ws_alloc(ws, SDF__WS_SAMPLE_F, per_block * sizeof(float));
-    s.sample_grad = out->gradient
-                        ? sdf__ws_alloc(ws, SDF__WS_SAMPLE_GRAD, 3 * per_block * sizeof(float))
-                        : NULL;
-    s.sample_bound = sdf__ws_alloc(ws, SDF__WS_SAMPLE_BOUND, per_block * sizeof(double));
-    s.sample_sign = sdf__ws_alloc(ws, SDF__WS_SAMPLE_SIGN, per_block * sizeof(int8_t));
-    s.sample_run = sdf__ws_alloc(ws, SDF__WS_SAMPLE_RUN, per_block * sizeof(uint8_t));
+    int adaptive = f.min_samples > 0;
+    size_t per_point = (size_t)samples.n + (adaptive ? STENCIL : 0);
+    size_t block = points_per_block(per_point, count);
+    rc = alloc_samples(&s, block * per_point, out->gradient != NULL);
     point_plan *plan = malloc(block * sizeof *plan);
-    if (!s.sample_p || !s.sample_f || (out->gradient && !s.sample_grad) || !s.sample_bound ||
-        !s.sample_sign || !s.sample_run || !plan) {
+    if (rc || !plan) {
         free(plan);
         sdf__samples_free(&samples);
         free_scratch(&s);
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory for the samples");
     }
-    /* Points in Morton order, so consecutive points' samples touch the same parts of the tree
-     * (without memory for the order: the given order, the same floats). */
-    uint32_t *order = count > 1 && count <= UINT32_MAX
-                          ? sdf__ws_alloc(ws, SDF__WS_FILTER_ORDER, count * sizeof *order)
-                          : NULL;
-    if (order &&
-        sdf__morton_order((const char *)points, stride, count, inner.threads, ws, order)) {
-        sdf__ws_free(ws, order);
-        order = NULL;
-    }
+    uint32_t *order = filter_order(points, stride, count, inner.threads, s.ws);
     block_work work = {.f = &f, .s = &s, .samples = &samples, .points = points,
                        .stride = stride, .order = order, .plan = plan, .out = out,
                        .adaptive = adaptive};
     for (size_t first = 0; first < count && !rc; first += block) {
-        size_t m = count - first < block ? count - first : block;
         work.first = first;
-        sdf__parallel_for(m, POINTS_CHUNK, inner.threads, plan_range, &work);
-        if (adaptive) { /* sec. 5.2: the stencil first, then how many samples each point gets */
-            rc = plan_samples(mesh, &inner, &work, m);
-            if (rc)
-                break;
-        }
-        /* Each point's samples, consecutive. A point with h = 0 (on the surface, or outside a
-         * smoothing volume) needs none: there every sample is p itself and g = f. */
-        size_t at = 0;
-        for (size_t j = 0; j < m; j++) {
-            plan[j].first = at;
-            plan[j].used = plan[j].h == 0 ? 0 : plan[j].full + (plan[j].frac > 0);
-            at += (size_t)plan[j].used;
-        }
-        sdf__parallel_for(m, POINTS_CHUNK, inner.threads, displace_range, &work);
-        /* Packet sampling (sec. 3): a point's samples are consecutive, so they make coherent
-         * packets, each search bounded by |f(p)| + |x - p| (Lipschitz). */
-        sdf_query_result res = {.distance = s.sample_f, .gradient = s.sample_grad};
-        rc = sdf__query_seeded(mesh, s.sample_p, s.sample_bound, s.sample_sign, s.sample_run, at,
-                               &inner, &res);
-        if (rc) /* out of memory, or a kernel so wide that samples pass SDF_MAX_COORDINATE */
-            break;
-        sdf__parallel_for(m, POINTS_CHUNK, inner.threads, accumulate_range, &work);
+        rc = filter_block(mesh, &inner, &work, count - first < block ? count - first : block);
     }
-    sdf__ws_free(ws, order);
+    sdf__ws_free(s.ws, order);
     free(plan);
     sdf__samples_free(&samples);
     free_scratch(&s);

@@ -5,8 +5,7 @@
 #include <stdlib.h>
 
 #include "core/parallel.h"
-#include "mesh/topology.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 #include "sdf/sdf.h"
 
 static void load(const float *positions, uint32_t v, double out[3])
@@ -88,7 +87,8 @@ static void compute_terms(void *ctx, size_t begin, size_t end, int worker)
 
 typedef struct edges_job {
     const face_terms *terms;
-    const sdf__edge_faces *faces;
+    const size_t *edge_start;
+    const uint32_t *edge_face;
     float *out;
 } edges_job;
 
@@ -100,8 +100,8 @@ static void edges_range(void *ctx, size_t begin, size_t end, int worker)
     const edges_job *job = ctx;
     for (size_t e = begin; e < end; e++) {
         double sum[3] = {0, 0, 0};
-        for (size_t s = job->faces->start[e]; s < job->faces->start[e + 1]; s++) {
-            const face_terms *f = &job->terms[job->faces->face[s]];
+        for (size_t s = job->edge_start[e]; s < job->edge_start[e + 1]; s++) {
+            const face_terms *f = &job->terms[job->edge_face[s]];
             if (!f->has_normal)
                 continue;
             for (int i = 0; i < 3; i++)
@@ -126,7 +126,8 @@ static void units_range(void *ctx, size_t begin, size_t end, int worker)
 
 int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
                               const uint32_t *triangles, size_t triangle_count,
-                              const sdf__edge_faces *faces, size_t edge_count,
+                              const size_t *edge_start, const uint32_t *edge_face,
+                              size_t edge_count,
                               sdf__pseudonormals **out)
 {
     sdf__pseudonormals *pn = calloc(1, sizeof *pn);
@@ -147,7 +148,7 @@ int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
      * so the result does not depend on threads. */
     terms_job job = {positions, triangles, terms};
     sdf__parallel_for(triangle_count, 4096, 0, compute_terms, &job);
-    edges_job edges = {terms, faces, pn->edge};
+    edges_job edges = {terms, edge_start, edge_face, pn->edge};
     sdf__parallel_for(edge_count, 4096, 0, edges_range, &edges);
     for (size_t t = 0; t < triangle_count; t++) {
         const uint32_t *tri = triangles + 3 * t;

@@ -14,19 +14,19 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "mesh/topology.h" /* sdf__edge_faces */
-
 typedef struct sdf__pseudonormals {
     float *edge;   /* 3 per edge, unit (or zero) */
     float *vertex; /* 3 per vertex, unit (or zero) */
     size_t bytes;
 } sdf__pseudonormals;
 
-/* From the mesh and which triangles use each edge (mesh/topology.h). Returns 0 or
- * SDF_ENOMEM. */
+/* From the mesh and which triangles use each edge: edge e's are edge_face[edge_start[e]]
+ * up to edge_face[edge_start[e + 1]] (the arrays of mesh/topology.h's sdf__edge_faces, which
+ * the mesh build hands on; sign/ sits below mesh/). Returns 0 or SDF_ENOMEM. */
 int sdf__pseudonormals_create(const float *positions, size_t vertex_count,
                               const uint32_t *triangles, size_t triangle_count,
-                              const sdf__edge_faces *faces, size_t edge_count,
+                              const size_t *edge_start, const uint32_t *edge_face,
+                              size_t edge_count,
                               sdf__pseudonormals **out);
 void sdf__pseudonormals_destroy(sdf__pseudonormals *pn);
 

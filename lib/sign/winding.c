@@ -221,7 +221,7 @@ SDF__HOT_INLINE double far_field(const stored_moments *mo, const double r[3], do
  * term of the same expansion with the triangle as its own node (centre the centroid, where
  * the second term vanishes): r . A / |r|^3, r = centroid - q, A the area vector. The
  * criterion is the nodes' (|r| > BETA * radius), so the accuracy is theirs, and most of a
- * near leaf's atan2 calls go (fandisk band, sign=winding, 2 threads: 0.26 -> 0.30 Mq/s). */
+ * near leaf's atan2 calls go. */
 static double triangle_term(const double q[3], const double p[3][3])
 {
     double c[3], r[3], radius2 = 0;

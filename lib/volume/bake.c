@@ -1,5 +1,5 @@
 /* bake.c - baking distance volumes (sdf_volume_bake in sdf.h; the TDF paper is
- * ../shared/papers/first-order-sdf-taylor.md).
+ * docs/papers/first-order-sdf-taylor.md).
  *
  * Zero order: the signed distance at every node, one batched query per slab of nodes.
  * First order (Algorithm 1): around every node x_i the distances on a fine (2H+1)^3 grid of
@@ -18,9 +18,10 @@
 #include "core/diag.h"
 #include "core/parallel.h"
 #include "mesh/mesh.h"
+#include "points/points.h"
 #include "query/filter.h"
 #include "volume/pack.h"
-#include "volume/scan.h"
+#include "scan/scan.h"
 #include "volume/volume.h"
 
 #define DEFAULT_DIM 64
@@ -47,25 +48,22 @@ typedef struct bake_plan {
 
 /* ---- options ----------------------------------------------------------------------------- */
 
-static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *plan,
-                   sdf_diag *diag)
+/* The bake's corner nodes lo and hi: the options' bounds, or the mesh's box (r) grown by the
+ * margin. 0 or SDF_EINVAL with its message. */
+static int resolve_bounds(const sdf_bake_options *o, const sdf_mesh_report *r, double lo[3],
+                          double hi[3], sdf_diag *diag)
 {
-    sdf_mesh_report r;
-    sdf_mesh_get_report(mesh, &r);
-    sdf_volume_info *in = &plan->info;
-    memset(in, 0, sizeof *in);
-    double lo[3], hi[3];
     int default_box = 1;
     for (int a = 0; a < 3; a++)
         default_box = default_box && o->lo[a] == 0 && o->hi[a] == 0;
     if (default_box) {
         double margin = o->margin;
         if (margin == 0)
-            margin = DEFAULT_MARGIN_OF_DIAGONAL * r.diagonal;
+            margin = DEFAULT_MARGIN_OF_DIAGONAL * r->diagonal;
         if (!(isfinite(margin) && margin >= 0))
             return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "margin must be a length >= 0");
         for (int a = 0; a < 3; a++) {
-            lo[a] = r.bbox_min[a] - margin, hi[a] = r.bbox_max[a] + margin;
+            lo[a] = r->bbox_min[a] - margin, hi[a] = r->bbox_max[a] + margin;
             if (!(fabs(lo[a]) <= SDF_MAX_COORDINATE && fabs(hi[a]) <= SDF_MAX_COORDINATE))
                 return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                                      "the default bounds (the mesh's box grown by a margin of "
@@ -82,6 +80,51 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
                                      "every axis (%c)", "xyz"[a]);
         }
     }
+    return 0;
+}
+
+/* First order: the fitting grid's H, Delta and normalisation, checked, and its reach past
+ * the bounds lo..hi. */
+static int resolve_first_order(const sdf_bake_options *o, const double lo[3],
+                               const double hi[3], sdf_volume_info *in, sdf_diag *diag)
+{
+    in->fine_half = o->fine_half ? o->fine_half : 1;
+    in->fine_spacing = o->fine_spacing != 0 ? o->fine_spacing : DEFAULT_FINE_SPACING;
+    if (in->fine_half < 1 || in->fine_half > MAX_FINE_HALF)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "H (fine_half) must be 1..%d, not %d",
+                             MAX_FINE_HALF, in->fine_half);
+    in->normalize = o->normalize;
+    if ((unsigned)in->normalize > SDF_NORMALIZE_GRADIENT)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown normalisation %d",
+                             (int)in->normalize);
+    if (!(in->fine_spacing > 0 && in->fine_spacing <= 0.5))
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                             "Delta (fine_spacing) must be in (0, 0.5] cells, not %g",
+                             in->fine_spacing);
+    /* The fitting grids of the corner nodes reach H Delta cells past the bounds: checked
+     * here, so such a bake is refused before it starts rather than failing half-way. */
+    for (int a = 0; a < 3; a++) {
+        double reach = in->fine_half * in->fine_spacing * in->spacing[a];
+        if (!(lo[a] - reach >= -SDF_MAX_COORDINATE && hi[a] + reach <= SDF_MAX_COORDINATE))
+            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
+                                 "the first-order fitting grids (H Delta = %g cells) reach "
+                                 "past +-1e18 on %c; give bounds further inside",
+                                 in->fine_half * in->fine_spacing, "xyz"[a]);
+    }
+    return 0;
+}
+
+static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *plan,
+                   sdf_diag *diag)
+{
+    sdf_mesh_report r;
+    sdf_mesh_get_report(mesh, &r);
+    sdf_volume_info *in = &plan->info;
+    memset(in, 0, sizeof *in);
+    double lo[3], hi[3];
+    int rc = resolve_bounds(o, &r, lo, hi, diag);
+    if (rc)
+        return rc;
     for (int a = 0; a < 3; a++) {
         in->dims[a] = o->dims[a] ? o->dims[a] : DEFAULT_DIM;
         if (in->dims[a] < 2 || in->dims[a] > SDF_VOLUME_MAX_DIM)
@@ -97,35 +140,11 @@ static int resolve(const sdf_mesh *mesh, const sdf_bake_options *o, bake_plan *p
     in->order = o->order;
     in->encoding = o->encoding;
     in->filtered = o->filter != NULL;
-    if (in->order == 1) {
-        in->fine_half = o->fine_half ? o->fine_half : 1;
-        in->fine_spacing = o->fine_spacing != 0 ? o->fine_spacing : DEFAULT_FINE_SPACING;
-        if (in->fine_half < 1 || in->fine_half > MAX_FINE_HALF)
-            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "H (fine_half) must be 1..%d, not %d",
-                                 MAX_FINE_HALF, in->fine_half);
-        in->normalize = o->normalize;
-        if ((unsigned)in->normalize > SDF_NORMALIZE_GRADIENT)
-            return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown normalisation %d",
-                                 (int)in->normalize);
-        if (!(in->fine_spacing > 0 && in->fine_spacing <= 0.5))
-            return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
-                                 "Delta (fine_spacing) must be in (0, 0.5] cells, not %g",
-                                 in->fine_spacing);
-        /* The fitting grids of the corner nodes reach H Delta cells past the bounds: checked
-         * here, so such a bake is refused before it starts rather than failing half-way. */
-        for (int a = 0; a < 3; a++) {
-            double reach = in->fine_half * in->fine_spacing * in->spacing[a];
-            if (!(lo[a] - reach >= -SDF_MAX_COORDINATE && hi[a] + reach <= SDF_MAX_COORDINATE))
-                return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
-                                     "the first-order fitting grids (H Delta = %g cells) reach "
-                                     "past +-1e18 on %c; give bounds further inside",
-                                     in->fine_half * in->fine_spacing, "xyz"[a]);
-        }
-    }
+    if (in->order == 1 && (rc = resolve_first_order(o, lo, hi, in, diag)))
+        return rc;
     if (in->encoding == SDF_ENCODING_PACKED32)
         in->packed_range = 1; /* placeholder for the check; set from the data when baked */
-    int rc = sdf__volume_check_info(in, diag);
-    if (rc)
+    if ((rc = sdf__volume_check_info(in, diag)))
         return rc;
     plan->queries_per_point = 1;
     if (o->filter) {
@@ -489,7 +508,7 @@ static int fit_samples(void *user, size_t first, size_t count, float *f, int wor
 }
 
 /* The scan takes the raw field on closed meshes signed by pseudonormals or unsigned
- * (volume/scan.h), in runs of whole z-slices that fit its scratch. */
+ * (scan/scan.h), in runs of whole z-slices that fit its scratch. */
 static int scannable(const bake_plan *plan)
 {
     const sdf_volume_info *in = &plan->info;
@@ -498,7 +517,7 @@ static int scannable(const bake_plan *plan)
                           plan->query.threads);
 }
 
-/* The raw field on a closed mesh by closest-feature scan conversion (volume/scan.h), in runs
+/* The raw field on a closed mesh by closest-feature scan conversion (scan/scan.h), in runs
  * of whole z-slices: zero order gives sdf_query's floats at the nodes, first order the fine
  * samples that the planes are fitted to. */
 static int scan_bake(const bake_plan *plan, bake_out *o, const sdf_bake_options *opts,

@@ -12,17 +12,6 @@
 
 #define MAX_EXR_FILE_BYTES ((size_t)1 << 34) /* 16 GiB: more than any allowed volume */
 
-int sdf_volume_file_from_name(const char *name, sdf_volume_file *out)
-{
-    static const char *const names[] = {"exr", "npy", "raw"};
-    for (int t = 0; name && t < 3; t++)
-        if (!strcasecmp(name, names[t])) {
-            *out = (sdf_volume_file)t;
-            return 0;
-        }
-    return SDF_EINVAL;
-}
-
 /* .npy: (K, M, N) or (K, M, N, 4), float32 - or uint32 for packed nodes. */
 long sdf_volume_npy_header(const sdf_volume *v, char *dst, size_t cap)
 {

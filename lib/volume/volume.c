@@ -15,56 +15,6 @@
 
 #define EVAL_CHUNK 16384 /* points per work item: a few milliseconds */
 
-/* The index of `name` (case-insensitive) in names[0..count), or -1. */
-static int name_index(const char *name, const char *const *names, int count)
-{
-    for (int i = 0; name && i < count; i++)
-        if (!strcasecmp(name, names[i]))
-            return i;
-    return -1;
-}
-
-static const char *const encoding_names[] = {"float32", "packed32"};
-static const char *const normalize_names[] = {"plane", "gradient"};
-static const char *const filter_names[] = {"trilinear", "nearest"};
-
-int sdf_encoding_from_name(const char *name, sdf_volume_encoding *out)
-{
-    int i = name_index(name, encoding_names, 2);
-    if (i < 0)
-        return SDF_EINVAL;
-    *out = (sdf_volume_encoding)i;
-    return 0;
-}
-
-const char *sdf_encoding_name(sdf_volume_encoding encoding)
-{
-    return (unsigned)encoding < 2 ? encoding_names[encoding] : "unknown";
-}
-
-int sdf_normalize_from_name(const char *name, sdf_tdf_normalize *out)
-{
-    int i = name_index(name, normalize_names, 2);
-    if (i < 0)
-        return SDF_EINVAL;
-    *out = (sdf_tdf_normalize)i;
-    return 0;
-}
-
-const char *sdf_normalize_name(sdf_tdf_normalize normalize)
-{
-    return (unsigned)normalize < 2 ? normalize_names[normalize] : "unknown";
-}
-
-int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out)
-{
-    int i = name_index(name, filter_names, 2);
-    if (i < 0)
-        return SDF_EINVAL;
-    *out = i ? SDF_VOLUME_NEAREST : SDF_VOLUME_TRILINEAR;
-    return 0;
-}
-
 int sdf_volume_channels(const sdf_volume_info *info)
 {
     return info->order == 1 && info->encoding == SDF_ENCODING_FLOAT32 ? 4 : 1;

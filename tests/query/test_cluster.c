@@ -1,5 +1,5 @@
 /* test_cluster.c - clusters of nearby points answered from one candidate list
- * (lib/query/cluster.c) and the filtered field that uses them, against slow, obvious
+ * (lib/points/cluster.c) and the filtered field that uses them, against slow, obvious
  * computations:
  *  - clusters of 1..64 points spread like filter samples (a Gaussian around a centre, each
  *    bounded by |f(centre)| + |x - centre|) around band, box and on-surface centres: the
@@ -22,9 +22,9 @@
 #include "../common/reference.h"
 #include "../common/workload.h"
 #include "mesh/mesh.h"
-#include "query/cluster.h"
+#include "points/cluster.h"
 #include "query/filter.h"
-#include "query/triangle.h"
+#include "geom/triangle.h"
 
 static double diagonal_of(const sdf_mesh *m)
 {
@@ -238,7 +238,7 @@ static void test_filtered_direct(const char *file, const char *kind, int samples
     CHECK(sdf_query_filtered(m, p, n, NULL, &mean_opt, &rm, NULL) == 0, "sample gradient");
     CHECK(!memcmp(g, g2, n * sizeof *g), "%s %s: g's value changes with sample_gradient", file,
           kind);
-    /* A sample's winner is closest up to float rounding (query/cluster.h): where two
+    /* A sample's winner is closest up to float rounding (points/cluster.h): where two
      * triangles tie that closely over a flat stretch, their closest points may lie up to
      * ~sqrt(2e-6) of the distance apart, so that sample's direction may differ from
      * sdf_query's by ~1.4e-3 (seen: 1.2e-3, weighted 1/n in the mean). Elsewhere the mean is

@@ -20,7 +20,7 @@
 #include "../common/reference.h"
 #include "../common/workload.h"
 #include "mesh/mesh.h"
-#include "query/packet.h"
+#include "points/packet.h"
 
 static double dist3(const double a[3], const float b[3])
 {

@@ -5,7 +5,7 @@
  *    arrays and small ones in turn, compared bit for bit with the same calls without one;
  *  - the workspace grows only for a larger batch: a batch no larger than one it served before
  *    leaves sdf_workspace_bytes as it was;
- *  - a lattice, which the scan answers (volume/scan.c), keeps its per-node bests there too;
+ *  - a lattice, which the scan answers (scan/scan.c), keeps its per-node bests there too;
  *  - two threads sharing one workspace (one of them runs without it) and a bake given one
  *    (which ignores it) still answer as without;
  *  - the argument rules: NULL out, NULL workspace. */

@@ -6,7 +6,7 @@
  *
  * Anything not declared here is not API.
  *
- * Conventions (see DESIGN.md):
+ * Conventions (see docs/design.md):
  *  - Every function that can fail returns int: 0 (SDF_OK) or a negative SDF_E* code.
  *    sdf_strerror() names it. Bad input never aborts the process.
  *  - Handles are opaque. A loaded sdf_mesh is immutable and may be queried from any number
@@ -83,9 +83,13 @@ typedef enum sdf_format {
     SDF_FORMAT_OFF,
 } sdf_format;
 
-/* "obj", "ply", "stl", "off" (case-insensitive) -> format; SDF_EINVAL otherwise. */
+/* Names of this header's enums, every pair alike: *_from_name matches a name whatever its
+ * case and writes its value, or returns SDF_EINVAL (NULL or an unknown name; *out
+ * unchanged); *_name gives a value's name in lower case, "?" for a value outside the enum. */
+
+/* "auto", "obj", "ply", "stl", "off" -> format ("auto": from the extension or the bytes). */
 int sdf_format_from_name(const char *name, sdf_format *out);
-const char *sdf_format_name(sdf_format format); /* "auto", "obj", ... */
+const char *sdf_format_name(sdf_format format);
 
 typedef enum sdf_sign_method {
     SDF_SIGN_AUTO = 0,     /* pseudonormal for closed meshes that do not intersect
@@ -96,7 +100,7 @@ typedef enum sdf_sign_method {
     SDF_SIGN_NONE,         /* unsigned distance */
 } sdf_sign_method;
 
-/* "auto", "pseudonormal", "winding", "raycast", "none" -> method; SDF_EINVAL otherwise. */
+/* "auto", "pseudonormal", "winding", "raycast", "none" -> method (as sdf_format_from_name). */
 int sdf_sign_from_name(const char *name, sdf_sign_method *out);
 const char *sdf_sign_name(sdf_sign_method method);
 
@@ -190,7 +194,7 @@ typedef enum sdf_traversal {
  * sdf_winding_numbers need large arrays for big batches (the points' Morton order, the points
  * and answers in visit order, a filtered call's samples: tens of MB for a million points).
  * Without a workspace each call allocates them and frees them at its end, and their fresh
- * pages fault in again next call (on a virtual machine ~10 % of a 1M-point query). Given one
+ * pages fault in again next call (costly on virtual machines). Given one
  * in sdf_query_options.workspace, a call takes its arrays from it and leaves them there,
  * grown to the largest call's needs, for the next (a lattice that the scan answers keeps its
  * per-node arrays there too). Answers are the same with or without one.
@@ -333,7 +337,7 @@ typedef enum sdf_volume_encoding {
                                  packed_center +- packed_range; d = value - (a, b, c) . node */
 } sdf_volume_encoding;
 
-/* "float32", "packed32" -> encoding; SDF_EINVAL otherwise. */
+/* "float32", "packed32" -> encoding (as sdf_format_from_name). */
 int sdf_encoding_from_name(const char *name, sdf_volume_encoding *out);
 const char *sdf_encoding_name(sdf_volume_encoding encoding);
 
@@ -364,7 +368,7 @@ typedef struct sdf_volume_info {
     int filtered;            /* 1: baked from the convolution-filtered field */
 } sdf_volume_info;
 
-/* "plane", "gradient" -> normalisation; SDF_EINVAL otherwise. */
+/* "plane", "gradient" -> normalisation (as sdf_format_from_name). */
 int sdf_normalize_from_name(const char *name, sdf_tdf_normalize *out);
 const char *sdf_normalize_name(sdf_tdf_normalize normalize);
 
@@ -429,8 +433,9 @@ typedef enum sdf_volume_filter {
     SDF_VOLUME_NEAREST,       /* the nearest node's value (order 0) or plane at the point */
 } sdf_volume_filter;
 
-/* "trilinear", "nearest" -> filter; SDF_EINVAL otherwise. */
+/* "trilinear", "nearest" -> filter (as sdf_format_from_name). */
 int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out);
+const char *sdf_volume_filter_name(sdf_volume_filter filter);
 
 /* The volume's field at `count` points (packed xyz): value[count] and, if not NULL,
  * gradient[3 count] - the exact gradient of the reconstructed field (zero order nearest:
@@ -452,8 +457,9 @@ int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
  *  RAW: the node words alone, little-endian (sdf_volume_describe_json gives the metadata). */
 typedef enum sdf_volume_file { SDF_VOLUME_EXR = 0, SDF_VOLUME_NPY, SDF_VOLUME_RAW } sdf_volume_file;
 
-/* "exr", "npy", "raw" -> file type; SDF_EINVAL otherwise. */
+/* "exr", "npy", "raw" -> file type (as sdf_format_from_name). */
 int sdf_volume_file_from_name(const char *name, sdf_volume_file *out);
+const char *sdf_volume_file_name(sdf_volume_file type);
 
 /* Encode the volume as a file in a new malloc'ed buffer (*data, *size; release with free). */
 int sdf_volume_save_memory(const sdf_volume *volume, sdf_volume_file type, void **data,

@@ -1,4 +1,4 @@
-/* test_scan.c - closest-feature scan conversion (lib/volume/scan.c) against the slow, obvious
+/* test_scan.c - closest-feature scan conversion (lib/scan/scan.c) against the slow, obvious
  * computations:
  *  - zero-order bakes: every node holds exactly sdf_query's float at the node's position,
  *    asked one Embree query per point (itself tested against brute force), on closed meshes
@@ -22,8 +22,8 @@
 #include "../common/check.h"
 #include "../common/reference.h"
 #include "../common/workload.h"
-#include "query/filter.h"
-#include "volume/scan.h"
+#include "query/query.h"
+#include "scan/scan.h"
 
 static size_t node_count(const sdf_volume_info *in)
 {

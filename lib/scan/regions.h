@@ -1,5 +1,5 @@
 /* regions.h - where each feature of a closed mesh is the closest: the convex regions that
- * closest-feature scan conversion rasterises (volume/scan.c, volume/raster.c).
+ * closest-feature scan conversion rasterises (scan/scan.c, scan/raster.c).
  *
  * A point's closest surface point lies inside a face, on an edge or at a vertex, and then
  * the point lies in that feature's region: the prism over the face, the wedge between the
@@ -9,8 +9,8 @@
  * (what a scan crosses to find the rows to visit). Regions are capped at a reach: how far
  * from the surface a node can lie, and, with an upper-bound field of |f|, where the feature
  * is shown to have lost every farther point. */
-#ifndef SDF_VOLUME_REGIONS_H
-#define SDF_VOLUME_REGIONS_H
+#ifndef SDF_SCAN_REGIONS_H
+#define SDF_SCAN_REGIONS_H
 
 #include <stddef.h>
 #include <stdint.h>

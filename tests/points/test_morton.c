@@ -1,4 +1,4 @@
-/* test_morton.c - the batch's Morton visit order (lib/query/morton.c) against a slow,
+/* test_morton.c - the batch's Morton visit order (lib/points/morton.c) against a slow,
  * obvious one: each point's code built bit by bit (axis k's bit j at bit 3j + k), indices
  * sorted by (code, index) with qsort. Batches below and above the size at which the sort
  * splits over threads, on 1, 2, 3 and 8 threads, with a stride wider than a point: uniform
@@ -12,7 +12,7 @@
 #include <string.h>
 
 #include "../common/check.h"
-#include "query/morton.h"
+#include "points/morton.h"
 
 #define STRIDE_FLOATS 4 /* a point's xyz and one unused float */
 

@@ -2,7 +2,7 @@
  *
  * Sec. 3 of the convolution paper ("packet sampling"): nearby queries go through the same
  * branches of the tree, so they are grouped and the tree is traversed once for all of them.
- * Three levers, in order of payoff (DESIGN.md):
+ * Three levers, in order of payoff (docs/design.md):
  *  1. bounds: no search starts at infinity. Points are visited in Morton order, and a
  *     point's search radius starts at min(d_prev + |p - p_prev|, |p - c_prev|), an upper
  *     bound of its distance by the triangle inequality (p_prev: the last point answered
@@ -11,19 +11,19 @@
  *     a node is skipped only when it is farther than every point's current bound;
  *  3. data layout: the packet's coordinates are SoA arrays, so the per-node box tests and
  *     a branchless float point-triangle distance run on eight lanes at once (GCC vector
- *     types, no intrinsics: query/lanes.h; AVX2 clones where the CPU has it, core/simd.h),
+ *     types, no intrinsics: points/lanes.h; AVX2 clones where the CPU has it, core/simd.h),
  *     and a triangle is tested only in the groups with a lane near its box.
  * The float distances only choose candidates: every triangle within a rounding margin of a
  * lane's best float distance gets the same exact double-precision test as the single-point
- * path (query/triangle.c), so distances are identical to it; only exact ties may name a
+ * path (geom/triangle.c), so distances are identical to it; only exact ties may name a
  * different (equally close) triangle. */
-#ifndef SDF_QUERY_PACKET_H
-#define SDF_QUERY_PACKET_H
+#ifndef SDF_POINTS_PACKET_H
+#define SDF_POINTS_PACKET_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "bvh/embree.h" /* sdf__hit */
+#include "geom/triangle.h" /* sdf__hit */
 #include "bvh/tree.h"
 
 #define SDF__PACKET 32
@@ -37,7 +37,7 @@ typedef struct sdf__packet {
 
 /* Closest points of a packet's points over `tree`; `extent` is the mesh's bounding-box
  * diagonal (the scale of float rounding). Candidates are found with a float test on all
- * lanes at once and decided by the exact double test (query/triangle.c). A point the packet
+ * lanes at once and decided by the exact double test (geom/triangle.c). A point the packet
  * could not decide (a bound rounding made too small, or more near-equal candidates than it
  * holds) comes back with hit.dist2 == INFINITY and must be asked again (sdf__closest_exact). */
 void sdf__closest_packet(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
@@ -51,7 +51,7 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
 void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                         float extent, const float p[3], double bound2, sdf__hit *hit);
 
-/* The closest point to p over `tree` by the exact double test alone (query/triangle.c: every
+/* The closest point to p over `tree` by the exact double test alone (geom/triangle.c: every
  * triangle whose box is as near as the best so far), with the searches' tie rule: slow and
  * always decided. It answers the rare points the float searches hand back. */
 void sdf__closest_exact(const sdf__tree *tree, const float *positions, const uint32_t *triangles,

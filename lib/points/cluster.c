@@ -1,18 +1,18 @@
 /* cluster.c - closest triangles of a cluster of nearby points (see cluster.h). */
-#include "query/cluster.h"
+#include "points/cluster.h"
 
 #include <math.h>
 #include <stdlib.h>
 
 #include "core/simd.h"
-#include "query/lanes.h"
-#include "query/triangle.h"
+#include "points/lanes.h"
+#include "geom/triangle.h"
 
 /* Every float comparison that must not lose a triangle is widened by lanes.h's slack. */
 #define SLACK_REL SDF__LANE_SLACK_REL
 
 /* A float distance is taken only above this many slack_abs (relative error <~ 1/64 at worst,
- * ~1e-5 measured); nearer points are rare (band samples: a few %) and get the exact test. */
+ * far less in practice); nearer points are rare and get the exact test. */
 #define FLOAT_DISTANCE_MIN 64.0f
 
 #define BUCKETS 32 /* reach classes of the candidates' visit order */

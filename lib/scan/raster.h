@@ -1,21 +1,21 @@
-/* raster.h - the scan's state, shared by its two halves (private to volume/scan.c and
- * volume/raster.c).
+/* raster.h - the scan's state, shared by its two halves (private to scan/scan.c and
+ * scan/raster.c).
  *
- * volume/scan.c sets a scan up and runs its calls; in each call every feature's region goes
- * to sdf__scan_region (volume/raster.c), the inner loop, which visits the call's nodes the
+ * scan/scan.c sets a scan up and runs its calls; in each call every feature's region goes
+ * to sdf__scan_region (scan/raster.c), the inner loop, which visits the call's nodes the
  * region holds and keeps each node's (zero order) or fine sample's (first order) nearest
  * feature so far in the worker's own arrays; scan.c then merges the workers' arrays and
  * finishes the nodes. */
-#ifndef SDF_VOLUME_RASTER_H
-#define SDF_VOLUME_RASTER_H
+#ifndef SDF_SCAN_RASTER_H
+#define SDF_SCAN_RASTER_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "bvh/embree.h"     /* sdf__hit */
+#include "geom/triangle.h" /* sdf__hit */
 #include "core/parallel.h"  /* SDF__MAX_THREADS */
-#include "volume/regions.h"
-#include "volume/scan.h"
+#include "scan/regions.h"
+#include "scan/scan.h"
 
 #define SDF__SCAN_MAX_W (2 * 4 + 1) /* first order: the fine grid's width, H <= 4 */
 #define SDF__SCAN_MAX_SAMPLES (SDF__SCAN_MAX_W * SDF__SCAN_MAX_W * SDF__SCAN_MAX_W)

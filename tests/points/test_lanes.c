@@ -1,4 +1,4 @@
-/* test_lanes.c - the eight-lane helpers the walks lean on (lib/query/lanes.h) against slow,
+/* test_lanes.c - the eight-lane helpers the walks lean on (lib/points/lanes.h) against slow,
  * obvious ones: the sorting network that orders a wide node's children (every permutation
  * of eight distinct keys, and random keys full of repeats and of the INT32_MAX that marks a
  * child out of reach, against qsort), and the OR of a vector's lanes (one bit at a time). */
@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "../common/check.h"
-#include "query/lanes.h"
+#include "points/lanes.h"
 
 static int by_value(const void *a, const void *b)
 {

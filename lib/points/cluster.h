@@ -17,13 +17,13 @@
  * sdf_query's. A caller may take the float distance instead, and skip the exact test where
  * it needs no closest point (the filtered field's samples whose sign is known), except very
  * near the surface, where float rounding is large next to the distance. */
-#ifndef SDF_QUERY_CLUSTER_H
-#define SDF_QUERY_CLUSTER_H
+#ifndef SDF_POINTS_CLUSTER_H
+#define SDF_POINTS_CLUSTER_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "bvh/embree.h" /* sdf__hit */
+#include "geom/triangle.h" /* sdf__hit */
 #include "bvh/tree.h"
 
 #define SDF__CLUSTER_MAX 64 /* points of one cluster, at most */

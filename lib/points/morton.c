@@ -5,7 +5,7 @@
  * part by its own write cursors (the running sums over buckets, then parts), which is the
  * serial stable sort's order, and counts as it writes the next pass's digits per destination
  * part, so no pass reads the keys twice. */
-#include "query/morton.h"
+#include "points/morton.h"
 
 #include <math.h>
 #include <stdlib.h>

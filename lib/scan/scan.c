@@ -7,27 +7,27 @@
  * node can be from the surface (`reach_front` on the outward side, `reach_back` inside),
  * which a coarse lattice of exact queries bounds. Worker threads take runs of features in
  * the mesh tree's order, each into its own per-node "best so far" arrays (no locks; the loop
- * over one region's nodes is volume/raster.c); the rows are then finished in parallel, the
+ * over one region's nodes is scan/raster.c); the rows are then finished in parallel, the
  * workers' bests merged by (distance, feature id) so the result does not depend on how the
  * features were shared out. */
+#include <assert.h>
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "bvh/embree.h"
 #include "core/bigmem.h"
 #include "core/parallel.h"
 #include "core/workspace.h"
 #include "mesh/mesh.h"
 #include "mesh/topology.h"
-#include "volume/regions.h"
-#include "query/filter.h"
-#include "query/packet.h"
-#include "query/triangle.h"
-#include "volume/raster.h"
-#include "volume/scan.h"
+#include "scan/regions.h"
+#include "points/points.h"
+#include "points/packet.h"
+#include "geom/triangle.h"
+#include "scan/raster.h"
+#include "scan/scan.h"
 
 #define COARSE_STEP 8      /* nodes between the coarse lattice's nodes */
 #define FEATURE_CHUNK 256  /* features per work item */
@@ -35,11 +35,9 @@
 #define PREFETCH_AHEAD 8   /* features between a prefetch and the region's build */
 #define MERGE_NODES 256    /* nodes per sdf__sample_fn call */
 #define SCAN_SLICE_LIMIT ((size_t)256 << 20) /* most scratch bytes one z-slice may take */
-/* The same, first order: fewer calls rebuild fewer regions that span several. refined_elephant
- * 128^3, one thread: 64 MiB 1.57-1.63 s, 128 MiB 1.46-1.49, 256 MiB 1.42-1.48; two threads
- * (each worker its own copy, so half the slices a call), 6 alternating runs: 64 MiB 0.715 s
- * (median), 128 MiB 0.618 (4 calls), 256 MiB 0.584 (2 calls); 512 MiB (1 call) 0.531, but
- * with 3.5 times the memory. */
+/* The same, first order: fewer calls rebuild fewer regions that span several (each worker
+ * has its own copy, so more threads take fewer slices a call); past this budget the memory
+ * grows faster than the time falls. */
 #define SCAN_SAMPLE_BUDGET_BYTES ((size_t)256 << 20)
 /* The region's estimate and the exact test's distance both lie within this much of the
  * scene's size of the true distance. */
@@ -102,8 +100,8 @@ static void features_range(void *ctx, size_t begin, size_t end, int worker)
 }
 
 /* Known spans let the calls of a bake in several calls skip the regions outside them: an
- * array for them, filled by the first call (features_range). Building every region once
- * more in a pass of its own took 52-55 ms of a refined_elephant 128^3 first-order bake. */
+ * array for them, filled by the first call (features_range), which builds every region
+ * anyway (a pass of its own would build them all once more). */
 static int ensure_zspans(sdf__scan *s, sdf__scan_call *st)
 {
     if (s->zspan || (st->k0 == 0 && st->k1 == s->dims[2]))
@@ -116,7 +114,7 @@ static int ensure_zspans(sdf__scan *s, sdf__scan_call *st)
 }
 
 /* The exact test of the triangles in `list`, kept in *hit where nearer (ties: the lower id,
- * the searches' rule: query/triangle.h). */
+ * the searches' rule: geom/triangle.h). */
 static void exact_tests(const sdf__scan *s, const uint32_t *list, size_t count, const double p[3],
                         sdf__hit *hit)
 {
@@ -302,6 +300,7 @@ static void clear_range(void *ctx, size_t begin, size_t end, int worker)
 
 int sdf__scan_slices(sdf__scan *s, size_t k0, size_t k1, const sdf_query_result *out)
 {
+    assert(k0 < k1 && k1 <= s->dims[2]);
     size_t nx = s->dims[0], rows = (k1 - k0) * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, nodes = rows * nx;
@@ -368,6 +367,7 @@ static void merge_samples(void *ctx, size_t begin, size_t end, int worker)
 int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_spacing,
                       sdf__sample_fn consume, void *user)
 {
+    assert(k0 < k1 && k1 <= s->dims[2] && half >= 1 && 2 * half + 1 <= SDF__SCAN_MAX_W);
     size_t w3 = SDF__POW3(2 * half + 1), nodes = (k1 - k0) * s->dims[0] * s->dims[1];
     int workers = sdf__effective_threads(s->query.threads, s->feat.count, FEATURE_CHUNK);
     size_t w = (size_t)workers, scratch = w * nodes * w3;
@@ -406,9 +406,8 @@ int sdf__scan_samples(sdf__scan *s, size_t k0, size_t k1, int half, double fine_
 /* Features in the order the mesh's tree holds its triangles, each face followed by those of
  * its edges and vertices not yet listed (then any feature no triangle of the tree lists): a
  * subtree's triangles are neighbours in space, so features near in this order write to
- * nearby nodes and the per-node arrays stay in cache. It replaced a Morton sort of the
- * features' positions (240k features, refined_elephant: 4-7 ms of a 170 ms bake; this pass
- * takes ~2.5). */
+ * nearby nodes and the per-node arrays stay in cache, and the order costs one pass over the
+ * tree rather than a sort of the features' positions. */
 static void list_feature(uint8_t *listed, uint32_t *order, size_t *n, size_t feature)
 {
     if (!listed[feature]) {

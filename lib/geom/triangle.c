@@ -1,5 +1,5 @@
 /* triangle.c - closest point on a triangle (see triangle.h). */
-#include "query/triangle.h"
+#include "geom/triangle.h"
 
 #include <string.h>
 

@@ -2,10 +2,10 @@
  *
  * Packets, clusters and the scan's features are cut from runs of this order, so nearby
  * items are visited together. The sort is a least-significant-digit radix sort (no
- * comparisons), split over the batch's threads for large batches: before, it ran on one
- * core while the other idled, 5-14 % of a 1M-point query's wall time on 2 cores. */
-#ifndef SDF_QUERY_MORTON_H
-#define SDF_QUERY_MORTON_H
+ * comparisons), split over the batch's threads for large batches: on one thread it kept a
+ * core idle for a noticeable part of a large query. */
+#ifndef SDF_POINTS_MORTON_H
+#define SDF_POINTS_MORTON_H
 
 #include <stddef.h>
 #include <stdint.h>

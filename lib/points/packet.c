@@ -1,13 +1,12 @@
 /* packet.c - packet traversal and the single-point walk (see packet.h).
  *
  * The float tests here only choose candidates, within margins ~16x their rounding, and the
- * exact double test (query/triangle.c, another file) decides every answer, so their
+ * exact double test (geom/triangle.c, another file) decides every answer, so their
  * multiply-adds may fuse where the CPU has FMA: the answers stay bit for bit the same, and
- * the walks ran 2-5 % faster (2 threads, 1M band and box points on fandisk and
- * refined_elephant, 2 alternating runs each). The rest of the library keeps ISO C's unfused
+ * the walks take fewer instructions. The rest of the library keeps ISO C's unfused
  * arithmetic, so its floats do not depend on the CPU. */
 #pragma GCC optimize("fp-contract=fast")
-#include "query/packet.h"
+#include "points/packet.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -15,8 +14,8 @@
 
 #include "bvh/wide.h"
 #include "core/simd.h"
-#include "query/lanes.h"
-#include "query/triangle.h"
+#include "points/lanes.h"
+#include "geom/triangle.h"
 #include "sdf/sdf.h"
 
 /* ---- packet traversal -------------------------------------------------------------------- */
@@ -310,9 +309,8 @@ void sdf__closest_packet(const sdf__tree *tree, const float *positions, const ui
             groups = groups_of_lanes(near);
             /* The way with fewer full eight-lane tests: a near lane per chunk of eight
              * triangles, or (at most) a near group per triangle. Sparse packets (far points,
-             * small batches, fine meshes) mostly go by lane (2 threads, 1M points: the
-             * 1.4M-triangle mesh's band +31 %, refined_elephant box +16 %, band +9 %);
-             * weighting either side by 2 or 1/2 moved nothing beyond the noise. */
+             * small batches, fine meshes) mostly go by lane; weighting either side by 2 or
+             * 1/2 moved nothing beyond the noise (docs/performance.md). */
             unsigned by_lane = (unsigned)__builtin_popcount(near) * ((node->count + 7) / 8);
             unsigned by_group = (unsigned)__builtin_popcount(groups) * node->count;
             if (by_lane <= by_group)

@@ -6,8 +6,8 @@
  * twice, core/simd.h; they must be inlined into such a function to be). Float distances
  * choose triangles; wherever a distance must be exact, the double test (triangle.h)
  * computes it. */
-#ifndef SDF_QUERY_LANES_H
-#define SDF_QUERY_LANES_H
+#ifndef SDF_POINTS_LANES_H
+#define SDF_POINTS_LANES_H
 
 #include <math.h>
 #include <stdint.h>

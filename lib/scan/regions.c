@@ -6,16 +6,17 @@
  * sits in a triangle or a rectangle, a cone in the pyramid of its generators (the planes'
  * pairwise intersections that satisfy every plane) or, when wide, in a box. */
 #include <float.h>
+#include <assert.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "core/parallel.h"
 #include "mesh/mesh.h"
-#include "query/filter.h"
-#include "query/triangle.h"
+#include "points/points.h"
+#include "geom/triangle.h"
 #include "sign/pseudonormal.h"
-#include "volume/regions.h"
+#include "scan/regions.h"
 
 /* Corners 0-2 and 3-5 of a triangular prism are its two ends, i and i + 3 joined. */
 static const uint8_t prism_edges[9][2] = {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5},
@@ -95,8 +96,8 @@ static double cut_by_point(const double u[3], const double axis[3], double offse
  * nearest the axis, one per step of the march, each solved for exactly where it wins
  * (cut_by_point), so the cut is not rounded up to a step. Before, the bound at each step was
  * the nearest node's distance plus the way there, up to half a coarse cell's diagonal
- * looser (refined_elephant 128^3: 5.4 M node evaluations -> 3.9 M; all eight corners of a
- * cell were hardly tighter, 3.8 M, and cost more than they saved). */
+ * looser, so the scan evaluated more nodes (all eight corners of a cell were hardly
+ * tighter, and cost more than they saved). */
 static double truncate_reach(const sdf__features *s, const double base[3], const double axis[3],
                              double offset, double spread, double reach)
 {
@@ -194,26 +195,13 @@ static int face_region(const sdf__features *s, size_t t, sdf__region *r)
     return 1;
 }
 
-/* The wedge beside edge e: points whose foot on the edge's line lies on the edge and which
- * lie on no incident face's side of the edge. Its cross-section, a sector of the reach's
- * radius, is bounded by a triangle (narrow sectors) or a rectangle. */
-static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
+/* The planes of edge e's incident faces (from a along the unit direction d): for each face
+ * with area, its unit direction u across the edge, a plane u . (p - a) <= 0 of r. The first
+ * two faces' u and unit normals are kept. Returns how many faces had area. */
+static int edge_face_planes(const sdf__features *s, size_t e, const double a[3],
+                            const double d[3], sdf__region *r, double u[2][3],
+                            double normals[2][3])
 {
-    const double *a = vertex(s, s->edge_end[2 * e]), *b = vertex(s, s->edge_end[2 * e + 1]);
-    double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    double len = normalize3(d);
-    if (len == 0)
-        return 0;
-    r->kind = SDF__REGION_EDGE;
-    memcpy(r->origin, a, sizeof r->origin);
-    memcpy(r->dir, d, sizeof r->dir);
-    for (int x = 0; x < 3; x++)
-        r->sign_dir[x] = s->edge_normal[3 * e + (size_t)x];
-    r->planes = 0;
-    double minus_d[3] = {-d[0], -d[1], -d[2]};
-    add_plane_at(s, r, minus_d, a, 0);
-    add_plane_at(s, r, d, b, 0);
-    double u[2][3], normals[2][3];
     int valid = 0;
     for (uint32_t k = s->edge_first[e]; k < s->edge_first[e + 1]; k++) {
         const uint32_t *tri = s->triangles + 3 * (size_t)s->edge_tri[k];
@@ -238,8 +226,16 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
         }
         valid++;
     }
-    /* Cross-section: t in [t0, t1] along m, |w| <= half_width along q = d x m. */
-    double reach = sdf__max2(s->reach_front, s->reach_back), m[3], t[2], half_width;
+    return valid;
+}
+
+/* The wedge's cross-section before truncation: t in [t0, t1] along the unit m, |w| <=
+ * *half_width across it, from the faces' directions u and normals (valid of them). */
+static void edge_section(const sdf__features *s, const double d[3], const double u[2][3],
+                         const double normals[2][3], int valid, double m[3], double t[2],
+                         double *half_width)
+{
+    double reach = sdf__max2(s->reach_front, s->reach_back);
     if (valid == 2) { /* a closed mesh's edge has two faces */
         double sum[3] = {u[0][0] + u[1][0], u[0][1] + u[1][1], u[0][2] + u[1][2]};
         double spread = sqrt(sdf__dot3(sum, sum)); /* 2 cos(beta / 2), beta between u0 and u1 */
@@ -249,11 +245,11 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
             double side = sdf__dot3(m, normals[0]) + sdf__dot3(m, normals[1]);
             reach = side > 0 ? s->reach_front : s->reach_back;
             t[0] = 0, t[1] = reach;
-            half_width = reach * sdf__min2(1.0, 0.5 * spread);
+            *half_width = reach * sdf__min2(1.0, 0.5 * spread);
         } else { /* flat: the plane of the normals, both sides */
-            memcpy(m, normals[0], sizeof m);
+            memcpy(m, normals[0], 3 * sizeof *m);
             t[0] = -s->reach_back, t[1] = s->reach_front;
-            half_width = reach * spread;
+            *half_width = reach * spread;
         }
     } else { /* a face without area beside it: a cylinder around the edge */
         double any[3] = {1, 0, 0};
@@ -261,8 +257,52 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
             any[0] = 0, any[1] = 1;
         sdf__cross3(m, d, any);
         normalize3(m);
-        t[0] = -reach, t[1] = reach, half_width = reach;
+        t[0] = -reach, t[1] = reach, *half_width = reach;
     }
+}
+
+/* A sector of half-angle gamma <= 60 degrees (sin_g its sine) reaching t1 along m: inside
+ * the triangle (0, 0), (t1, +-t1 tan gamma) of the (m, q) plane, its sides the faces'
+ * planes; the prism of that triangle along the edge (a, direction d, length len). */
+static void edge_prism(sdf__region *r, const double a[3], const double d[3], double len,
+                       const double m[3], const double q[3], double t1, double sin_g)
+{
+    double spread_w = t1 * sin_g / sqrt(1 - sin_g * sin_g);
+    r->corners = 6;
+    for (int end = 0; end < 2; end++)
+        for (int x = 0; x < 3; x++) {
+            double at = a[x] + (end ? len : 0) * d[x];
+            r->corner[3 * end][x] = at;
+            r->corner[3 * end + 1][x] = at + t1 * m[x] - spread_w * q[x];
+            r->corner[3 * end + 2][x] = at + t1 * m[x] + spread_w * q[x];
+        }
+    r->edges = 9;
+    memcpy(r->edge, prism_edges, sizeof prism_edges);
+}
+
+/* The wedge beside edge e: points whose foot on the edge's line lies on the edge and which
+ * lie on no incident face's side of the edge. Its cross-section, a sector of the reach's
+ * radius, is bounded by a triangle (narrow sectors) or a rectangle. */
+static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
+{
+    const double *a = vertex(s, s->edge_end[2 * e]), *b = vertex(s, s->edge_end[2 * e + 1]);
+    double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double len = normalize3(d);
+    if (len == 0)
+        return 0;
+    r->kind = SDF__REGION_EDGE;
+    memcpy(r->origin, a, sizeof r->origin);
+    memcpy(r->dir, d, sizeof r->dir);
+    for (int x = 0; x < 3; x++)
+        r->sign_dir[x] = s->edge_normal[3 * e + (size_t)x];
+    r->planes = 0;
+    double minus_d[3] = {-d[0], -d[1], -d[2]};
+    add_plane_at(s, r, minus_d, a, 0);
+    add_plane_at(s, r, d, b, 0);
+    double u[2][3], normals[2][3], m[3], t[2], half_width;
+    int valid = edge_face_planes(s, e, a, d, r, u, normals);
+    edge_section(s, d, (const double (*)[3])u, (const double (*)[3])normals, valid, m, t,
+                 &half_width);
     /* Truncated where the bound shows the edge has lost: the sector's points at distance t
      * lie within len / 2 + 2 sin(gamma / 2) t of mid + t m. */
     double mid[3] = {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
@@ -280,19 +320,7 @@ static int edge_region(const sdf__features *s, size_t e, sdf__region *r)
         minus_q[x] = -q[x];
     add_plane_at(s, r, m, a, t[1]);
     if (t[0] == 0 && sin_g <= 0.866) {
-        /* A sector of half-angle gamma <= 60 degrees: inside the triangle (0, 0),
-         * (reach, +-reach tan gamma) of the (m, q) plane, its sides the faces' planes. */
-        double spread_w = t[1] * sin_g / sqrt(1 - sin_g * sin_g);
-        r->corners = 6;
-        for (int end = 0; end < 2; end++)
-            for (int x = 0; x < 3; x++) {
-                double at = a[x] + (end ? len : 0) * d[x];
-                r->corner[3 * end][x] = at;
-                r->corner[3 * end + 1][x] = at + t[1] * m[x] - spread_w * q[x];
-                r->corner[3 * end + 2][x] = at + t[1] * m[x] + spread_w * q[x];
-            }
-        r->edges = 9;
-        memcpy(r->edge, prism_edges, sizeof prism_edges);
+        edge_prism(r, a, d, len, m, q, t[1], sin_g);
         return 1;
     }
     add_plane_at(s, r, minus_m, a, -t[0]);
@@ -348,21 +376,12 @@ static int flat_vertex(const sdf__features *s, const double p[3], const double (
     return 1;
 }
 
-/* The cone at vertex v: directions x with x . (w - v) <= 0 for every neighbour w. Its
- * generators are the planes' pairwise intersections that satisfy every plane; the region is
- * the pyramid they span, capped at the reach along its axis. */
-static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
+/* Vertex v's unit edge directions (to its neighbours; at most SDF__REGION_PLANES - 2), each
+ * also a plane x . (w - v) <= 0 of r. Returns how many. */
+static int vertex_edges(const sdf__features *s, size_t v, const double p[3], sdf__region *r,
+                        double e[][3])
 {
-    const double *p = vertex(s, (uint32_t)v);
     uint32_t first = s->vert_first[v], count = s->vert_first[v + 1] - first;
-    if (count == 0)
-        return 0;
-    r->kind = SDF__REGION_VERTEX;
-    memcpy(r->origin, p, sizeof r->origin);
-    for (int a = 0; a < 3; a++)
-        r->sign_dir[a] = s->vertex_normal[3 * v + (size_t)a];
-    r->planes = 0;
-    double e[SDF__REGION_PLANES][3];
     int n = 0;
     for (uint32_t k = 0; k < count && n < SDF__REGION_PLANES - 2; k++) {
         const double *w = vertex(s, s->vert_nbr[first + k]);
@@ -373,19 +392,25 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
         add_plane_at(s, r, dir, p, 0);
         n++;
     }
-    double gen[SDF__REGION_CORNERS - 1][3], axis[3] = {0, 0, 0};
-    int g = 0, pointed = 1;
-    for (int i = 0; i < n && pointed; i++)
-        for (int j = i + 1; j < n && pointed; j++) {
+    return n;
+}
+
+/* The cone's generators: the unit pairwise intersections of the n planes (normals e) that
+ * satisfy every plane, each once. Returns how many; *pointed becomes 0 when there are more
+ * than a region's corners hold. */
+static int cone_generators(const double e[][3], int n, double gen[][3], int *pointed)
+{
+    int g = 0;
+    for (int i = 0; i < n && *pointed; i++)
+        for (int j = i + 1; j < n && *pointed; j++) {
             double ray[3];
             sdf__cross3(ray, e[i], e[j]);
             double len = sqrt(sdf__dot3(ray, ray));
             if (len < 1e-9)
                 continue;
             /* The ray and its opposite against every plane in one pass, before the ray is
-             * made a unit vector, so the pairs that fail (82 % on refined_elephant, 53 % on
-             * fandisk) skip its divisions: the opposite's products are the ray's negated,
-             * exactly. */
+             * made a unit vector, so the pairs that fail (most of them) skip its divisions:
+             * the opposite's products are the ray's negated, exactly. */
             int ok_minus = 1, ok_plus = 1;
             double tolerance = 1e-9 * len;
             for (int l = 0; l < n && (ok_minus || ok_plus); l++) {
@@ -404,12 +429,96 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
                 if (!ok)
                     continue;
                 if (g == SDF__REGION_CORNERS - 1) {
-                    pointed = 0;
+                    *pointed = 0;
                     break;
                 }
                 memcpy(gen[g++], cand, sizeof cand);
             }
         }
+    return g;
+}
+
+/* Order the generators around the axis, so the base polygon's edges are neighbours. */
+static void order_around(double gen[][3], int g, const double axis[3])
+{
+    double b1[3], b2[3], any[3] = {1, 0, 0}, angle[SDF__REGION_CORNERS - 1];
+    if (fabs(axis[0]) > 0.9)
+        any[0] = 0, any[1] = 1;
+    sdf__cross3(b1, axis, any);
+    normalize3(b1);
+    sdf__cross3(b2, axis, b1);
+    for (int h = 0; h < g; h++) { /* a pseudo-angle: monotone in the angle, no atan2 */
+        double x = sdf__dot3(gen[h], b1), y = sdf__dot3(gen[h], b2), l1 = fabs(x) + fabs(y);
+        double q = l1 > 0 ? x / l1 : 1;
+        angle[h] = y >= 0 ? 1 - q : 3 + q;
+    }
+    for (int h = 1; h < g; h++) /* insertion sort: a handful of generators */
+        for (int k = h; k > 0 && angle[k - 1] > angle[k]; k--) {
+            double ta = angle[k], tg[3];
+            angle[k] = angle[k - 1], angle[k - 1] = ta;
+            memcpy(tg, gen[k], sizeof tg);
+            memcpy(gen[k], gen[k - 1], sizeof tg);
+            memcpy(gen[k - 1], tg, sizeof tg);
+        }
+}
+
+/* The pyramid from apex p along the ordered generators to the cap at `reach` along the
+ * axis: its corners (the apex first) and edges. */
+static void cone_pyramid(sdf__region *r, const double p[3], const double gen[][3], int g,
+                         const double axis[3], double reach)
+{
+    assert(g >= 1 && g + 1 <= SDF__REGION_CORNERS && 2 * g <= SDF__REGION_EDGES);
+    r->corners = g + 1;
+    memcpy(r->corner[0], p, sizeof r->corner[0]);
+    r->edges = 0;
+    for (int h = 0; h < g; h++) {
+        double len = reach / sdf__dot3(gen[h], axis);
+        for (int a = 0; a < 3; a++)
+            r->corner[h + 1][a] = p[a] + len * gen[h][a];
+        r->edge[r->edges][0] = 0, r->edge[r->edges][1] = (uint8_t)(h + 1), r->edges++;
+        if (g > 1) {
+            r->edge[r->edges][0] = (uint8_t)(h + 1);
+            r->edge[r->edges][1] = (uint8_t)((h + 1) % g + 1);
+            r->edges++;
+        }
+    }
+}
+
+/* A wide cone's cap reaches far out: its corners become their box within the reach's cube
+ * around p. */
+static void clip_wide_cone(sdf__region *r, const double p[3], double reach)
+{
+    double lo[3], hi[3], unit[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    for (int a = 0; a < 3; a++) {
+        lo[a] = hi[a] = p[a];
+        for (int c = 1; c < r->corners; c++) {
+            lo[a] = sdf__min2(lo[a], r->corner[c][a]);
+            hi[a] = sdf__max2(hi[a], r->corner[c][a]);
+        }
+        lo[a] = sdf__max2(lo[a], p[a] - reach), hi[a] = sdf__min2(hi[a], p[a] + reach);
+    }
+    double span_x[2] = {lo[0], hi[0]}, span_z[2] = {lo[2], hi[2]};
+    double origin[3] = {0, 0.5 * (lo[1] + hi[1]), 0};
+    box_corners(r, origin, unit[0], span_x, unit[1], 0.5 * (hi[1] - lo[1]), unit[2], span_z);
+}
+
+/* The cone at vertex v: directions x with x . (w - v) <= 0 for every neighbour w. Its
+ * generators are the planes' pairwise intersections that satisfy every plane; the region is
+ * the pyramid they span, capped at the reach along its axis. */
+static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
+{
+    const double *p = vertex(s, (uint32_t)v);
+    if (s->vert_first[v + 1] == s->vert_first[v])
+        return 0;
+    r->kind = SDF__REGION_VERTEX;
+    memcpy(r->origin, p, sizeof r->origin);
+    for (int a = 0; a < 3; a++)
+        r->sign_dir[a] = s->vertex_normal[3 * v + (size_t)a];
+    r->planes = 0;
+    double e[SDF__REGION_PLANES][3];
+    int n = vertex_edges(s, v, p, r, e);
+    double gen[SDF__REGION_CORNERS - 1][3], axis[3] = {0, 0, 0};
+    int pointed = 1, g = cone_generators((const double (*)[3])e, n, gen, &pointed);
     if (g == 0 && pointed)
         return 0; /* the cone is the vertex itself (or a line its faces' regions border) */
     for (int h = 0; h < g; h++)
@@ -433,54 +542,10 @@ static int vertex_region(const sdf__features *s, size_t v, sdf__region *r)
     reach = truncate_reach(s, p, axis, 0, sqrt(sdf__max2(0.0, 2 - 2 * widest)),
                            side > 0 ? s->reach_front : s->reach_back);
     add_plane_at(s, r, axis, p, reach);
-    /* Order the generators around the axis, so the base polygon's edges are neighbours. */
-    double b1[3], b2[3], any[3] = {1, 0, 0}, angle[SDF__REGION_CORNERS - 1];
-    if (fabs(axis[0]) > 0.9)
-        any[0] = 0, any[1] = 1;
-    sdf__cross3(b1, axis, any);
-    normalize3(b1);
-    sdf__cross3(b2, axis, b1);
-    for (int h = 0; h < g; h++) { /* a pseudo-angle: monotone in the angle, no atan2 */
-        double x = sdf__dot3(gen[h], b1), y = sdf__dot3(gen[h], b2), l1 = fabs(x) + fabs(y);
-        double q = l1 > 0 ? x / l1 : 1;
-        angle[h] = y >= 0 ? 1 - q : 3 + q;
-    }
-    for (int h = 1; h < g; h++) /* insertion sort: a handful of generators */
-        for (int k = h; k > 0 && angle[k - 1] > angle[k]; k--) {
-            double ta = angle[k], tg[3];
-            angle[k] = angle[k - 1], angle[k - 1] = ta;
-            memcpy(tg, gen[k], sizeof tg);
-            memcpy(gen[k], gen[k - 1], sizeof tg);
-            memcpy(gen[k - 1], tg, sizeof tg);
-        }
-    r->corners = g + 1;
-    memcpy(r->corner[0], p, sizeof r->corner[0]);
-    r->edges = 0;
-    for (int h = 0; h < g; h++) {
-        double len = reach / sdf__dot3(gen[h], axis);
-        for (int a = 0; a < 3; a++)
-            r->corner[h + 1][a] = p[a] + len * gen[h][a];
-        r->edge[r->edges][0] = 0, r->edge[r->edges][1] = (uint8_t)(h + 1), r->edges++;
-        if (g > 1) {
-            r->edge[r->edges][0] = (uint8_t)(h + 1);
-            r->edge[r->edges][1] = (uint8_t)((h + 1) % g + 1);
-            r->edges++;
-        }
-    }
-    if (widest < 0.5) { /* a wide cone's cap reaches far out: its box within the reach's cube */
-        double lo[3], hi[3], unit[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-        for (int a = 0; a < 3; a++) {
-            lo[a] = hi[a] = p[a];
-            for (int c = 1; c < r->corners; c++) {
-                lo[a] = sdf__min2(lo[a], r->corner[c][a]);
-                hi[a] = sdf__max2(hi[a], r->corner[c][a]);
-            }
-            lo[a] = sdf__max2(lo[a], p[a] - reach), hi[a] = sdf__min2(hi[a], p[a] + reach);
-        }
-        double span_x[2] = {lo[0], hi[0]}, span_z[2] = {lo[2], hi[2]};
-        double origin[3] = {0, 0.5 * (lo[1] + hi[1]), 0};
-        box_corners(r, origin, unit[0], span_x, unit[1], 0.5 * (hi[1] - lo[1]), unit[2], span_z);
-    }
+    order_around(gen, g, axis);
+    cone_pyramid(r, p, (const double (*)[3])gen, g, axis, reach);
+    if (widest < 0.5)
+        clip_wide_cone(r, p, reach);
     return 1;
 }
 
@@ -583,10 +648,8 @@ int sdf__features_bound(sdf__features *f, const sdf_mesh *mesh, const double *co
     for (int a = 0; a < 3; a++)
         f->bound_dims[a] = n[a], f->bound_coord[a] = bound_coord[a];
     /* Any surface point gives a valid cut (a later one only scans more), so the march need
-     * not be fine: a whole coarse cell instead of half took fandisk's 1M-node grid from
-     * 11.8-13.8 to 15.0-17.0 Mq/s (refined_elephant within noise; two steps of a cell were no
-     * better; with closest points, half a cell or coarse nodes every 4th or 6th node instead
-     * of every 8th were within noise). */
+     * not be fine: a whole coarse cell a step costs fewer cuts than half a cell and loses
+     * little of their tightness. */
     f->march = (double)step * finest;
     /* Widened past the float rounding of the coarse distances. */
     double widen = sqrt(half_diag2) * (1 + 1e-6) + f->slack;

@@ -3,23 +3,27 @@
  * bakes of the raw field.
  *
  * Querying node after node makes each far node rule out every triangle within its distance
- * (docs/performance.md): the cost grows with the distance. Turned around, the work is small:
- * a point's closest surface point lies inside a face, on an edge or at a vertex, and then the
- * point lies in that feature's region (volume/regions.h). Each region is a convex polyhedron;
- * scan-converting all of them over the lattice hands every node the few features whose
- * region holds it (2.3 per node on refined_elephant at 128^3, 8 before the regions were
- * truncated), and the nearest of those is the closest. The regions are necessary conditions
- * taken with a rounding slack, so a node can only get extra candidates, never miss its
- * closest feature. Zero order: the winner's distance is then the exact double test of
- * query/triangle.c, and sign and float output are sdf_query's own (sdf__query_finish), so a
- * node gets the same float as sdf_query at the same point; a node whose winner was an extra
- * candidate (its exact distance exceeds the region's estimate) is asked again through
- * sdf_query's search. When distances alone are asked for, a node well inside its winner's
- * region and off the surface needs neither: its estimate is exact, its side of the winner's
- * pseudonormal is the sign, and its float is taken when every value within the rounding of
- * both computations rounds to the same float (the same bits; ~half the bake's time). */
-#ifndef SDF_VOLUME_SCAN_H
-#define SDF_VOLUME_SCAN_H
+ * (docs/performance.md): the cost grows with the distance. Turned around, the work is small: a
+ * point's closest surface point lies inside a face, on an edge or at a vertex, and then the
+ * point lies in that feature's region (scan/regions.h). Each region is a convex polyhedron;
+ * scan-converting all of them over the lattice hands every node the few features whose region
+ * holds it (the regions are truncated, so only a few), and the nearest of those is the closest.
+ * The regions are necessary conditions taken with a rounding slack, so a node can only get
+ * extra candidates, never miss its closest feature. Zero order: the winner's distance is then
+ * the exact double test of geom/triangle.c, and sign and float output are sdf_query's own
+ * (sdf__query_finish), so a node gets the same float as sdf_query at the same point; a node
+ * whose winner was an extra candidate (its exact distance exceeds the region's estimate) is
+ * asked again through sdf_query's search. When distances alone are asked for, a node well
+ * inside its winner's region and off the surface needs neither: its estimate is exact, its side
+ * of the winner's pseudonormal is the sign, and its float is taken when every value within the
+ * rounding of both computations rounds to the same float (the same bits, without the exact
+ * test).
+ *
+ * scan/ sits above the point engine (points/), which queries its coarse lattice and finishes
+ * its winners, and below its two users: sdf_query's lattice path (query/query.c) and
+ * sdf_volume_bake (volume/bake.c). */
+#ifndef SDF_SCAN_SCAN_H
+#define SDF_SCAN_SCAN_H
 
 #include <stddef.h>
 
