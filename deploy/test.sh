@@ -30,6 +30,7 @@ check() { # description, command...: runs the command, counts the result
     else
         failed=$((failed + 1))
         echo "FAIL: $what"
+        return 1
     fi
 }
 
@@ -69,6 +70,127 @@ part_lb() {
             check "failover: $lb, $mode" $PY deploy/failover.py --lb "$lb" --mode "$mode"
         done
     done
+}
+
+IMAGE=localhost/sdfd:latest
+# Without systemd, podman logs "unable to get systemd connection" for the HEALTHCHECK's timer
+# (harmless: `podman healthcheck run` runs the check); those lines are filtered out.
+PODMAN_RUN=(podman_quiet --runtime runc run --network=host --ulimit nofile=1024:1024
+            --ulimit nproc=1000:1000)
+
+podman_quiet() {
+    podman "$@" 2> >(grep -v "unable to get systemd connection" >&2)
+}
+
+free_port() {
+    $PY -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+
+wait_ready() { # url, seconds: polls /readyz until 200
+    local deadline=$((SECONDS + $2))
+    until curl -sf -o /dev/null "$1/readyz"; do
+        [ $SECONDS -lt $deadline ] || return 1
+        sleep 0.1
+    done
+}
+
+same_answer() { # url-a, url-b, mesh: one JSON and one octet-stream query answer the same bytes
+    $PY - "$@" <<'PYEOF'
+import sys, urllib.request, json
+import numpy as np
+a, b, mesh = sys.argv[1:4]
+pts = np.random.default_rng(3).uniform(-2, 2, (2000, 3)).astype(np.float32)
+bodies = [("application/json", json.dumps({"points": pts.tolist(), "mode": "gradient"}).encode(), ""),
+          ("application/octet-stream", pts.tobytes(), "?mode=closest")]
+for ctype, body, query in bodies:
+    answers = []
+    for url in (a, b):
+        r = urllib.request.Request(f"{url}/v1/meshes/{mesh}/query{query}", body,
+                                   {"Content-Type": ctype})
+        answers.append(urllib.request.urlopen(r, timeout=60).read())
+    if answers[0] != answers[1] or len(answers[0]) < 2000:
+        sys.exit(f"{ctype}: the answers differ ({len(answers[0])} and {len(answers[1])} bytes)")
+PYEOF
+}
+
+build_image() {
+    deps podman runc debootstrap uidmap python3-numpy curl
+    deploy/base-image.sh
+    local src
+    src=$(mktemp -d)
+    # a clean copy: the tracked (and new, unignored) files only, no build directories
+    git ls-files -co --exclude-standard -z | while IFS= read -r -d '' f; do
+        [ -e "$f" ] && printf '%s\0' "$f"
+    done | xargs -0 tar -cf - | tar -xf - -C "$src"
+    podman build --isolation=chroot --pull=never --format docker -t "$IMAGE" \
+        -f deploy/Dockerfile "$src" >"$src.log" 2>&1
+    local rc=$?
+    [ $rc -eq 0 ] || tail -n 30 "$src.log"
+    rm -rf "$src" "$src.log"
+    return $rc
+}
+
+part_image() {
+    check "the image builds from a clean copy" build_image || return
+    sdfd_binary
+    local size
+    size=$(podman image inspect "$IMAGE" --format '{{.Size}}')
+    echo "image size: $((size / 1000000)) MB"
+    check "the image is under 200 MB" test "$size" -lt 200000000
+    check "the image runs as uid 10001 with an exec-form entrypoint" test \
+        "$(podman image inspect "$IMAGE" --format '{{.Config.User}} {{.Config.Entrypoint}}')" \
+        = "10001:10001 [/usr/local/bin/sdfd]"
+
+    local name=sdfd-test-$$ http bin ref refpid t0
+    http=$(free_port) bin=$(free_port) ref=$(free_port)
+    t0=$(date +%s%N)
+    "${PODMAN_RUN[@]}" -d --name "$name" --read-only \
+        -e SDFD_HTTP=127.0.0.1:$http -e SDFD_BIN=127.0.0.1:$bin "$IMAGE" >/dev/null
+    check "the container becomes ready" wait_ready "http://127.0.0.1:$http" 60
+    echo "cold start to ready: $(( ($(date +%s%N) - t0) / 1000000 )) ms"
+    build/server/sdfd --http 127.0.0.1:$ref --bin 127.0.0.1:$(free_port) 2>/dev/null &
+    refpid=$!
+    wait_ready "http://127.0.0.1:$ref" 30
+    check "the demo mesh answers as the host build does" \
+        same_answer "http://127.0.0.1:$http" "http://127.0.0.1:$ref" demo
+    kill "$refpid"
+    wait "$refpid"
+    check "podman healthcheck run: healthy" podman healthcheck run "$name"
+    check "the health check fails on a port nothing listens on" \
+        bash -c "! podman exec -e SDFD_HTTP=127.0.0.1:1 $name sdfd-healthcheck 2>/dev/null"
+    check "sdfd runs as uid 10001" test \
+        "$(podman exec "$name" awk '/^Uid:/ {print $2}' /proc/1/status)" = 10001
+    check "the root file system is read-only" \
+        bash -c "! podman exec $name sh -c ': >/probe' 2>/dev/null"
+    check "podman stop exits 0" bash -c "podman stop -t 40 $name 2>/dev/null >/dev/null"
+    check "sdfd exited 0" test "$(podman inspect "$name" --format '{{.State.ExitCode}}')" = 0
+    check "the drain is logged" bash -c "podman logs $name 2>&1 | grep -q 'SIGTERM: draining' &&
+        podman logs $name 2>&1 | grep -q '\"event\":\"stopped\"'"
+    podman_quiet rm -f "$name" >/dev/null
+
+    # meshes from a read-only volume, as every replica gets them (docs/deploy.md)
+    local meshes
+    meshes=$(mktemp -d)
+    cp tests/data/fandisk.off tests/data/refined_elephant.off "$meshes"
+    chmod -R a+rX "$meshes"
+    http=$(free_port) bin=$(free_port) ref=$(free_port)
+    t0=$(date +%s%N)
+    "${PODMAN_RUN[@]}" -d --name "$name" --read-only -v "$meshes:/meshes:ro" \
+        -e SDFD_HTTP=127.0.0.1:$http -e SDFD_BIN=127.0.0.1:$bin "$IMAGE" --mesh-dir /meshes \
+        >/dev/null
+    check "the container loads meshes from a read-only volume" \
+        wait_ready "http://127.0.0.1:$http" 120
+    echo "cold start to ready with refined_elephant and fandisk: $(( ($(date +%s%N) - t0) / 1000000 )) ms"
+    build/server/sdfd --http 127.0.0.1:$ref --bin 127.0.0.1:$(free_port) \
+        --mesh-dir "$meshes" 2>/dev/null &
+    refpid=$!
+    wait_ready "http://127.0.0.1:$ref" 120
+    check "refined_elephant answers as the host build does" \
+        same_answer "http://127.0.0.1:$http" "http://127.0.0.1:$ref" refined_elephant
+    kill "$refpid"
+    wait "$refpid"
+    podman_quiet rm -f -t 0 "$name" >/dev/null
+    rm -rf "$meshes"
 }
 
 for part in $parts; do
