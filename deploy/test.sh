@@ -193,6 +193,60 @@ part_image() {
     rm -rf "$meshes"
 }
 
+# Mutated copies of deploy/k8s/deployment.yaml, each broken one way, for the checks to refuse.
+broken_manifests() { # dir
+    $PY - "$1" <<'PYEOF'
+import sys, yaml
+out = sys.argv[1]
+base = yaml.safe_load(open("deploy/k8s/deployment.yaml"))
+def save(name, doc):
+    yaml.safe_dump(doc, open(f"{out}/{name}.yaml", "w"), sort_keys=False)
+d = yaml.safe_load(yaml.safe_dump(base))
+c = d["spec"]["template"]["spec"]["containers"][0]
+c["readinessprobe"] = c.pop("readinessProbe")  # a misspelt field
+save("unknown-field", d)
+d = yaml.safe_load(yaml.safe_dump(base))
+del d["spec"]["template"]["spec"]["containers"][0]["name"]  # a required field
+save("missing-field", d)
+PYEOF
+    printf 'apiVersion: v1\nkind: ConfigMap\nmetadata:\n  name: a\n  name: b\n' >"$1/lint.yaml"
+    mkdir "$1/kustomize"
+    cp deploy/k8s/*.yaml "$1/kustomize"
+    sed -i 's/terminationGracePeriodSeconds: .*/terminationGracePeriodSeconds: 25/' \
+        "$1/kustomize/deployment.yaml"
+}
+
+part_k8s() {
+    deps yamllint python3-kubernetes python3-yaml
+    command -v node >/dev/null || deps nodejs npm
+    (cd deploy/k8s/check && npm ci --no-audit --no-fund --loglevel=error >/dev/null) ||
+        { check "npm ci in deploy/k8s/check" false; return; }
+    shopt -s nullglob
+    local manifests=(deploy/k8s/*.yaml deploy/podman/*.yaml) bad
+    check "yamllint" yamllint -s -c deploy/k8s/check/yamllint.yaml "${manifests[@]}"
+    check "kubernetes-models: types and required fields" \
+        node deploy/k8s/check/validate.mjs "${manifests[@]}"
+    check "python3-kubernetes: no unknown field; the manifests hang together" \
+        $PY deploy/k8s/check/check_manifests.py --kustomize deploy/k8s
+    [ ! -e deploy/podman ] || check "python3-kubernetes: no unknown field in deploy/podman" \
+        $PY deploy/k8s/check/check_manifests.py deploy/podman/*.yaml
+    bad=$(mktemp -d)
+    broken_manifests "$bad"
+    check "an unknown field fails the field check" \
+        bash -c "! $PY deploy/k8s/check/check_manifests.py $bad/unknown-field.yaml"
+    check "a missing required field fails kubernetes-models" \
+        bash -c "! node deploy/k8s/check/validate.mjs $bad/missing-field.yaml"
+    check "a duplicate key fails yamllint" \
+        bash -c "! yamllint -s -c deploy/k8s/check/yamllint.yaml $bad/lint.yaml >/dev/null"
+    check "a grace period shorter than preStop + drain fails the kustomize check" \
+        bash -c "! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/kustomize"
+    check "the unbroken copy passes the kustomize check" bash -c \
+        "sed -i 's/terminationGracePeriodSeconds: 25/terminationGracePeriodSeconds: 40/' \
+         $bad/kustomize/deployment.yaml && $PY deploy/k8s/check/check_manifests.py \
+         --kustomize $bad/kustomize"
+    rm -rf "$bad"
+}
+
 for part in $parts; do
     case "$part" in
         lb|image|k8s|pod) echo "== $part"; "part_$part" ;;
