@@ -332,7 +332,7 @@ def main():
     ap.add_argument("--lb", choices=("haproxy", "nginx"), required=True)
     ap.add_argument("--mode", choices=("leastconn", "hash"), required=True)
     ap.add_argument("--replicas", type=int, default=3, choices=(2, 3))
-    ap.add_argument("--seconds", type=float, default=15)
+    ap.add_argument("--seconds", type=float, default=12)
     ap.add_argument("--workers", type=int, default=6)
     ap.add_argument("--requests", type=int, default=48)
     ap.add_argument("--max-requests", type=int, default=20000)

@@ -113,7 +113,8 @@ for ctype, body, query in bodies:
 PYEOF
 }
 
-build_image() {
+build_image() { # [dockerfile image]
+    local file=${1:-deploy/Dockerfile} image=${2:-$IMAGE}
     deps podman runc debootstrap uidmap python3-numpy curl
     deploy/base-image.sh
     local src
@@ -122,8 +123,8 @@ build_image() {
     git ls-files -co --exclude-standard -z | while IFS= read -r -d '' f; do
         [ -e "$f" ] && printf '%s\0' "$f"
     done | xargs -0 tar -cf - | tar -xf - -C "$src"
-    podman build --isolation=chroot --pull=never --format docker -t "$IMAGE" \
-        -f deploy/Dockerfile "$src" >"$src.log" 2>&1
+    podman build --isolation=chroot --pull=never --format docker -t "$image" \
+        -f "$file" "$src" >"$src.log" 2>&1
     local rc=$?
     [ $rc -eq 0 ] || tail -n 30 "$src.log"
     rm -rf "$src" "$src.log"
@@ -245,6 +246,69 @@ part_k8s() {
          $bad/kustomize/deployment.yaml && $PY deploy/k8s/check/check_manifests.py \
          --kustomize $bad/kustomize"
     rm -rf "$bad"
+}
+
+# deploy/podman/sdfd-pod.yaml with free ports for its six and a pod name of its own.
+render_pod() { # out-file pod-name
+    $PY - "$1" "$2" <<'PYEOF'
+import re, socket, sys
+out, name = sys.argv[1:3]
+text = open("deploy/podman/sdfd-pod.yaml").read()
+ports = {}
+for p in ("8080", "9090", "8081", "9091", "8082", "9092"):
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    ports[p] = str(s.getsockname()[1])
+    s.close()
+text = re.sub(r"\b(8080|9090|8081|9091|8082|9092)\b", lambda m: ports[m.group(1)], text)
+text = text.replace("\n  name: sdfd\n", f"\n  name: {name}\n", 1)
+open(out, "w").write(text)
+print(" ".join(ports[p] for p in ("8080", "9090", "8081", "8082")))
+PYEOF
+}
+
+kube_play() { # [--down] file: podman kube play, quiet unless it fails
+    local out rc
+    out=$(CONTAINERS_CONF=$ROOT/deploy/podman/containers.conf podman kube play "$@" 2>&1)
+    rc=$?
+    [ $rc -eq 0 ] || grep -v "unable to get systemd connection" <<<"$out"
+    return $rc
+}
+
+served_points() { # url: sdfd_points_total from a replica's /metrics
+    curl -sf "$1/metrics" | awk '$1 == "sdfd_points_total" {print $2}'
+}
+
+part_pod() {
+    deps catatonit # podman's pause container
+    check "the sdfd image builds" build_image || return
+    check "the haproxy image builds" build_image deploy/lb/haproxy.Dockerfile \
+        localhost/sdfd-haproxy:latest || return
+    local yaml name=sdfd-test-$$ ports lb lbbin r1 r2
+    yaml=$(mktemp --suffix .yaml)
+    read -r lb lbbin r1 r2 < <(render_pod "$yaml" "$name")
+    check "podman kube play starts the pod" kube_play "$yaml"
+    check "both replicas become ready" bash -c \
+        "$(declare -f wait_ready); wait_ready http://127.0.0.1:$r1 60 && wait_ready http://127.0.0.1:$r2 60"
+    check "HAProxy in the pod answers" wait_ready "http://127.0.0.1:$lb" 30
+    check "answers through HAProxy equal sdfd's own" \
+        same_answer "http://127.0.0.1:$lb" "http://127.0.0.1:$r1" demo
+    check "a load through HAProxy: every answer equal to sdfd's own" $PY deploy/loadgen.py \
+        --target "http://127.0.0.1:$lb" --reference "http://127.0.0.1:$r1" --meshes demo \
+        --workers 4 --seconds 4
+    check "both replicas served queries" bash -c \
+        "[ \"\$($(declare -f served_points); served_points http://127.0.0.1:$r1)\" -gt 0 ] &&
+         [ \"\$($(declare -f served_points); served_points http://127.0.0.1:$r2)\" -gt 0 ]"
+    check "the binary port through HAProxy answers as sdfd does" $PY -c "
+import sys, numpy as np
+sys.path.insert(0, 'clients/python')
+import sdfclient
+p = np.random.default_rng(5).uniform(-2, 2, (3000, 3)).astype(np.float32)
+a = sdfclient.BinaryClient('127.0.0.1', $lbbin).query('demo', p, mode='closest')
+b = sdfclient.Client('http://127.0.0.1:$r1').query('demo', p, mode='closest')
+sys.exit(any(np.asarray(a[k]).tobytes() != np.asarray(b[k]).tobytes() for k in b))"
+    check "podman kube play --down stops it" kube_play --down "$yaml"
+    rm -f "$yaml"
 }
 
 for part in $parts; do
