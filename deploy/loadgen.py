@@ -1,0 +1,179 @@
+#!/usr/bin/env python3
+"""loadgen.py - a bounded, concurrent load of sdfd queries whose every answer is checked.
+
+It makes a fixed set of query requests (JSON and octet-stream bodies, 1 to ~65000 points, modes
+signed, distance, gradient and closest, spread over the given meshes), asks a reference sdfd
+for each answer once, then sends them at random from several threads at once to a target (a
+load balancer, say) and compares every answer with the reference's byte for byte. A request
+fails if it raises, or answers anything but 200, or answers other bytes. The load stops by
+itself after --seconds or --max-requests, whichever comes first.
+
+The number of points of a request for mesh i of M is i modulo M, so a replica's request log
+(its "points" field) tells which mesh each query it served was for (deploy/failover.py uses
+that to check hashing).
+
+    python3 deploy/loadgen.py --target http://127.0.0.1:8080 --reference http://127.0.0.1:18080 \\
+        --meshes demo --workers 6 --seconds 10
+
+Standard library and numpy only.
+"""
+import argparse
+import http.client
+import json
+import random
+import sys
+import threading
+import time
+import urllib.parse
+
+import numpy as np
+
+MODES = ("signed", "distance", "gradient", "closest")
+JSON_MAX_POINTS = 3000  # a JSON body of this many points is ~150 KB
+OCTET_MAX_POINTS = 65000  # 780 KB: under haproxy's and nginx's 1 MiB retry buffers
+
+
+class Request:
+    """One query: where it goes, its body and headers."""
+
+    def __init__(self, mesh_index, mesh, path, body, content_type):
+        self.mesh_index, self.mesh, self.path = mesh_index, mesh, path
+        self.body, self.content_type = body, content_type
+        self.expected = None
+
+    def send(self, conn):
+        """Sends on an http.client connection; returns (status, body bytes)."""
+        conn.request("POST", self.path, body=self.body,
+                     headers={"Content-Type": self.content_type, "Accept": self.content_type})
+        r = conn.getresponse()
+        return r.status, r.read()
+
+
+def point_count(rng, limit, mesh_index, n_meshes):
+    """Log-uniform in 1..limit, then moved to the residue mesh_index modulo n_meshes."""
+    n = int(np.exp(rng.uniform(0, np.log(limit))))
+    n = n - n % n_meshes + mesh_index
+    return n if n > 0 else n + n_meshes
+
+
+def make_requests(meshes, count, seed=1):
+    """`count` requests, mesh by mesh in turn, half JSON and half octet-stream."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(count):
+        i = k % len(meshes)
+        octet = (k // len(meshes)) % 2 == 1
+        n = point_count(rng, OCTET_MAX_POINTS if octet else JSON_MAX_POINTS, i, len(meshes))
+        pts = rng.uniform(-1.5, 1.5, (n, 3)).astype(np.float32)
+        mode = MODES[rng.integers(len(MODES))]
+        base = "/v1/meshes/" + urllib.parse.quote(meshes[i]) + "/query"
+        if octet:
+            out.append(Request(i, meshes[i], base + "?mode=" + mode,
+                               pts.astype("<f4").tobytes(), "application/octet-stream"))
+        else:
+            body = json.dumps({"points": pts.tolist(), "mode": mode}).encode()
+            out.append(Request(i, meshes[i], base, body, "application/json"))
+    return out
+
+
+def connect(url, timeout):
+    u = urllib.parse.urlsplit(url)
+    return http.client.HTTPConnection(u.hostname, u.port or 80, timeout=timeout)
+
+
+def fetch_expected(reference, requests, timeout=120):
+    """Fills each request's expected answer from the reference; fails on any non-200."""
+    conn = connect(reference, timeout)
+    for r in requests:
+        status, body = r.send(conn)
+        if status != 200:
+            raise RuntimeError(f"reference answered {status} to {r.path}: {body[:200]!r}")
+        r.expected = body
+    conn.close()
+
+
+class Stats:
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.sent = self.ok = self.failed = self.mismatched = 0
+        self.errors = []  # (time, description), the first few
+        self.done_at = []  # completion times of the successful requests
+
+    def record(self, t, outcome, detail=None):
+        with self.lock:
+            self.sent += 1
+            if outcome == "ok":
+                self.ok += 1
+                self.done_at.append(t)
+                return
+            if outcome == "mismatch":
+                self.mismatched += 1
+            else:
+                self.failed += 1
+            if len(self.errors) < 20:
+                self.errors.append((t, detail))
+
+    def summary(self):
+        return {"sent": self.sent, "ok": self.ok, "failed": self.failed,
+                "mismatched": self.mismatched, "errors": self.errors[:5]}
+
+
+def worker(target, requests, stats, deadline, budget, seed, timeout):
+    rng = random.Random(seed)
+    conn = connect(target, timeout)
+    while time.monotonic() < deadline:
+        with budget["lock"]:
+            if budget["left"] <= 0:
+                break
+            budget["left"] -= 1
+        r = requests[rng.randrange(len(requests))]
+        try:
+            status, body = r.send(conn)
+        except (OSError, http.client.HTTPException) as e:
+            stats.record(time.time(), "failed", f"{r.path} ({len(r.body)} B): {e!r}")
+            conn.close()
+            conn = connect(target, timeout)
+            continue
+        if status != 200:
+            stats.record(time.time(), "failed", f"{r.path}: {status} {body[:200]!r}")
+        elif body != r.expected:
+            stats.record(time.time(), "mismatch", f"{r.path}: {len(body)} B differ")
+        else:
+            stats.record(time.time(), "ok")
+    conn.close()
+
+
+def run(target, requests, workers=6, seconds=20.0, max_requests=100000, timeout=60):
+    """Runs the load to completion; returns the Stats."""
+    stats = Stats()
+    deadline = time.monotonic() + seconds
+    budget = {"lock": threading.Lock(), "left": max_requests}
+    threads = [threading.Thread(target=worker,
+                                args=(target, requests, stats, deadline, budget, s, timeout))
+               for s in range(workers)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return stats
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--target", required=True, help="URL the load goes to")
+    ap.add_argument("--reference", required=True, help="URL of an sdfd serving the same meshes")
+    ap.add_argument("--meshes", default="demo", help="comma-separated mesh names")
+    ap.add_argument("--requests", type=int, default=48, help="distinct requests made")
+    ap.add_argument("--workers", type=int, default=6, help="concurrent connections")
+    ap.add_argument("--seconds", type=float, default=10)
+    ap.add_argument("--max-requests", type=int, default=100000)
+    a = ap.parse_args()
+    reqs = make_requests(a.meshes.split(","), a.requests)
+    fetch_expected(a.reference, reqs)
+    s = run(a.target, reqs, a.workers, a.seconds, a.max_requests)
+    print(json.dumps(s.summary()))
+    return 0 if s.failed == 0 and s.mismatched == 0 and s.ok > 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

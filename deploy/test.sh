@@ -1,0 +1,321 @@
+#!/bin/bash
+# test.sh - tests what deploy/ ships, on one Debian 12 machine with no container registry:
+#   lb     HAProxy and nginx (deploy/lb/) in both routing modes in front of 3 sdfd replicas
+#          under load, one replica SIGKILLed and restarted, another SIGTERMed: no failed
+#          request, every answer equal to a reference sdfd's (deploy/failover.py)
+#   image  deploy/Dockerfile built from a clean copy of the repository (git ls-files): size,
+#          a query, the HEALTHCHECK, a drain on `podman stop`, non-root, read-only root
+#   k8s    deploy/k8s/ passes yamllint and two schema checks, and broken manifests fail them
+#   pod    deploy/podman/sdfd-pod.yaml under `podman kube play`: answers through HAProxy equal
+#          to sdfd's own
+#
+#   deploy/test.sh [PART...]       (default: all four; run as root)
+#
+# It installs what it needs (apt, and the npm package kubernetes-models into
+# deploy/k8s/check/node_modules), builds build/server/sdfd if missing, and makes the Debian
+# base image with deploy/base-image.sh if missing. Ends with `deploy: N passed, N failed`.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+PY=/usr/bin/python3 # Debian's, which has python3-numpy and python3-kubernetes
+parts=${*:-lb image k8s pod}
+passed=0 failed=0
+
+check() { # description, command...: runs the command, counts the result
+    local what=$1
+    shift
+    if "$@"; then
+        passed=$((passed + 1))
+        echo "ok: $what"
+    else
+        failed=$((failed + 1))
+        echo "FAIL: $what"
+        return 1
+    fi
+}
+
+deps() {
+    local missing="" p
+    for p in "$@"; do
+        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
+            missing="$missing $p"
+    done
+    if [ -n "$missing" ]; then
+        echo "installing:$missing"
+        apt-get update -qq
+        # no service is started by the packages' scripts (nginx would take port 80)
+        local policy=/usr/sbin/policy-rc.d restore=""
+        [ -e $policy ] || { printf '#!/bin/sh\nexit 101\n' >$policy; chmod +x $policy; restore=1; }
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $missing \
+            >/dev/null
+        [ -z "$restore" ] || rm -f $policy
+    fi
+}
+
+sdfd_binary() {
+    if [ ! -x build/server/sdfd ]; then
+        .ci/deps
+        [ -f build/build.ninja ] || meson setup build --buildtype=release >/dev/null
+        meson compile -C build sdfd >/dev/null
+    fi
+}
+
+part_lb() {
+    deps haproxy nginx-light libnginx-mod-stream python3-numpy
+    sdfd_binary
+    check "haproxy.cfg parses" haproxy -c -q -f deploy/lb/haproxy.cfg
+    local lb mode
+    for lb in haproxy nginx; do
+        for mode in leastconn hash; do
+            check "failover: $lb, $mode" $PY deploy/failover.py --lb "$lb" --mode "$mode"
+        done
+    done
+}
+
+IMAGE=localhost/sdfd:latest
+# Without systemd, podman logs "unable to get systemd connection" for the HEALTHCHECK's timer
+# (harmless: `podman healthcheck run` runs the check); those lines are filtered out.
+PODMAN_RUN=(podman_quiet --runtime runc run --network=host --ulimit nofile=1024:1024
+            --ulimit nproc=1000:1000)
+
+podman_quiet() {
+    podman "$@" 2> >(grep -v "unable to get systemd connection" >&2)
+}
+
+free_port() {
+    $PY -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+
+wait_ready() { # url, seconds: polls /readyz until 200
+    local deadline=$((SECONDS + $2))
+    until curl -sf -o /dev/null "$1/readyz"; do
+        [ $SECONDS -lt $deadline ] || return 1
+        sleep 0.1
+    done
+}
+
+same_answer() { # url-a, url-b, mesh: one JSON and one octet-stream query answer the same bytes
+    $PY - "$@" <<'PYEOF'
+import sys, urllib.request, json
+import numpy as np
+a, b, mesh = sys.argv[1:4]
+pts = np.random.default_rng(3).uniform(-2, 2, (2000, 3)).astype(np.float32)
+bodies = [("application/json", json.dumps({"points": pts.tolist(), "mode": "gradient"}).encode(), ""),
+          ("application/octet-stream", pts.tobytes(), "?mode=closest")]
+for ctype, body, query in bodies:
+    answers = []
+    for url in (a, b):
+        r = urllib.request.Request(f"{url}/v1/meshes/{mesh}/query{query}", body,
+                                   {"Content-Type": ctype})
+        answers.append(urllib.request.urlopen(r, timeout=60).read())
+    if answers[0] != answers[1] or len(answers[0]) < 2000:
+        sys.exit(f"{ctype}: the answers differ ({len(answers[0])} and {len(answers[1])} bytes)")
+PYEOF
+}
+
+build_image() { # [dockerfile image]
+    local file=${1:-deploy/Dockerfile} image=${2:-$IMAGE}
+    deps podman runc debootstrap uidmap python3-numpy curl
+    deploy/base-image.sh
+    local src
+    src=$(mktemp -d)
+    # a clean copy: the tracked (and new, unignored) files only, no build directories
+    git ls-files -co --exclude-standard -z | while IFS= read -r -d '' f; do
+        [ -e "$f" ] && printf '%s\0' "$f"
+    done | xargs -0 tar -cf - | tar -xf - -C "$src"
+    podman build --isolation=chroot --pull=never --format docker -t "$image" \
+        -f "$file" "$src" >"$src.log" 2>&1
+    local rc=$?
+    [ $rc -eq 0 ] || tail -n 30 "$src.log"
+    rm -rf "$src" "$src.log"
+    return $rc
+}
+
+part_image() {
+    check "the image builds from a clean copy" build_image || return
+    sdfd_binary
+    local size
+    size=$(podman image inspect "$IMAGE" --format '{{.Size}}')
+    echo "image size: $((size / 1000000)) MB"
+    check "the image is under 200 MB" test "$size" -lt 200000000
+    check "the image runs as uid 10001 with an exec-form entrypoint" test \
+        "$(podman image inspect "$IMAGE" --format '{{.Config.User}} {{.Config.Entrypoint}}')" \
+        = "10001:10001 [/usr/local/bin/sdfd]"
+
+    local name=sdfd-test-$$ http bin ref refpid t0
+    http=$(free_port) bin=$(free_port) ref=$(free_port)
+    t0=$(date +%s%N)
+    "${PODMAN_RUN[@]}" -d --name "$name" --read-only \
+        -e SDFD_HTTP=127.0.0.1:$http -e SDFD_BIN=127.0.0.1:$bin "$IMAGE" >/dev/null
+    check "the container becomes ready" wait_ready "http://127.0.0.1:$http" 60
+    echo "cold start to ready: $(( ($(date +%s%N) - t0) / 1000000 )) ms"
+    build/server/sdfd --http 127.0.0.1:$ref --bin 127.0.0.1:$(free_port) 2>/dev/null &
+    refpid=$!
+    wait_ready "http://127.0.0.1:$ref" 30
+    check "the demo mesh answers as the host build does" \
+        same_answer "http://127.0.0.1:$http" "http://127.0.0.1:$ref" demo
+    kill "$refpid"
+    wait "$refpid"
+    check "podman healthcheck run: healthy" podman healthcheck run "$name"
+    check "the health check fails on a port nothing listens on" \
+        bash -c "! podman exec -e SDFD_HTTP=127.0.0.1:1 $name sdfd-healthcheck 2>/dev/null"
+    check "sdfd runs as uid 10001" test \
+        "$(podman exec "$name" awk '/^Uid:/ {print $2}' /proc/1/status)" = 10001
+    check "the root file system is read-only" \
+        bash -c "! podman exec $name sh -c ': >/probe' 2>/dev/null"
+    check "podman stop exits 0" bash -c "podman stop -t 40 $name 2>/dev/null >/dev/null"
+    check "sdfd exited 0" test "$(podman inspect "$name" --format '{{.State.ExitCode}}')" = 0
+    check "the drain is logged" bash -c "podman logs $name 2>&1 | grep -q 'SIGTERM: draining' &&
+        podman logs $name 2>&1 | grep -q '\"event\":\"stopped\"'"
+    podman_quiet rm -f "$name" >/dev/null
+
+    # meshes from a read-only volume, as every replica gets them (docs/deploy.md)
+    local meshes
+    meshes=$(mktemp -d)
+    cp tests/data/fandisk.off tests/data/refined_elephant.off "$meshes"
+    chmod -R a+rX "$meshes"
+    http=$(free_port) bin=$(free_port) ref=$(free_port)
+    t0=$(date +%s%N)
+    "${PODMAN_RUN[@]}" -d --name "$name" --read-only -v "$meshes:/meshes:ro" \
+        -e SDFD_HTTP=127.0.0.1:$http -e SDFD_BIN=127.0.0.1:$bin "$IMAGE" --mesh-dir /meshes \
+        >/dev/null
+    check "the container loads meshes from a read-only volume" \
+        wait_ready "http://127.0.0.1:$http" 120
+    echo "cold start to ready with refined_elephant and fandisk: $(( ($(date +%s%N) - t0) / 1000000 )) ms"
+    build/server/sdfd --http 127.0.0.1:$ref --bin 127.0.0.1:$(free_port) \
+        --mesh-dir "$meshes" 2>/dev/null &
+    refpid=$!
+    wait_ready "http://127.0.0.1:$ref" 120
+    check "refined_elephant answers as the host build does" \
+        same_answer "http://127.0.0.1:$http" "http://127.0.0.1:$ref" refined_elephant
+    kill "$refpid"
+    wait "$refpid"
+    podman_quiet rm -f -t 0 "$name" >/dev/null
+    rm -rf "$meshes"
+}
+
+# Mutated copies of deploy/k8s/deployment.yaml, each broken one way, for the checks to refuse.
+broken_manifests() { # dir
+    $PY - "$1" <<'PYEOF'
+import sys, yaml
+out = sys.argv[1]
+base = yaml.safe_load(open("deploy/k8s/deployment.yaml"))
+def save(name, doc):
+    yaml.safe_dump(doc, open(f"{out}/{name}.yaml", "w"), sort_keys=False)
+d = yaml.safe_load(yaml.safe_dump(base))
+c = d["spec"]["template"]["spec"]["containers"][0]
+c["readinessprobe"] = c.pop("readinessProbe")  # a misspelt field
+save("unknown-field", d)
+d = yaml.safe_load(yaml.safe_dump(base))
+del d["spec"]["template"]["spec"]["containers"][0]["name"]  # a required field
+save("missing-field", d)
+PYEOF
+    printf 'apiVersion: v1\nkind: ConfigMap\nmetadata:\n  name: a\n  name: b\n' >"$1/lint.yaml"
+    mkdir "$1/kustomize"
+    cp deploy/k8s/*.yaml "$1/kustomize"
+    sed -i 's/terminationGracePeriodSeconds: .*/terminationGracePeriodSeconds: 25/' \
+        "$1/kustomize/deployment.yaml"
+}
+
+part_k8s() {
+    deps yamllint python3-kubernetes python3-yaml
+    command -v node >/dev/null || deps nodejs npm
+    (cd deploy/k8s/check && npm ci --no-audit --no-fund --loglevel=error >/dev/null) ||
+        { check "npm ci in deploy/k8s/check" false; return; }
+    shopt -s nullglob
+    local manifests=(deploy/k8s/*.yaml deploy/podman/*.yaml) bad
+    check "yamllint" yamllint -s -c deploy/k8s/check/yamllint.yaml "${manifests[@]}"
+    check "kubernetes-models: types and required fields" \
+        node deploy/k8s/check/validate.mjs "${manifests[@]}"
+    check "python3-kubernetes: no unknown field; the manifests hang together" \
+        $PY deploy/k8s/check/check_manifests.py --kustomize deploy/k8s
+    [ ! -e deploy/podman ] || check "python3-kubernetes: no unknown field in deploy/podman" \
+        $PY deploy/k8s/check/check_manifests.py deploy/podman/*.yaml
+    bad=$(mktemp -d)
+    broken_manifests "$bad"
+    check "an unknown field fails the field check" \
+        bash -c "! $PY deploy/k8s/check/check_manifests.py $bad/unknown-field.yaml"
+    check "a missing required field fails kubernetes-models" \
+        bash -c "! node deploy/k8s/check/validate.mjs $bad/missing-field.yaml"
+    check "a duplicate key fails yamllint" \
+        bash -c "! yamllint -s -c deploy/k8s/check/yamllint.yaml $bad/lint.yaml >/dev/null"
+    check "a grace period shorter than preStop + drain fails the kustomize check" \
+        bash -c "! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/kustomize"
+    check "the unbroken copy passes the kustomize check" bash -c \
+        "sed -i 's/terminationGracePeriodSeconds: 25/terminationGracePeriodSeconds: 40/' \
+         $bad/kustomize/deployment.yaml && $PY deploy/k8s/check/check_manifests.py \
+         --kustomize $bad/kustomize"
+    rm -rf "$bad"
+}
+
+# deploy/podman/sdfd-pod.yaml with free ports for its six and a pod name of its own.
+render_pod() { # out-file pod-name
+    $PY - "$1" "$2" <<'PYEOF'
+import re, socket, sys
+out, name = sys.argv[1:3]
+text = open("deploy/podman/sdfd-pod.yaml").read()
+ports = {}
+for p in ("8080", "9090", "8081", "9091", "8082", "9092"):
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    ports[p] = str(s.getsockname()[1])
+    s.close()
+text = re.sub(r"\b(8080|9090|8081|9091|8082|9092)\b", lambda m: ports[m.group(1)], text)
+text = text.replace("\n  name: sdfd\n", f"\n  name: {name}\n", 1)
+open(out, "w").write(text)
+print(" ".join(ports[p] for p in ("8080", "9090", "8081", "8082")))
+PYEOF
+}
+
+kube_play() { # [--down] file: podman kube play, quiet unless it fails
+    local out rc
+    out=$(CONTAINERS_CONF=$ROOT/deploy/podman/containers.conf podman kube play "$@" 2>&1)
+    rc=$?
+    [ $rc -eq 0 ] || grep -v "unable to get systemd connection" <<<"$out"
+    return $rc
+}
+
+served_points() { # url: sdfd_points_total from a replica's /metrics
+    curl -sf "$1/metrics" | awk '$1 == "sdfd_points_total" {print $2}'
+}
+
+part_pod() {
+    deps catatonit # podman's pause container
+    check "the sdfd image builds" build_image || return
+    check "the haproxy image builds" build_image deploy/lb/haproxy.Dockerfile \
+        localhost/sdfd-haproxy:latest || return
+    local yaml name=sdfd-test-$$ ports lb lbbin r1 r2
+    yaml=$(mktemp --suffix .yaml)
+    read -r lb lbbin r1 r2 < <(render_pod "$yaml" "$name")
+    check "podman kube play starts the pod" kube_play "$yaml"
+    check "both replicas become ready" bash -c \
+        "$(declare -f wait_ready); wait_ready http://127.0.0.1:$r1 60 && wait_ready http://127.0.0.1:$r2 60"
+    check "HAProxy in the pod answers" wait_ready "http://127.0.0.1:$lb" 30
+    check "answers through HAProxy equal sdfd's own" \
+        same_answer "http://127.0.0.1:$lb" "http://127.0.0.1:$r1" demo
+    check "a load through HAProxy: every answer equal to sdfd's own" $PY deploy/loadgen.py \
+        --target "http://127.0.0.1:$lb" --reference "http://127.0.0.1:$r1" --meshes demo \
+        --workers 4 --seconds 4
+    check "both replicas served queries" bash -c \
+        "[ \"\$($(declare -f served_points); served_points http://127.0.0.1:$r1)\" -gt 0 ] &&
+         [ \"\$($(declare -f served_points); served_points http://127.0.0.1:$r2)\" -gt 0 ]"
+    check "the binary port through HAProxy answers as sdfd does" $PY -c "
+import sys, numpy as np
+sys.path.insert(0, 'clients/python')
+import sdfclient
+p = np.random.default_rng(5).uniform(-2, 2, (3000, 3)).astype(np.float32)
+a = sdfclient.BinaryClient('127.0.0.1', $lbbin).query('demo', p, mode='closest')
+b = sdfclient.Client('http://127.0.0.1:$r1').query('demo', p, mode='closest')
+sys.exit(any(np.asarray(a[k]).tobytes() != np.asarray(b[k]).tobytes() for k in b))"
+    check "podman kube play --down stops it" kube_play --down "$yaml"
+    rm -f "$yaml"
+}
+
+for part in $parts; do
+    case "$part" in
+        lb|image|k8s|pod) echo "== $part"; "part_$part" ;;
+        *) echo "unknown part '$part' (lb, image, k8s, pod)" >&2; exit 2 ;;
+    esac
+done
+echo "deploy: $passed passed, $failed failed"
+[ "$failed" -eq 0 ]
