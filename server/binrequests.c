@@ -83,8 +83,9 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         REFUSE(rc, why);
         return;
     }
-    if (atomic_load(&srv->draining)) {
-        REFUSE(SDFD_EUNAVAILABLE, "the server is shutting down");
+    const char *unavailable = sdfd_unavailable(srv);
+    if (unavailable) {
+        REFUSE(SDFD_EUNAVAILABLE, unavailable);
         return;
     }
     sdfd_query q = {.mesh_name = d.name, .mesh_name_len = d.name_len,
@@ -180,8 +181,9 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
 #define REFUSE(err, text) \
     refuse(b, c, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", id, err, text, start, bytes_in)
     int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)srv->cfg.max_points, &d, &why);
-    if (rc || atomic_load(&srv->draining)) {
-        REFUSE(rc ? rc : SDFD_EUNAVAILABLE, rc ? why : "the server is shutting down");
+    const char *unavailable = rc ? why : sdfd_unavailable(srv);
+    if (unavailable) {
+        REFUSE(rc ? rc : SDFD_EUNAVAILABLE, unavailable);
         return;
     }
     sdfd_volume_query q = {.volume_name = d.name, .volume_name_len = d.name_len,

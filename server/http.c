@@ -150,9 +150,10 @@ static enum MHD_Result admit(request *req, const char *url)
     if (!authorized(req))
         return sdfd_http_error(req, SDFD_EUNAUTHORIZED,
                                "this request needs 'Authorization: Bearer <token>'");
-    if (atomic_load(&srv->draining) && req->route != SDFD_ROUTE_HEALTH &&
-        req->route != SDFD_ROUTE_READY && req->route != SDFD_ROUTE_METRICS)
-        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "the server is shutting down");
+    const char *unavailable = sdfd_unavailable(srv);
+    if (unavailable && req->route != SDFD_ROUTE_HEALTH && req->route != SDFD_ROUTE_READY &&
+        req->route != SDFD_ROUTE_METRICS)
+        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "%s", unavailable);
     int has_body = !strcmp(req->method, "POST") || !strcmp(req->method, "PUT");
     if (!has_body)
         return MHD_YES;

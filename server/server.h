@@ -25,6 +25,19 @@ typedef struct sdfd_server {
     atomic_size_t buffered;  /* bytes of request bodies and binary input held (both) */
 } sdfd_server;
 
+/* Why the server takes no new work now, or NULL: a request other than a health check, the
+ * metrics or the readiness probe is refused 503 EUNAVAILABLE with this reason while sdfd loads
+ * its meshes (a restarted replica listens before it has them: a 404 then would be wrong) and
+ * once it drains. */
+static inline const char *sdfd_unavailable(sdfd_server *srv)
+{
+    if (atomic_load(&srv->draining))
+        return "the server is shutting down";
+    if (!atomic_load(&srv->ready))
+        return "the server is still loading its meshes; retry when /readyz answers 200";
+    return NULL;
+}
+
 /* Reserve n bytes of the --max-buffered-bytes budget for a body or frame about to be
  * received; 0, or -1 (nothing reserved) when it would pass the budget. Every connection's
  * own limit (--max-body-bytes, the protocol's max_payload) still applies: this one keeps

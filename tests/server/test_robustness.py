@@ -109,7 +109,7 @@ class BadInput(unittest.TestCase):
              b'"sphere": [0,0,0,2]}}}', 422, "EINVAL"),
         ]:
             with self.subTest(body=body[:40]):
-                self.expect(status, code, "POST", self.Q, body, self.JSON)
+                self.expect(status, code, "POST", self.Q, body, BadInput.JSON)
 
     def test_http_catalogue(self):
         nan = struct.pack("<6f", 0, 0, 0, float("nan"), 0, 0)
@@ -548,6 +548,43 @@ class Shutdown(unittest.TestCase):
         events = [e.get("event") for e in s.logs]
         self.assertIn("shutdown", events)
         self.assertEqual(events[-1], "stopped")
+
+    def test_loading_answers_503_not_404(self):
+        """A replica listens before its meshes are loaded (so /readyz can say so): until then
+        a query of a mesh it will serve is 503 EUNAVAILABLE on both protocols, never 404, and
+        a load balancer retries it elsewhere."""
+        import tempfile
+        with tempfile.TemporaryDirectory() as d:
+            src = os.path.abspath(os.path.join(os.environ.get("SDF_TEST_DATA", "tests/data"),
+                                               "refined_elephant.off"))
+            for i in range(8):  # ~2 s of loading in a release build, longer in the others
+                os.symlink(src, os.path.join(d, f"m{i}.off"))
+            s = Server("--mesh-dir", d, wait_ready=False)
+            try:
+                self.assertTrue(wait_until(lambda: "http" in s.ports and "binary" in s.ports, 30))
+                port = int(s.url.rsplit(":", 1)[1])
+                body = json.dumps({"points": [[0, 0, 0]]}).encode()
+                b = sdfclient.BinaryClient("127.0.0.1", s.bin_port)
+                seen = []
+                while raw_http(port, "GET", "/readyz")[0] == 503:
+                    status, data = raw_http(port, "POST", "/v1/meshes/m7/query", body, BadInput.JSON)
+                    try:
+                        b.query("m7", np.zeros((1, 3), np.float32))
+                        binary = None
+                    except sdfclient.SdfError as e:
+                        binary = e.code
+                    if raw_http(port, "GET", "/readyz")[0] != 503:
+                        break  # ready meanwhile: either answer is right
+                    seen.append((status, data["error"]["code"] if status != 200 else None, binary))
+                self.assertTrue(seen, "the server was never seen loading")
+                self.assertEqual(set(seen), {(503, "EUNAVAILABLE", "EUNAVAILABLE")})
+                d0 = b.query("m7", np.zeros((1, 3), np.float32))["distance"]
+                self.assertTrue(np.isfinite(d0).all())
+                status, data = raw_http(port, "POST", "/v1/meshes/m7/query", body, BadInput.JSON)
+                self.assertEqual(status, 200, data)
+                b.close()
+            finally:
+                s.stop()
 
     @staticmethod
     def _readyz(client):
