@@ -65,6 +65,9 @@ static cJSON *report_json(const char *name, const sdf_mesh *mesh)
     cJSON_AddStringToObject(o, "sign", sdf_sign_name(r.auto_sign));
     cJSON_AddNumberToObject(o, "index_bytes", (double)r.index_bytes);
     cJSON_AddNumberToObject(o, "build_seconds", r.build_seconds);
+    cJSON_AddNumberToObject(o, "warnings", (double)r.warnings);
+    if (r.warnings)
+        cJSON_AddStringToObject(o, "warning", r.warning);
     return o;
 }
 

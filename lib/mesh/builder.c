@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "core/diag.h"
 #include "core/grow.h"
@@ -30,20 +31,39 @@ void sdf__builder_free(sdf__builder *b)
     b->triangles = NULL;
 }
 
+/* "<FORMAT> line L: ", "<FORMAT> byte B: " or "<FORMAT>: " for the current location. */
+static void locate(const sdf__builder *b, char *dst, size_t cap)
+{
+    if (b->line > 0)
+        snprintf(dst, cap, "%s line %ld: ", b->format, b->line);
+    else if (b->offset >= 0)
+        snprintf(dst, cap, "%s byte %lld: ", b->format, b->offset);
+    else
+        snprintf(dst, cap, "%s: ", b->format);
+}
+
 int sdf__builder_fail(sdf__builder *b, int code, const char *fmt, ...)
 {
-    char detail[200];
+    char where[64], detail[200];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(detail, sizeof detail, fmt, ap);
     va_end(ap);
-    if (b->line > 0)
-        return sdf__diag_set(b->diag, code, b->line, b->offset, "%s line %ld: %s", b->format,
-                             b->line, detail);
-    if (b->offset >= 0)
-        return sdf__diag_set(b->diag, code, 0, b->offset, "%s byte %lld: %s", b->format,
-                             b->offset, detail);
-    return sdf__diag_set(b->diag, code, 0, -1, "%s: %s", b->format, detail);
+    locate(b, where, sizeof where);
+    return sdf__diag_set(b->diag, code, b->line > 0 ? b->line : 0, b->offset >= 0 ? b->offset : -1,
+                         "%s%s", where, detail);
+}
+
+void sdf__builder_warn(sdf__builder *b, const char *fmt, ...)
+{
+    if (b->warnings++)
+        return;
+    locate(b, b->warning, sizeof b->warning);
+    size_t used = strlen(b->warning);
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(b->warning + used, sizeof b->warning - used, fmt, ap);
+    va_end(ap);
 }
 
 static int ensure_vertices(sdf__builder *b, size_t more)

@@ -24,6 +24,8 @@ typedef struct sdf__builder {
     long line;             /* current location, kept up to date by the parser */
     long long offset;
     sdf_diag *diag;
+    size_t warnings;       /* inputs accepted with doubt; the first one's message: */
+    char warning[SDF_MESH_WARNING_SIZE];
 } sdf__builder;
 
 void sdf__builder_init(sdf__builder *b, const char *format, size_t max_triangles, sdf_diag *diag);
@@ -43,5 +45,9 @@ int sdf__builder_add_polygon(sdf__builder *b, const uint32_t *idx, size_t n, siz
 /* Report an error at the current location: "<FORMAT> line L: ..." or "... byte B: ...". */
 int sdf__builder_fail(sdf__builder *b, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
+
+/* Note something accepted with doubt at the current location (the mesh report keeps the
+ * first message, located as sdf__builder_fail's, and the count). */
+void sdf__builder_warn(sdf__builder *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 #endif

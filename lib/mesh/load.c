@@ -85,8 +85,13 @@ static int load_buffer(const char *data, size_t size, sdf_format format,
         return sdf__diag_set(diag, SDF_EEMPTY, 0, -1, "%s: the file holds no triangles",
                              upper_name(format));
     }
-    return sdf__mesh_build(b.positions, b.vertex_count, b.triangles, b.triangle_count, format,
-                           out, diag);
+    rc = sdf__mesh_build(b.positions, b.vertex_count, b.triangles, b.triangle_count, format, out,
+                         diag);
+    if (!rc) {
+        (*out)->report.warnings = b.warnings;
+        memcpy((*out)->report.warning, b.warning, sizeof b.warning);
+    }
+    return rc;
 }
 
 int sdf_mesh_load_memory(const void *data, size_t size, const sdf_mesh_options *opts,

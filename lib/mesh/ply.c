@@ -132,6 +132,20 @@ static int header_property(sdf__text *t, sdf__builder *b, ply_header *h)
     return 0;
 }
 
+/* Some exporters write free text into the header without the `comment` keyword (Blender 2.4x:
+ * "Created by Blender3D 247 - www.blender.org, source file: ''"). Before the first element
+ * nothing can depend on such a line, so it is taken as a comment and reported as a warning;
+ * among the elements an unknown keyword may be a property we would misread: refused. */
+static int unknown_header_line(sdf__builder *b, const ply_header *h, const char *w, size_t n)
+{
+    int shown = (int)(n > 32 ? 32 : n);
+    if (h->nelems > 0)
+        return sdf__builder_fail(b, SDF_EPARSE, "unknown header keyword '%.*s'", shown, w);
+    sdf__builder_warn(b, "unknown header keyword '%.*s': the line is taken as a comment", shown,
+                      w);
+    return 0;
+}
+
 static int parse_header(sdf__text *t, sdf__builder *b, ply_header *h)
 {
     const char *w;
@@ -160,8 +174,7 @@ static int parse_header(sdf__text *t, sdf__builder *b, ply_header *h)
             break;
         } else if (!sdf__text_token_is(w, n, "comment") && !sdf__text_token_is(w, n, "obj_info") &&
                    n != 0) {
-            rc = sdf__builder_fail(b, SDF_EPARSE, "unknown header keyword '%.*s'",
-                                   (int)(n > 32 ? 32 : n), w);
+            rc = unknown_header_line(b, h, w, n);
         }
         if (rc)
             return rc;

@@ -98,6 +98,43 @@ static void test_odd_shared_files(void)
     free(data);
 }
 
+/* Blender 2.4x writes a header line without the `comment` keyword: before the first element
+ * it is taken as a comment with a warning in the report; among the elements it is refused. */
+static void test_ply_free_text_header(void)
+{
+    static const char blender[] = "ply\nformat ascii 1.0\nCreated by Blender3D 247 - "
+                                  "www.blender.org, source file: ''\nelement vertex 3\n"
+                                  "property float x\nproperty float y\nproperty float z\n"
+                                  "element face 1\nproperty list uchar uint vertex_indices\n"
+                                  "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    sdf_mesh_options o = {.format = SDF_FORMAT_PLY};
+    sdf_mesh *m = NULL;
+    sdf_diag diag;
+    int rc = sdf_mesh_load_memory(blender, sizeof blender - 1, &o, &m, &diag);
+    CHECK(rc == 0, "Blender PLY refused: %s", diag.message);
+    if (rc == 0) {
+        sdf_mesh_report r;
+        sdf_mesh_get_report(m, &r);
+        CHECK(r.triangles == 1 && r.warnings == 1 &&
+                  !strcmp(r.warning, "PLY line 3: unknown header keyword 'Created': the line is "
+                                     "taken as a comment"),
+              "Blender PLY report: %zu triangles, %zu warnings '%s'", r.triangles, r.warnings,
+              r.warning);
+        sdf_mesh_release(m);
+    }
+    static const char among[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                                "property float y\nproperty float z\nMade by hand\n"
+                                "element face 1\nproperty list uchar uint vertex_indices\n"
+                                "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    expect_reject("free text among elements", among, sizeof among - 1, SDF_FORMAT_PLY, SDF_EPARSE,
+                  7, -1, "unknown header keyword 'Made'");
+    /* the reports of files with nothing doubtful say so */
+    sdf_mesh_report r;
+    sdf_mesh *cube = load("cube.ply", &r);
+    CHECK(r.warnings == 0 && r.warning[0] == '\0', "cube.ply has a warning: %s", r.warning);
+    sdf_mesh_release(cube);
+}
+
 /* ---- one model, every encoding ---------------------------------------------------------- */
 
 static void same_distances(const char *what, const sdf_mesh *ref, const char *data, size_t size,
@@ -363,6 +400,7 @@ int main(void)
 {
     test_shared_files();
     test_odd_shared_files();
+    test_ply_free_text_header();
     test_round_trips();
     test_truncation();
     test_malformed();

@@ -228,6 +228,17 @@ class Meshes(unittest.TestCase):
             self.assertEqual((e.exception.status, e.exception.code), (401, "EUNAUTHORIZED"))
             rep = admin.upload("knot", os.path.join(DATA, "knot1.off"))
             self.assertEqual((rep["triangles"], rep["closed"], rep["sign"]), (6400, True, "pseudonormal"))
+            self.assertEqual((rep["warnings"], "warning" in rep), (0, False))
+            with tempfile.NamedTemporaryFile(suffix=".ply") as f:  # Blender 2.4x's header
+                f.write(b"ply\nformat ascii 1.0\nCreated by Blender3D 247\nelement vertex 3\n"
+                        b"property float x\nproperty float y\nproperty float z\nelement face 1\n"
+                        b"property list uchar uint vertex_indices\nend_header\n"
+                        b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+                f.flush()
+                rep = admin.upload("blender", f.name)
+            self.assertEqual((rep["triangles"], rep["warnings"]), (1, 1))
+            self.assertIn("PLY line 3: unknown header keyword 'Created'", rep["warning"])
+            admin.delete("blender")
             names = sorted(m["name"] for m in anon.meshes())
             self.assertEqual(names, ["demo", "knot"])
             p = np.zeros((1, 3), np.float32)

@@ -122,6 +122,8 @@ typedef struct sdf_mesh sdf_mesh;
 
 /* What loading found out about a mesh. Counts are after welding exactly coincident
  * vertices; triangles keep the file's order (fan-triangulated polygons in place). */
+#define SDF_MESH_WARNING_SIZE 160
+
 typedef struct sdf_mesh_report {
     sdf_format format;           /* the format that was parsed (AUTO for in-memory arrays) */
     size_t input_vertices;       /* vertices as stored in the file */
@@ -144,6 +146,10 @@ typedef struct sdf_mesh_report {
                                     made on the first raycast or single-traversal query,
                                     is not counted) */
     double build_seconds;        /* welding, topology, BVHs and sign data */
+    size_t warnings;             /* things the parser accepted with doubt (e.g. a PLY header
+                                    line with an unknown keyword, taken as a comment) */
+    char warning[SDF_MESH_WARNING_SIZE]; /* the first of them, located like an error
+                                    ("PLY line 3: ..."); "" when there is none */
 } sdf_mesh_report;
 
 /* Load a mesh file and build its index. On success *out holds a mesh with one reference.
