@@ -350,6 +350,8 @@ static int refresh(sdfd_cache *c, entry *e, void **out, char *msg, size_t cap)
             snprintf(msg, cap, "no %s named '%s'", kind_names[e->kind], e->name);
         return rc;
     }
+    int stamped = !rc; /* `stamp` is the sidecar's now */
+    rc = 0;
     if (!keep && resident) { /* rewritten: with the same content? */
         sdfd_sidecar meta;
         char why[64];
@@ -367,7 +369,7 @@ static int refresh(sdfd_cache *c, entry *e, void **out, char *msg, size_t cap)
     }
     pthread_mutex_lock(&c->lock);
     e->checked = sdfd_now();
-    if (!rc)
+    if (stamped)
         e->stamp = stamp, e->hash = hash;
     if (item) {
         c->loads++;

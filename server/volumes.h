@@ -7,9 +7,9 @@
  * A bake job runs on its own thread; at most `max_running` bake at once (each uses the
  * configured geometry threads), the rest wait queued and start in arrival order. Progress and cancellation go through
  * sdf_volume_bake's progress callback. Finished jobs stay listed (their state and error)
- * until `max_jobs` newer ones push the oldest finished out. Volumes and jobs belong to one
- * replica: behind a load balancer, send a job's status requests to the replica that
- * answered 202, then copy the volume to the others (PUT /v1/volumes/{name}). Thread-safe. */
+ * until `max_jobs` newer ones push the oldest finished out. This module holds what is in
+ * memory; with a store (cache.h) its hooks keep a finished bake's volume there before the job
+ * says done, and record every job, so other replicas and a restart see both. Thread-safe. */
 #ifndef SDFD_VOLUMES_H
 #define SDFD_VOLUMES_H
 

@@ -241,6 +241,7 @@ class Store(unittest.TestCase):
                 distances(c, "never-loaded")
             self.assertEqual(e.exception.status, 503)
             self.assertIn("store is unreadable", e.exception.message)
+            time.sleep(1.2)  # past the recheck: the store is looked at, and cannot be read
             distances(c, "cube")  # in memory: still served
         finally:
             os.rename(away, self.dir)
