@@ -736,6 +736,15 @@ static void restore_jobs(sdfd_cache *c)
         int fd = sdfd_store_lock_job(c->store, s.id);
         if (fd < 0)
             continue; /* a live replica runs it */
+        /* Its owner may have ended it (record, then unlock) since the record was read. */
+        text = sdfd_store_read_job(c->store, ids[i]);
+        ok = text && !parse_job(text, &s) && !strcmp(s.id, ids[i]) &&
+             (s.state == SDFD_JOB_QUEUED || s.state == SDFD_JOB_RUNNING);
+        free(text);
+        if (!ok) {
+            sdfd_store_unlock_job(c->store, ids[i], fd);
+            continue;
+        }
         s.state = SDFD_JOB_FAILED;
         s.error = SDFD_EUNAVAILABLE;
         snprintf(s.message, sizeof s.message, "interrupted: the sdfd running this bake stopped "

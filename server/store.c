@@ -468,7 +468,9 @@ size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_M
     for (struct dirent *e; list && d && (e = readdir(d));) {
         const char *f = e->d_name;
         size_t len = strlen(f);
-        if (!strcmp(f, ".") || !strcmp(f, "..") || !strncmp(f, ".tmp-", 5) || data_file_name(f))
+        /* Dot files are never items: temporaries (below), and NFS's .nfsXXXX stand-ins
+         * for files unlinked while open, which must stay where they are. */
+        if (f[0] == '.' || data_file_name(f))
             continue;
         int sidecar = len > 5 && !strcmp(f + len - 5, ".json");
         if (!sidecar || len - 5 > SDFD_STORE_MAX_NAME || !sdfd_valid_name(f, len - 5)) {
