@@ -232,15 +232,12 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
 
 static void handle_list(sdfd_binary *b, connection *c, uint32_t id)
 {
-    sdfd_entry *list;
-    size_t n = sdfd_registry_list(b->srv->registry, &list);
+    sdfd_mesh_summary *list;
+    size_t n = sdfd_cache_list_meshes(b->srv->cache, &list);
     sdf_proto_mesh_entry *entries = calloc(n + 1, sizeof *entries);
-    for (size_t i = 0; entries && i < n; i++) {
-        sdf_mesh_report r;
-        sdf_mesh_get_report(list[i].mesh, &r);
-        entries[i] = (sdf_proto_mesh_entry){list[i].name, strlen(list[i].name), r.triangles,
-                                            (uint8_t)r.closed, (uint8_t)r.auto_sign};
-    }
+    for (size_t i = 0; entries && i < n; i++)
+        entries[i] = (sdf_proto_mesh_entry){list[i].name, strlen(list[i].name), list[i].triangles,
+                                            (uint8_t)list[i].closed, (uint8_t)list[i].sign};
     size_t size = entries ? sdf_proto_meshes_size(entries, n) : 0;
     char *frame = size ? malloc(size) : NULL;
     if (frame && sdf_proto_encode_meshes(frame, size, id, entries, n) == size)
@@ -250,7 +247,7 @@ static void handle_list(sdfd_binary *b, connection *c, uint32_t id)
         sdfd_bin_send_error(c, id, SDF_ENOMEM, "out of memory");
     }
     free(entries);
-    sdfd_registry_free_list(list, n);
+    free(list);
 }
 
 /* AUTH: the payload is the token. A wrong one closes the connection, so guesses cost a

@@ -45,6 +45,8 @@ static const setting settings[] = {
     {"--max-bake-queries", "SDFD_MAX_BAKE_QUERIES", "N", "distance queries one bake may cost (default 1073741824)", SIZE, AT(max_bake_queries), 0, 1ull << 40},
     {"--max-bakes", "SDFD_MAX_BAKES", "N", "bakes running at once; more wait queued (default 1)", UINT, AT(max_bakes), 1, 64},
     {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1, 1u << 16},
+    {"--data-dir", "SDFD_DATA_DIR", "DIR", "keep meshes, volumes and bake jobs in DIR (shared by replicas; docs/api.md)", STRING, AT(data_dir), 0, 0},
+    {"--max-resident-bytes", "SDFD_MAX_RESIDENT_BYTES", "N", "with --data-dir: drop the least recently used meshes and volumes from memory past N bytes (default 0 = keep all)", SIZE, AT(max_resident_bytes), 0, 1ull << 44},
     {"--drain-seconds", "SDFD_DRAIN_SECONDS", "SECONDS", "on SIGTERM, let in-flight requests finish this long (default 30)", UINT, AT(drain_seconds), 0, 3600},
 };
 

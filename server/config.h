@@ -38,6 +38,8 @@ typedef struct sdfd_config {
     size_t max_bake_queries;      /* distance queries one bake may cost */
     unsigned max_bakes;           /* bakes running at once */
     size_t max_jobs;              /* bake jobs remembered */
+    const char *data_dir;         /* the store, or NULL: memory only */
+    size_t max_resident_bytes;    /* with a store: meshes and volumes kept in memory; 0 = all */
 } sdfd_config;
 
 /* Fill `cfg` from argv and the environment. Returns 0; 1 if --help was printed (exit 0);

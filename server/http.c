@@ -276,13 +276,10 @@ static void load_upload(request *req)
     } else {
         req->work_rc = sdf_mesh_load_memory(req->body, req->len, &opts, &req->uploaded, &req->diag);
     }
-    if (!req->work_rc) {
-        req->work_rc = sdfd_registry_put(srv->registry, req->name,
-                                           sdf_mesh_retain(req->uploaded), &req->replaced);
-        if (req->work_rc == SDF_ELIMIT)
-            snprintf(req->diag.message, sizeof req->diag.message,
-                     "loading it would exceed --max-meshes or --max-triangles");
-    }
+    if (!req->work_rc)
+        req->work_rc = sdfd_cache_put_mesh(srv->cache, req->name, sdf_mesh_retain(req->uploaded),
+                                           req->body, req->len, &req->replaced,
+                                           req->diag.message, sizeof req->diag.message);
 }
 
 static enum MHD_Result start_upload(request *req)
@@ -314,20 +311,18 @@ static enum MHD_Result status_reply(request *req, int status, const char *state)
 
 static enum MHD_Result list_meshes(request *req)
 {
-    sdfd_entry *list;
-    size_t n = sdfd_registry_list(req->srv->registry, &list);
+    sdfd_mesh_summary *list;
+    size_t n = sdfd_cache_list_meshes(req->srv->cache, &list);
     cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "meshes");
     for (size_t i = 0; i < n; i++) {
-        sdf_mesh_report r;
-        sdf_mesh_get_report(list[i].mesh, &r);
         cJSON *o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "name", list[i].name);
-        cJSON_AddNumberToObject(o, "triangles", (double)r.triangles);
-        cJSON_AddBoolToObject(o, "closed", r.closed);
-        cJSON_AddStringToObject(o, "sign", sdf_sign_name(r.auto_sign));
+        cJSON_AddNumberToObject(o, "triangles", (double)list[i].triangles);
+        cJSON_AddBoolToObject(o, "closed", list[i].closed);
+        cJSON_AddStringToObject(o, "sign", sdf_sign_name(list[i].sign));
         cJSON_AddItemToArray(arr, o);
     }
-    sdfd_registry_free_list(list, n);
+    free(list);
     return sdfd_http_json(req, 200, root);
 }
 
@@ -336,15 +331,17 @@ static enum MHD_Result mesh_route(request *req)
     sdfd_server *srv = req->srv;
     if (!strcmp(req->method, "PUT"))
         return start_upload(req);
+    char msg[512];
+    int rc;
     if (!strcmp(req->method, "DELETE")) {
-        if (sdfd_registry_remove(srv->registry, req->name))
-            return sdfd_http_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+        if ((rc = sdfd_cache_remove_mesh(srv->cache, req->name, msg, sizeof msg)))
+            return sdfd_http_error(req, rc, "%s", msg);
         sdfd_log("info", "mesh_deleted", "%s", req->name);
         return sdfd_http_buffer(req, 204, "application/json", NULL, 0, NULL);
     }
-    sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
-    if (!mesh)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+    sdf_mesh *mesh;
+    if ((rc = sdfd_cache_mesh(srv->cache, req->name, strlen(req->name), &mesh, msg, sizeof msg)))
+        return sdfd_http_error(req, rc, "%s", msg);
     enum MHD_Result r = sdfd_http_json(req, 200, report_json(req->name, mesh));
     sdf_mesh_release(mesh);
     return r;
@@ -359,8 +356,10 @@ static enum MHD_Result dispatch(request *req)
     case SDFD_ROUTE_READY:
         if (atomic_load(&srv->draining))
             return status_reply(req, 503, "draining");
-        return atomic_load(&srv->ready) ? status_reply(req, 200, "ready")
-                                        : status_reply(req, 503, "loading");
+        if (!atomic_load(&srv->ready))
+            return status_reply(req, 503, "loading");
+        return sdfd_cache_probe(srv->cache) ? status_reply(req, 503, "store unreadable")
+                                            : status_reply(req, 200, "ready");
     case SDFD_ROUTE_METRICS: {
         size_t len;
         sdfd_gauges g = {.meshes_loaded = sdfd_registry_count(srv->registry),
@@ -368,6 +367,11 @@ static enum MHD_Result dispatch(request *req)
                          .buffered_bytes = atomic_load(&srv->buffered),
                          .batch_scratch_bytes = sdfd_batcher_kept_bytes(srv->batcher)};
         sdfd_volumes_usage(srv->volumes, &g.volume_bytes, &g.bakes_running, &g.bakes_queued);
+        sdfd_cache_stats st;
+        sdfd_cache_stats_get(srv->cache, &st);
+        g.resident_bytes = st.resident_bytes, g.resident_budget = st.budget;
+        g.store_loads = st.loads, g.store_evictions = st.evictions;
+        g.store_quarantined = st.quarantined;
         char *text = sdfd_metrics_render(srv->metrics, &g, &len);
         return text ? sdfd_http_buffer(req, 200, "text/plain; version=0.0.4", text, len, NULL)
                     : MHD_NO;

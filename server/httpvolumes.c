@@ -47,16 +47,17 @@ enum MHD_Result sdfd_http_bake(request *req)
     int rc = sdfd_bake_from_json(req->body, req->len, &bake, &names, err, sizeof err);
     if (rc)
         return sdfd_http_error(req, rc, "%s", err);
-    sdf_mesh *mesh = sdfd_registry_get(srv->registry, req->name, strlen(req->name));
-    if (!mesh)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no mesh named '%s'", req->name);
+    sdf_mesh *mesh;
+    if ((rc = sdfd_cache_mesh(srv->cache, req->name, strlen(req->name), &mesh, err, sizeof err)))
+        return sdfd_http_error(req, rc, "%s", err);
     if (names.smoothing_mesh[0]) {
-        bake.smoothing_mesh = sdfd_registry_get(srv->registry, names.smoothing_mesh,
-                                                strlen(names.smoothing_mesh));
-        if (!bake.smoothing_mesh) {
+        rc = sdfd_cache_mesh(srv->cache, names.smoothing_mesh, strlen(names.smoothing_mesh),
+                             &bake.smoothing_mesh, err, sizeof err);
+        if (rc) {
             sdf_mesh_release(mesh);
-            return sdfd_http_error(req, SDF_ENOTFOUND, "no smoothing mesh named '%s'",
-                                   names.smoothing_mesh);
+            if (rc == SDF_ENOTFOUND)
+                snprintf(err, sizeof err, "no smoothing mesh named '%s'", names.smoothing_mesh);
+            return sdfd_http_error(req, rc, "%s", err);
         }
         bake.filter.smooth.mesh = bake.smoothing_mesh;
     }
@@ -90,6 +91,8 @@ enum MHD_Result sdfd_http_job(request *req)
     int deleting = !strcmp(req->method, "DELETE");
     int rc = deleting ? sdfd_volumes_cancel(srv->volumes, req->name, &s)
                       : sdfd_volumes_job(srv->volumes, req->name, &s);
+    if (rc && !deleting) /* another replica's, or one this process forgot: its record */
+        rc = sdfd_cache_job(srv->cache, req->name, &s);
     if (rc)
         return sdfd_http_error(req, rc, "no job '%s'", req->name);
     return sdfd_http_json(req, 200, job_json(&s));
@@ -106,25 +109,18 @@ enum MHD_Result sdfd_http_jobs(request *req)
     return sdfd_http_json(req, 200, root);
 }
 
-static cJSON *volume_json(const sdfd_stored_volume *s)
-{
-    char text[1024];
-    cJSON *o =
-        sdf_volume_describe_json(s->volume, text, sizeof text) > 0 ? cJSON_Parse(text) : NULL;
-    if (!o)
-        o = cJSON_CreateObject();
-    cJSON_AddStringToObject(o, "name", s->name);
-    cJSON_AddStringToObject(o, "mesh", s->mesh);
-    cJSON_AddStringToObject(o, "job", s->job);
-    cJSON_AddNumberToObject(o, "bake_seconds", s->bake_seconds);
-    return o;
-}
+static cJSON *volume_json(const sdfd_stored_volume *s) { return sdfd_cache_volume_json(s); }
 
 enum MHD_Result sdfd_http_volumes(request *req)
 {
+    cJSON *root = cJSON_CreateObject(), *stored = sdfd_cache_list_volumes(req->srv->cache);
+    if (stored) { /* the store's */
+        cJSON_AddItemToObject(root, "volumes", stored);
+        return sdfd_http_json(req, 200, root);
+    }
     sdfd_stored_volume **list;
     size_t n = sdfd_volumes_list(req->srv->volumes, &list);
-    cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "volumes");
+    cJSON *arr = cJSON_AddArrayToObject(root, "volumes");
     for (size_t i = 0; i < n; i++)
         cJSON_AddItemToArray(arr, volume_json(list[i]));
     sdfd_volumes_free_list(list, n);
@@ -152,22 +148,21 @@ static void load_volume(request *req)
                  "a volume upload takes the EXR file that .../data?format=exr gives: %.180s",
                  exr.message);
     }
-    if (!req->work_rc) {
-        req->work_rc = sdfd_volumes_put(req->srv->volumes, req->name, volume, "",
-                                        &req->replaced);
-        if (req->work_rc)
-            snprintf(req->diag.message, sizeof req->diag.message,
-                     "storing it would exceed --max-volumes or --max-volume-bytes");
-    }
+    if (!req->work_rc)
+        req->work_rc = sdfd_cache_put_volume(req->srv->cache, req->name, volume, req->body,
+                                             req->len, &req->replaced, req->diag.message,
+                                             sizeof req->diag.message);
 }
 
 static enum MHD_Result reply_volume_upload(request *req)
 {
     if (req->work_rc)
         return sdfd_http_error(req, req->work_rc, "%s", req->diag.message);
-    sdfd_stored_volume *s = sdfd_volumes_get(req->srv->volumes, req->name);
-    if (!s) /* deleted in between */
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    sdfd_stored_volume *s;
+    char msg[512];
+    int rc = sdfd_cache_volume(req->srv->cache, req->name, strlen(req->name), &s, msg, sizeof msg);
+    if (rc) /* deleted in between */
+        return sdfd_http_error(req, rc, "%s", msg);
     sdfd_log("info", "volume_loaded", "%s: %s by upload", req->name,
              req->replaced ? "replaced" : "added");
     enum MHD_Result r = sdfd_http_json(req, req->replaced ? 200 : 201, volume_json(s));
@@ -180,15 +175,17 @@ enum MHD_Result sdfd_http_volume(request *req)
     sdfd_server *srv = req->srv;
     if (!strcmp(req->method, "PUT"))
         return sdfd_http_start_thread(req, load_volume, reply_volume_upload);
+    char msg[512];
+    int rc;
     if (!strcmp(req->method, "DELETE")) {
-        if (sdfd_volumes_remove(srv->volumes, req->name))
-            return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+        if ((rc = sdfd_cache_remove_volume(srv->cache, req->name, msg, sizeof msg)))
+            return sdfd_http_error(req, rc, "%s", msg);
         sdfd_log("info", "volume_deleted", "%s", req->name);
         return sdfd_http_buffer(req, 204, "application/json", NULL, 0, NULL);
     }
-    sdfd_stored_volume *s = sdfd_volumes_get(srv->volumes, req->name);
-    if (!s)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    sdfd_stored_volume *s;
+    if ((rc = sdfd_cache_volume(srv->cache, req->name, strlen(req->name), &s, msg, sizeof msg)))
+        return sdfd_http_error(req, rc, "%s", msg);
     enum MHD_Result r = sdfd_http_json(req, 200, volume_json(s));
     sdfd_volume_release(s);
     return r;
@@ -304,9 +301,11 @@ enum MHD_Result sdfd_http_volume_data(request *req)
     const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
     if (sdf_volume_file_from_name(format ? format : "exr", &req->file_type))
         return sdfd_http_error(req, SDF_EINVAL, "unknown format '%s' (exr, npy, raw)", format);
-    req->stored = sdfd_volumes_get(req->srv->volumes, req->name);
-    if (!req->stored)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no volume named '%s'", req->name);
+    char msg[512];
+    int rc = sdfd_cache_volume(req->srv->cache, req->name, strlen(req->name), &req->stored, msg,
+                               sizeof msg);
+    if (rc)
+        return sdfd_http_error(req, rc, "%s", msg);
     if (req->file_type != SDF_VOLUME_EXR)
         return stream_volume(req);
     return sdfd_http_start_thread(req, encode_volume,

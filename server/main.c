@@ -46,6 +46,7 @@ static int load_mesh(sdfd_server *srv, const char *name, const char *path)
         sdfd_log("error", "mesh", "%s: over --max-meshes or --max-triangles", path);
         return -1;
     }
+    sdfd_cache_pin(srv->cache, name);
     sdfd_log("info", "mesh_loaded", "%s: %s, %zu triangles, closed %d, sign %s, %.3f s", name,
              path, r.triangles, r.closed, sdf_sign_name(r.auto_sign), r.build_seconds);
     return 0;
@@ -80,7 +81,8 @@ static int load_meshes(sdfd_server *srv)
             return -1;
     if (srv->cfg.mesh_dir && load_dir(srv, srv->cfg.mesh_dir))
         return -1;
-    if (srv->cfg.mesh_count == 0 && !srv->cfg.mesh_dir) {
+    /* The demo stands in for an empty server; a store is not one. */
+    if (srv->cfg.mesh_count == 0 && !srv->cfg.mesh_dir && !srv->cfg.data_dir) {
         sdf_mesh *demo;
         if (sdf_mesh_create_demo(&demo) || sdfd_registry_put(srv->registry, "demo", demo, NULL))
             return -1;
@@ -120,7 +122,15 @@ int main(int argc, char **argv)
     srv.volumes = sdfd_volumes_create(srv.cfg.max_volumes, srv.cfg.max_volume_bytes,
                                       (int)srv.cfg.max_bakes, srv.cfg.max_jobs,
                                       srv.cfg.max_bake_queries, srv.cfg.threads);
-    if (!srv.registry || !srv.metrics || !srv.volumes ||
+    sdfd_store *store = NULL;
+    char err[512];
+    if (srv.cfg.data_dir && sdfd_store_open(srv.cfg.data_dir, &store, err, sizeof err)) {
+        sdfd_log("error", "start", "--data-dir: %s", err);
+        return 1;
+    }
+    srv.cache = sdfd_cache_create(store, srv.registry, srv.volumes, srv.metrics,
+                                  srv.cfg.max_resident_bytes, srv.cfg.max_total_triangles);
+    if (!srv.registry || !srv.metrics || !srv.volumes || !srv.cache ||
         sdfd_batcher_create(srv.cfg.threads, srv.cfg.batch_window_us, srv.cfg.batch_max_points,
                             srv.cfg.max_queued_points, srv.metrics, &srv.batcher)) {
         sdfd_log("error", "start", "out of memory");
@@ -131,12 +141,14 @@ int main(int argc, char **argv)
     sdfd_binary *bin = NULL;
     /* Listen first (so /readyz can say "loading"), then load. */
     if (sdfd_http_start(&srv, &http) || sdfd_binary_start(&srv, &bin) || load_meshes(&srv)) {
+        sdfd_cache_destroy(srv.cache);
         sdfd_binary_stop(bin);
         sdfd_http_stop(http);
         sdfd_batcher_destroy(srv.batcher);
         sdfd_volumes_destroy(srv.volumes);
         return 1;
     }
+    sdfd_cache_start(srv.cache); /* the flags' meshes first: they win over the store's */
     atomic_store(&srv.ready, 1);
     sdfd_log("info", "ready", "serving %zu meshes", sdfd_registry_count(srv.registry));
 
@@ -154,6 +166,7 @@ int main(int argc, char **argv)
     sdfd_binary_stop(bin);
     sdfd_http_stop(http);
     sdfd_volumes_destroy(srv.volumes);
+    sdfd_cache_destroy(srv.cache);
     sdfd_registry_destroy(srv.registry);
     sdfd_metrics_destroy(srv.metrics);
     sdfd_log("info", "stopped", "bye");

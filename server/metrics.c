@@ -41,7 +41,7 @@ struct sdfd_metrics {
     atomic_ullong requests[SDFD_ROUTE_COUNT][N_STATUS + 1];
     atomic_ullong points;
     atomic_long queue_depth;
-    histogram latency, batch_requests, batch_points, batch_seconds;
+    histogram latency, batch_requests, batch_points, batch_seconds, store_load_seconds;
 };
 
 static void hist_init(histogram *h, const char *name, const char *help, const double *b, int n)
@@ -74,6 +74,9 @@ sdfd_metrics *sdfd_metrics_create(void)
     hist_init(&m->batch_points, "sdfd_batch_points", "Points in one batch.", point_bounds, 8);
     hist_init(&m->batch_seconds, "sdfd_batch_seconds", "Time to compute one batch.",
               latency_bounds, 16);
+    hist_init(&m->store_load_seconds, "sdfd_store_load_seconds",
+              "Time to load one mesh or volume from the store (read, check, parse, index).",
+              latency_bounds, 16);
     return m;
 }
 
@@ -95,6 +98,11 @@ void sdfd_metrics_batch(sdfd_metrics *m, size_t requests, size_t points, double 
     hist_observe(&m->batch_requests, (double)requests);
     hist_observe(&m->batch_points, (double)points);
     hist_observe(&m->batch_seconds, seconds);
+}
+
+void sdfd_metrics_store_load(sdfd_metrics *m, double seconds)
+{
+    hist_observe(&m->store_load_seconds, seconds);
 }
 
 void sdfd_metrics_queue_depth(sdfd_metrics *m, long delta) { atomic_fetch_add(&m->queue_depth, delta); }
@@ -174,10 +182,24 @@ char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len)
     emit(&o, "# HELP sdfd_bakes Bake jobs by state.\n# TYPE sdfd_bakes gauge\n"
              "sdfd_bakes{state=\"running\"} %zu\nsdfd_bakes{state=\"queued\"} %zu\n",
          g->bakes_running, g->bakes_queued);
+    emit(&o, "# HELP sdfd_resident_bytes Bytes of the meshes and volumes in memory.\n"
+             "# TYPE sdfd_resident_bytes gauge\nsdfd_resident_bytes %zu\n", g->resident_bytes);
+    emit(&o, "# HELP sdfd_resident_budget_bytes --max-resident-bytes (0: none).\n"
+             "# TYPE sdfd_resident_budget_bytes gauge\nsdfd_resident_budget_bytes %zu\n",
+         g->resident_budget);
+    emit(&o, "# HELP sdfd_store_loads_total Meshes and volumes loaded from the store.\n"
+             "# TYPE sdfd_store_loads_total counter\nsdfd_store_loads_total %llu\n", g->store_loads);
+    emit(&o, "# HELP sdfd_store_evictions_total Meshes and volumes dropped from memory.\n"
+             "# TYPE sdfd_store_evictions_total counter\nsdfd_store_evictions_total %llu\n",
+         g->store_evictions);
+    emit(&o, "# HELP sdfd_store_quarantined_total Store items moved to quarantine on use.\n"
+             "# TYPE sdfd_store_quarantined_total counter\nsdfd_store_quarantined_total %llu\n",
+         g->store_quarantined);
     render_histogram(&o, &m->latency);
     render_histogram(&o, &m->batch_requests);
     render_histogram(&o, &m->batch_points);
     render_histogram(&o, &m->batch_seconds);
+    render_histogram(&o, &m->store_load_seconds);
     *len = o.len;
     return o.s;
 }

@@ -26,12 +26,15 @@ void sdfd_metrics_request(sdfd_metrics *m, sdfd_route route, int status, double 
 void sdfd_metrics_points(sdfd_metrics *m, size_t points);
 void sdfd_metrics_batch(sdfd_metrics *m, size_t requests, size_t points, double seconds);
 void sdfd_metrics_queue_depth(sdfd_metrics *m, long delta);
+void sdfd_metrics_store_load(sdfd_metrics *m, double seconds);
 
 /* Gauges owned elsewhere, read when /metrics is rendered. */
 typedef struct sdfd_gauges {
     size_t meshes_loaded, volumes_loaded, volume_bytes, bakes_running, bakes_queued;
     size_t buffered_bytes; /* request bodies and binary input held (--max-buffered-bytes) */
     size_t batch_scratch_bytes; /* what the batcher keeps between batches */
+    size_t resident_bytes, resident_budget; /* meshes and volumes in memory; the budget */
+    unsigned long long store_loads, store_evictions, store_quarantined;
 } sdfd_gauges;
 
 /* Render everything (plus the given gauges) into a new string. */

@@ -12,25 +12,25 @@
 int sdfd_query_admit(sdfd_server *srv, sdfd_query *q, char *msg, size_t cap)
 {
     sdfd_job *job = &q->job;
-    job->mesh = sdfd_registry_get(srv->registry, q->mesh_name, q->mesh_name_len);
     q->smoothing = NULL;
-    if (!job->mesh) {
-        snprintf(msg, cap, "no mesh named '%.*s'", (int)q->mesh_name_len, q->mesh_name);
-        return SDF_ENOTFOUND;
-    }
+    int rc = sdfd_cache_mesh(srv->cache, q->mesh_name, q->mesh_name_len, &job->mesh, msg, cap);
+    if (rc)
+        return rc;
     if (!sdf_proto_mode_filtered(job->mode))
         return 0;
     if (q->smoothing_name) {
-        q->smoothing = sdfd_registry_get(srv->registry, q->smoothing_name, q->smoothing_name_len);
-        if (!q->smoothing) {
-            snprintf(msg, cap, "no smoothing mesh named '%.*s'", (int)q->smoothing_name_len,
-                     q->smoothing_name);
+        rc = sdfd_cache_mesh(srv->cache, q->smoothing_name, q->smoothing_name_len, &q->smoothing,
+                             msg, cap);
+        if (rc) {
+            if (rc == SDF_ENOTFOUND)
+                snprintf(msg, cap, "no smoothing mesh named '%.*s'", (int)q->smoothing_name_len,
+                         q->smoothing_name);
             sdfd_query_release(q);
-            return SDF_ENOTFOUND;
+            return rc;
         }
         job->filter.smooth.mesh = q->smoothing;
     }
-    int rc = sdfd_filter_validate(job->mesh, &job->filter, job->count,
+    rc = sdfd_filter_validate(job->mesh, &job->filter, job->count,
                                   SDFD_FILTER_QUERIES_PER_POINT_LIMIT * srv->cfg.max_points, msg,
                                   cap);
     if (rc)
@@ -66,14 +66,8 @@ void sdfd_query_release(sdfd_query *q)
 
 int sdfd_volume_query_admit(sdfd_server *srv, sdfd_volume_query *vq, char *msg, size_t cap)
 {
-    char name[SDFD_MAX_NAME + 1];
-    snprintf(name, sizeof name, "%.*s", (int)vq->volume_name_len, vq->volume_name);
-    vq->stored = sdfd_volumes_get(srv->volumes, name);
-    if (!vq->stored) {
-        snprintf(msg, cap, "no volume named '%.*s'", (int)vq->volume_name_len, vq->volume_name);
-        return SDF_ENOTFOUND;
-    }
-    return 0;
+    return sdfd_cache_volume(srv->cache, vq->volume_name, vq->volume_name_len, &vq->stored, msg,
+                             cap);
 }
 
 static void *evaluate(void *arg)

@@ -26,7 +26,8 @@ typedef struct sdfd_query {
     sdf_mesh *smoothing; /* the smoothing mesh's reference, or NULL */
 } sdfd_query;
 
-/* Look up the mesh (SDF_ENOTFOUND) and the smoothing mesh, and check a filtered query's
+/* Look up the mesh and the smoothing mesh (sdfd_cache_mesh: SDF_ENOTFOUND, or
+ * SDFD_EUNAVAILABLE when the store cannot be read), and check a filtered query's
  * options and cost (sdfd_filter_validate). On failure nothing is held. */
 int sdfd_query_admit(sdfd_server *srv, sdfd_query *q, char *msg, size_t cap);
 /* Hand an admitted query with its words, done and user set to the batcher: 0 (done will be
@@ -58,7 +59,7 @@ struct sdfd_volume_query {
     char message[256];
 };
 
-/* Look up the volume: 0 or SDF_ENOTFOUND. */
+/* Look up the volume (sdfd_cache_volume): 0, SDF_ENOTFOUND or SDFD_EUNAVAILABLE. */
 int sdfd_volume_query_admit(sdfd_server *srv, sdfd_volume_query *vq, char *msg, size_t cap);
 /* Evaluate on a new thread, which calls done: 0 (the points are counted in the metrics), or
  * SDFD_EUNAVAILABLE and done is not called. */

@@ -1,11 +1,13 @@
-/* server.h - the state every part of sdfd shares: settings, the mesh registry, metrics,
- * the batcher, and the lifecycle flags that drive /readyz and graceful shutdown. */
+/* server.h - the state every part of sdfd shares: settings, the mesh registry, the volumes,
+ * the cache (the store behind both), metrics, the batcher, and the lifecycle flags that
+ * drive /readyz and graceful shutdown. */
 #ifndef SDFD_SERVER_H
 #define SDFD_SERVER_H
 
 #include <stdatomic.h>
 
 #include "batcher.h"
+#include "cache.h"
 #include "config.h"
 #include "metrics.h"
 #include "registry.h"
@@ -19,6 +21,7 @@ typedef struct sdfd_server {
     sdfd_metrics *metrics;
     sdfd_batcher *batcher;
     sdfd_volumes *volumes;   /* baked volumes and bake jobs */
+    sdfd_cache *cache;       /* lookups, uploads and deletes of both, through the store if any */
     atomic_int ready;        /* meshes loaded: /readyz 200 */
     atomic_int draining;     /* SIGTERM seen: /readyz 503, new work refused */
     atomic_long in_flight;   /* requests received and not yet answered (both protocols) */

@@ -22,8 +22,10 @@ typedef struct job {
     size_t reserved;              /* bytes promised to this bake */
     sdf_mesh *mesh;
     sdfd_bake_request req;
-    pthread_t thread;
+    pthread_t thread;             /* none for a job restored by sdfd_volumes_add_finished */
+    int has_thread;
     int finished;                 /* the thread has left the lock for the last time */
+    int token;                    /* from hooks.started */
 } job;
 
 struct sdfd_volumes {
@@ -34,8 +36,9 @@ struct sdfd_volumes {
     job *jobs;
     size_t job_count, max_jobs, max_queries;
     int running, max_running, threads, closing;
-    unsigned long next_id;
+    atomic_ulong next_id;
     unsigned id_prefix;
+    sdfd_volumes_hooks hooks;
 };
 
 static const char *const state_names[] = {"queued", "running", "done", "failed", "canceled"};
@@ -65,6 +68,11 @@ sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_
     clock_gettime(CLOCK_REALTIME, &t);
     v->id_prefix = (unsigned)(t.tv_sec * 1000003u ^ t.tv_nsec); /* ids differ across restarts */
     return v;
+}
+
+void sdfd_volumes_set_hooks(sdfd_volumes *v, const sdfd_volumes_hooks *hooks)
+{
+    v->hooks = *hooks;
 }
 
 /* ---- stored volumes ---------------------------------------------------------------------- */
@@ -145,6 +153,17 @@ int sdfd_volumes_put(sdfd_volumes *v, const char *name, sdf_volume *volume, cons
     pthread_mutex_lock(&v->lock);
     *replaced = find(v, name, NULL) >= 0;
     /* Bytes promised to running bakes stay promised. */
+    v->bytes += v->reserved;
+    int rc = put_locked(v, s);
+    v->bytes -= v->reserved;
+    pthread_mutex_unlock(&v->lock);
+    return rc;
+}
+
+int sdfd_volumes_put_stored(sdfd_volumes *v, sdfd_stored_volume *s, int *replaced)
+{
+    pthread_mutex_lock(&v->lock);
+    *replaced = find(v, s->name, NULL) >= 0;
     v->bytes += v->reserved;
     int rc = put_locked(v, s);
     v->bytes -= v->reserved;
@@ -302,6 +321,13 @@ static void *run_job(void *arg)
         snprintf(stored->mesh, sizeof stored->mesh, "%s", j->status.mesh);
         snprintf(stored->job, sizeof stored->job, "%s", j->status.id);
         stored->bake_seconds = sdfd_now() - j->started;
+        /* Kept before the job says done, so a client that saw "done" finds it after a
+         * restart, and on every replica. */
+        if (v->hooks.keep && (rc = v->hooks.keep(v->hooks.user, stored, diag.message,
+                                                  sizeof diag.message))) {
+            sdfd_volume_release(stored);
+            stored = NULL;
+        }
     }
     sdf_mesh_release(j->mesh);
     sdf_mesh_release(j->req.smoothing_mesh);
@@ -324,17 +350,26 @@ static void *run_job(void *arg)
     if (!rc)
         atomic_store(&j->progress, 1.0);
     j->status.seconds = sdfd_now() - j->started;
-    j->finished = 1;
+    sdfd_job_status final;
+    snapshot(j, &final);
     pthread_cond_broadcast(&v->slot_free);
+    pthread_mutex_unlock(&v->lock);
+    if (v->hooks.ended)
+        v->hooks.ended(v->hooks.user, &final, j->token);
+    pthread_mutex_lock(&v->lock);
+    j->finished = 1; /* only now may it be forgotten, so its record cannot outlive it */
     pthread_mutex_unlock(&v->lock);
     sdfd_log("info", "bake_finished", "job %s: %s after %.3f s", j->status.id,
              sdfd_job_state_name(j->status.state), j->status.seconds);
     return NULL;
 }
 
-static void free_job(job *j)
+static void free_job(sdfd_volumes *v, job *j, int forget)
 {
-    pthread_join(j->thread, NULL);
+    if (j->has_thread)
+        pthread_join(j->thread, NULL);
+    if (forget && v->hooks.forgotten)
+        v->hooks.forgotten(v->hooks.user, j->status.id);
     free(j);
 }
 
@@ -415,13 +450,22 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         rc = SDFD_EBUSY, snprintf(err, err_cap, "%zu bake jobs are unfinished; retry later",
                                  v->job_count);
     if (!rc) {
-        snprintf(j->status.id, sizeof j->status.id, "%08x-%lu", v->id_prefix, ++v->next_id);
+        snprintf(j->status.id, sizeof j->status.id, "%08x-%lu", v->id_prefix,
+                 atomic_fetch_add(&v->next_id, 1) + 1);
         j->status.state = SDFD_JOB_QUEUED;
         j->started = sdfd_now();
         j->reserved = need;
+        /* Recorded before its thread can end it (the record says queued, then its end). */
+        if (v->hooks.started)
+            j->token = v->hooks.started(v->hooks.user, &j->status);
         if (pthread_create(&j->thread, NULL, run_job, j)) {
             rc = SDFD_EUNAVAILABLE, snprintf(err, err_cap, "cannot start a bake thread");
+            if (v->hooks.ended) {
+                j->status.state = SDFD_JOB_FAILED;
+                v->hooks.ended(v->hooks.user, &j->status, j->token);
+            }
         } else {
+            j->has_thread = 1;
             v->reserved += need;
             j->next = v->jobs;
             v->jobs = j;
@@ -431,7 +475,7 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
     }
     pthread_mutex_unlock(&v->lock);
     if (pruned)
-        free_job(pruned);
+        free_job(v, pruned, 1);
     if (rc) {
         if (rc == SDF_ENOMEM)
             snprintf(err, err_cap, "out of memory");
@@ -480,7 +524,7 @@ int sdfd_volumes_cancel(sdfd_volumes *v, const char *id, sdfd_job_status *out)
     }
     pthread_mutex_unlock(&v->lock);
     if (forgotten)
-        free_job(forgotten);
+        free_job(v, forgotten, 1);
     return j ? 0 : SDF_ENOTFOUND;
 }
 
@@ -493,6 +537,30 @@ size_t sdfd_volumes_jobs(sdfd_volumes *v, sdfd_job_status **out)
         snapshot(j, &(*out)[n++]);
     pthread_mutex_unlock(&v->lock);
     return n;
+}
+
+int sdfd_volumes_add_finished(sdfd_volumes *v, const sdfd_job_status *s)
+{
+    job *j = calloc(1, sizeof *j), *pruned = NULL;
+    if (!j)
+        return SDF_ENOMEM;
+    j->owner = v;
+    j->status = *s;
+    j->finished = 1;
+    j->started = sdfd_now() - s->seconds;
+    pthread_mutex_lock(&v->lock);
+    int rc = v->job_count >= v->max_jobs && !(pruned = unlink_oldest_finished(v)) ? SDFD_EBUSY : 0;
+    if (!rc) {
+        j->next = v->jobs;
+        v->jobs = j;
+        v->job_count++;
+    }
+    pthread_mutex_unlock(&v->lock);
+    if (pruned)
+        free_job(v, pruned, 1);
+    if (rc)
+        free(j);
+    return rc;
 }
 
 void sdfd_volumes_close(sdfd_volumes *v)
@@ -516,7 +584,7 @@ void sdfd_volumes_destroy(sdfd_volumes *v)
     pthread_mutex_unlock(&v->lock);
     while (jobs) { /* each stops at its next slab */
         job *next = jobs->next;
-        free_job(jobs);
+        free_job(v, jobs, 0);
         jobs = next;
     }
     for (size_t i = 0; i < v->count; i++)

@@ -7,9 +7,9 @@
  * A bake job runs on its own thread; at most `max_running` bake at once (each uses the
  * configured geometry threads), the rest wait queued and start in arrival order. Progress and cancellation go through
  * sdf_volume_bake's progress callback. Finished jobs stay listed (their state and error)
- * until `max_jobs` newer ones push the oldest finished out. Volumes and jobs belong to one
- * replica: behind a load balancer, send a job's status requests to the replica that
- * answered 202, then copy the volume to the others (PUT /v1/volumes/{name}). Thread-safe. */
+ * until `max_jobs` newer ones push the oldest finished out. This module holds what is in
+ * memory; with a store (cache.h) its hooks keep a finished bake's volume there before the job
+ * says done, and record every job, so other replicas and a restart see both. Thread-safe. */
 #ifndef SDFD_VOLUMES_H
 #define SDFD_VOLUMES_H
 
@@ -50,6 +50,8 @@ int sdfd_volumes_remove(sdfd_volumes *v, const char *name); /* 0 or SDF_ENOTFOUN
  * *replaced says which. SDF_ELIMIT when --max-volumes or --max-volume-bytes would be broken. */
 int sdfd_volumes_put(sdfd_volumes *v, const char *name, sdf_volume *volume, const char *mesh,
                      int *replaced);
+/* As sdfd_volumes_put, of a stored volume made elsewhere (a reference taken over). */
+int sdfd_volumes_put_stored(sdfd_volumes *v, sdfd_stored_volume *s, int *replaced);
 /* Snapshot sorted by name, each retained; release with sdfd_volumes_free_list. */
 size_t sdfd_volumes_list(sdfd_volumes *v, sdfd_stored_volume ***out);
 void sdfd_volumes_free_list(sdfd_stored_volume **list, size_t n);
@@ -104,6 +106,27 @@ typedef struct sdfd_bake_request {
 int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
                       const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
                       size_t err_cap);
+
+/* What a server with a store (--data-dir) does besides: keep a finished bake's volume
+ * before its job says done, and record jobs so a restart can tell what it interrupted.
+ * Called outside the lock; any member may be NULL. */
+typedef struct sdfd_volumes_hooks {
+    void *user;
+    /* A bake finished: keep `s` (0), or refuse (err set: the job fails with it). */
+    int (*keep)(void *user, const sdfd_stored_volume *s, char *err, size_t cap);
+    /* A job was accepted (before it can start); returns a token handed to ended. */
+    int (*started)(void *user, const sdfd_job_status *s);
+    /* A job reached done, failed or canceled. */
+    void (*ended)(void *user, const sdfd_job_status *s, int token);
+    /* A finished job was forgotten (DELETE, or pushed out by newer ones). */
+    void (*forgotten)(void *user, const char *id);
+} sdfd_volumes_hooks;
+
+/* Set once, before the first bake. */
+void sdfd_volumes_set_hooks(sdfd_volumes *v, const sdfd_volumes_hooks *hooks);
+/* List a finished job this process did not run (one a restart interrupted); 0, or
+ * SDFD_EBUSY when max_jobs are unfinished. */
+int sdfd_volumes_add_finished(sdfd_volumes *v, const sdfd_job_status *s);
 
 /* A job's status; SDF_ENOTFOUND for an unknown id. */
 int sdfd_volumes_job(sdfd_volumes *v, const char *id, sdfd_job_status *out);

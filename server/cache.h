@@ -1,0 +1,90 @@
+/* cache.h - the meshes and volumes in memory as a cache of the store (--data-dir), and the
+ * one place that reads, writes and checks the store for them.
+ *
+ * Without a store it passes every call straight to the registry and the volumes: memory
+ * only, as if it were not there. With one:
+ * - a lookup of a name not in memory loads it from the store (one load at a time per name;
+ *   concurrent lookups wait for it), so an item another replica wrote is found;
+ * - a lookup of a name in memory checks the sidecar's stamp at most once a second
+ *   (SDFD_CACHE_RECHECK_SECONDS) and reloads or drops the item another replica replaced or
+ *   deleted;
+ * - with a byte budget, the items used least recently are dropped from memory once the
+ *   resident bytes pass it (and reloaded on their next use);
+ * - an item whose files fail their checks is logged and quarantined, never served;
+ * - uploads and deletes go to the store first, and are answered once it has them.
+ * Meshes named by --mesh/--mesh-dir are pinned: in memory only, never checked or dropped.
+ * Thread-safe; a lookup that loads blocks its caller for the load. */
+#ifndef SDFD_CACHE_H
+#define SDFD_CACHE_H
+
+#include <cjson/cJSON.h>
+#include <stddef.h>
+
+#include "metrics.h"
+#include "registry.h"
+#include "store.h"
+#include "volumes.h"
+
+#define SDFD_CACHE_RECHECK_SECONDS 1.0
+
+typedef struct sdfd_cache sdfd_cache;
+
+/* `store` may be NULL (memory only); the cache owns it. max_resident_bytes 0: no budget.
+ * max_triangles: the loader's limit for one mesh. */
+sdfd_cache *sdfd_cache_create(sdfd_store *store, sdfd_registry *registry,
+                              sdfd_volumes *volumes, sdfd_metrics *metrics,
+                              size_t max_resident_bytes, size_t max_triangles);
+void sdfd_cache_destroy(sdfd_cache *c); /* NULL is a no-op */
+int sdfd_cache_has_store(const sdfd_cache *c);
+
+/* A mesh put in the registry at start from the flags: kept in memory, never from the store. */
+void sdfd_cache_pin(sdfd_cache *c, const char *name);
+/* With a store: restore the jobs a restart interrupted (as failed), install the volumes'
+ * hooks, and load what the store holds (while under the budget; the rest when first used). */
+void sdfd_cache_start(sdfd_cache *c);
+
+/* Lookups: a retained reference in *out and 0; SDF_ENOTFOUND; SDFD_EUNAVAILABLE (the store
+ * is unreadable, and the item not in memory); SDF_ELIMIT (it does not fit --max-meshes /
+ * --max-triangles / --max-volumes / --max-volume-bytes). msg says why. */
+int sdfd_cache_mesh(sdfd_cache *c, const char *name, size_t n, sdf_mesh **out, char *msg,
+                    size_t cap);
+int sdfd_cache_volume(sdfd_cache *c, const char *name, size_t n, sdfd_stored_volume **out,
+                      char *msg, size_t cap);
+
+/* Uploads: `mesh` / `volume` taken over; `file` is the bytes as uploaded (a volume: its EXR).
+ * 0 (*replaced set) or an error with msg. */
+int sdfd_cache_put_mesh(sdfd_cache *c, const char *name, sdf_mesh *mesh, const void *file,
+                        size_t n, int *replaced, char *msg, size_t cap);
+int sdfd_cache_put_volume(sdfd_cache *c, const char *name, sdf_volume *volume,
+                          const void *file, size_t n, int *replaced, char *msg, size_t cap);
+/* Deletes: 0, SDF_ENOTFOUND, or SDFD_EUNAVAILABLE. */
+int sdfd_cache_remove_mesh(sdfd_cache *c, const char *name, char *msg, size_t cap);
+int sdfd_cache_remove_volume(sdfd_cache *c, const char *name, char *msg, size_t cap);
+
+/* Listings of everything served (with a store: its sidecars, and the pinned meshes). */
+typedef struct sdfd_mesh_summary {
+    char name[SDFD_MAX_NAME + 1];
+    size_t triangles;
+    int closed;
+    sdf_sign_method sign;
+} sdfd_mesh_summary;
+size_t sdfd_cache_list_meshes(sdfd_cache *c, sdfd_mesh_summary **out); /* free *out */
+/* With a store, the volumes' descriptions (an array to delete); without, NULL. */
+cJSON *sdfd_cache_list_volumes(sdfd_cache *c);
+/* Describe a stored volume as GET /v1/volumes/{name} does (a new object). */
+cJSON *sdfd_cache_volume_json(const sdfd_stored_volume *s);
+
+/* A job no longer (or never) in this process's memory, from its record in the store:
+ * 0 or SDF_ENOTFOUND. */
+int sdfd_cache_job(sdfd_cache *c, const char *id, sdfd_job_status *out);
+
+/* 0 when the store (if any) is readable, else an errno value. */
+int sdfd_cache_probe(sdfd_cache *c);
+
+typedef struct sdfd_cache_stats {
+    size_t resident_bytes, budget;
+    unsigned long long loads, evictions, quarantined;
+} sdfd_cache_stats;
+void sdfd_cache_stats_get(sdfd_cache *c, sdfd_cache_stats *out);
+
+#endif
