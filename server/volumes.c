@@ -150,20 +150,14 @@ int sdfd_volumes_put(sdfd_volumes *v, const char *name, sdf_volume *volume, cons
     s->volume = volume;
     snprintf(s->name, sizeof s->name, "%s", name);
     snprintf(s->mesh, sizeof s->mesh, "%s", mesh);
-    pthread_mutex_lock(&v->lock);
-    *replaced = find(v, name, NULL) >= 0;
-    /* Bytes promised to running bakes stay promised. */
-    v->bytes += v->reserved;
-    int rc = put_locked(v, s);
-    v->bytes -= v->reserved;
-    pthread_mutex_unlock(&v->lock);
-    return rc;
+    return sdfd_volumes_put_stored(v, s, replaced);
 }
 
 int sdfd_volumes_put_stored(sdfd_volumes *v, sdfd_stored_volume *s, int *replaced)
 {
     pthread_mutex_lock(&v->lock);
     *replaced = find(v, s->name, NULL) >= 0;
+    /* Bytes promised to running bakes stay promised. */
     v->bytes += v->reserved;
     int rc = put_locked(v, s);
     v->bytes -= v->reserved;
