@@ -9,9 +9,9 @@
  *    close to the signed distance near it whatever f's scale.
  * 2. Interface: nodes with a neighbour of the other sign are held at the distance to the
  *    plane through phi0's linear crossings on their axes, 1 / sqrt(sum 1 / d_a^2). Eq. (1)
- *    alone lets the zero set drift by a fraction of a cell per re-distancing (its upwind
- *    differences across the interface mix both sides); holding these nodes keeps the zero
- *    set where the samples put it, as Russo and Smereka's subcell fix does.
+ *    alone lets the zero set drift (its upwind differences across the interface mix both
+ *    sides; Russo & Smereka, J. Comput. Phys. 163, 2000); holding these nodes keeps the
+ *    zero set where the samples put it, which their subcell fix converges to.
  * 3. Band: only nodes within ceil(band / hmin) + 2 nodes (Chebyshev) of the interface are
  *    solved; the others are at least (that count) hmin away and are clamped to it. */
 #include "field/redist.h"
