@@ -487,6 +487,103 @@ int sdf_volume_load_exr_file(const char *path, sdf_volume **out, sdf_diag *diag)
 long sdf_volume_describe_json(const sdf_volume *volume, char *dst, size_t cap);
 
 /* ---------------------------------------------------------------------------------------
+ * Field operations (docs/volumes.md, "Field operations"; the rounding paper, docs/
+ * references.md): new volumes from a zero-order FLOAT32 volume holding any scalar field whose
+ * zero set is a surface (negative inside). First-order and PACKED32 volumes are refused
+ * (SDF_EINVAL). sdfd's sign convention throughout: negative inside, so
+ *  REDISTANCE r: the signed distance to the zero set, accurate up to r from it (0: the whole
+ *                grid); the paper's first-order normalization, then re-initialization
+ *  OFFSET r:     phi - r (re-distanced first): the surface moves outward by r (r < 0: inward)
+ *  ROUND r:      erode by r, re-distance, dilate by r (an opening): convex edges and corners
+ *                get radius r; r > 0
+ *  FILLET r:     dilate, re-distance, erode (a closing): concave ones get radius r; r > 0
+ *  SMOOTH r:     ROUND r then FILLET r, its two consecutive dilations merged: three
+ *                re-distancings; r > 0
+ * A result is a signed distance up to sdf_field_options.band from its surface; farther
+ * values keep their sign and are clamped to the distance the last re-distancing computed.
+ * X(NAME, value, name)
+ * ------------------------------------------------------------------------------------- */
+#define SDF_FIELD_OP_MAP(X)                                                               \
+    X(REDISTANCE, 0, "redistance")                                                        \
+    X(OFFSET, 1, "offset")                                                                \
+    X(ROUND, 2, "round")                                                                  \
+    X(FILLET, 3, "fillet")                                                                \
+    X(SMOOTH, 4, "smooth")
+
+typedef enum sdf_field_op_kind {
+#define SDF__FIELD_OP_ENUM(name, value, str) SDF_FIELD_##name = (value),
+    SDF_FIELD_OP_MAP(SDF__FIELD_OP_ENUM)
+#undef SDF__FIELD_OP_ENUM
+} sdf_field_op_kind;
+
+/* "redistance", "offset", "round", "fillet", "smooth" -> kind; SDF_EINVAL otherwise. */
+int sdf_field_op_from_name(const char *name, sdf_field_op_kind *out);
+const char *sdf_field_op_name(sdf_field_op_kind kind); /* "unknown" for others */
+
+/* The re-distancing solver: both solve |grad phi| = 1 with the same upwind (Godunov)
+ * discretization and the same interface nodes (held at the distance of the field's linear
+ * crossing), so they converge to the same values. */
+#define SDF_FIELD_SOLVER_MAP(X)                                                           \
+    X(SUSSMAN, 0, "sussman") /* the paper's eq. (1): Sussman's re-initialization PDE,      \
+                                forward Euler, CFL-bounded steps, smoothed sign */        \
+    X(SWEEP, 1, "sweep")     /* Zhao's fast sweeping: Gauss-Seidel in 8 orders */
+
+typedef enum sdf_field_solver {
+#define SDF__FIELD_SOLVER_ENUM(name, value, str) SDF_FIELD_##name = (value),
+    SDF_FIELD_SOLVER_MAP(SDF__FIELD_SOLVER_ENUM)
+#undef SDF__FIELD_SOLVER_ENUM
+} sdf_field_solver;
+
+/* "sussman", "sweep" -> solver; SDF_EINVAL otherwise. */
+int sdf_field_solver_from_name(const char *name, sdf_field_solver *out);
+const char *sdf_field_solver_name(sdf_field_solver solver); /* "unknown" for others */
+
+typedef struct sdf_field_op {
+    sdf_field_op_kind kind;
+    float r; /* a length in the volume's units; finite, |r| below the grid's diagonal */
+} sdf_field_op;
+
+#define SDF_FIELD_MAX_OPS 64
+
+typedef struct sdf_field_options {
+    sdf_field_solver solver;
+    int iterations;  /* per re-distancing: SUSSMAN time steps, SWEEP rounds of 8 sweeps;
+                        0 = derived (SUSSMAN: enough steps to reach the needed distance;
+                        SWEEP: until no node changes by more than 1e-4 cells) */
+    double band;     /* distance from the result's surface up to which it must be exact;
+                        0 = 4 of the smallest spacing */
+    int threads;     /* 0 = all CPUs; the result does not depend on it */
+    int strict;      /* non-zero: a caveat (below) fails the call with SDF_EINVAL */
+    /* Called from the calling thread between solver steps with the fraction done (0..1];
+     * a non-zero return cancels (SDF_ECANCELED). May be NULL. */
+    int (*progress)(void *user, double fraction);
+    void *user;
+} sdf_field_options;
+
+/* The paper's validity caveats, detected on the volume at hand (sdf_volume_apply_ops). */
+#define SDF_FIELD_CAVEAT_BAND 1u     /* an iterations override left the re-distanced band
+                                        narrower than the following offset needs (SUSSMAN), or
+                                        the sweeps had not converged (SWEEP) */
+#define SDF_FIELD_CAVEAT_GRID 2u     /* a dilation brought the surface, or the band it must be
+                                        exact in, to the grid's boundary: the grid cuts it */
+#define SDF_FIELD_CAVEAT_TOPOLOGY 4u /* an offset changed how many connected parts the solid
+                                        or its outside has: it crossed the medial axis (a part
+                                        thinner than 2r vanished, a gap narrower than 2r
+                                        closed), so the result is not a rounding/filleting */
+
+/* Apply `count` (1..SDF_FIELD_MAX_OPS) operations in order to `in` (a zero-order FLOAT32
+ * volume) into a new zero-order FLOAT32 volume of the same grid (*out). SDF_EINVAL with a
+ * message for a bad option or op, a first-order or packed volume, a field without a zero
+ * crossing, or an operation that leaves no surface (an erosion removing the whole solid);
+ * SDF_ENONFINITE for a NaN or Inf node value; SDF_ECANCELED; SDF_ENOMEM (its scratch: 9
+ * bytes a node, 4 more for SUSSMAN, 4 more for a chain with an offset). On success *caveats (may be NULL) holds the SDF_FIELD_CAVEAT_* bits that
+ * fired and diag's message describes the first of them (code 0; "success" when none); with
+ * opts->strict a caveat is an SDF_EINVAL error instead. */
+int sdf_volume_apply_ops(const sdf_volume *in, const sdf_field_op *ops, size_t count,
+                         const sdf_field_options *opts, sdf_volume **out, unsigned *caveats,
+                         sdf_diag *diag);
+
+/* ---------------------------------------------------------------------------------------
  * NumPy .npy arrays (version 1.0/2.0/3.0 headers; little-endian float32 or float64; C order)
  * ------------------------------------------------------------------------------------- */
 typedef enum sdf_npy_dtype { SDF_NPY_F32 = 4, SDF_NPY_F64 = 8 } sdf_npy_dtype;
