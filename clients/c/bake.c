@@ -41,15 +41,19 @@ static void sleep_ms(long ms)
     nanosleep(&t, NULL);
 }
 
-static void show(int tty, const char *volume, const char *state, double percent, int *last)
+/* A terminal gets one redrawn bar; a pipe gets a line at each tenth of the progress and at
+ * each change of state, so the last line always says how the job ended. */
+static void show(int tty, const char *volume, const char *state, double percent, int *last,
+                 char last_state[16])
 {
     if (tty) {
         int filled = (int)(percent / 5);
         fprintf(stderr, "\rbake %s [%.*s%*s] %5.1f%% %-8s", volume, filled,
                 "####################", 20 - filled, "", percent, state);
         fflush(stderr);
-    } else if ((int)(percent / 10) != *last) {
+    } else if ((int)(percent / 10) != *last || strncmp(state, last_state, 15)) {
         *last = (int)(percent / 10);
+        snprintf(last_state, 16, "%s", state);
         fprintf(stderr, "bake %s: %s %.0f%%\n", volume, state, percent);
     }
 }
@@ -60,6 +64,7 @@ static int wait_job(const sdfq_server *srv, const char *id, const char *volume)
     char path[128];
     snprintf(path, sizeof path, "/v1/jobs/%.100s", id);
     int tty = isatty(STDERR_FILENO), last = -1;
+    char last_state[16] = "";
     for (;;) {
         sdfq_request req = {.method = "GET", .path = path};
         sdfq_reply reply;
@@ -73,7 +78,7 @@ static int wait_job(const sdfq_server *srv, const char *id, const char *volume)
             fprintf(stderr, "sdfq: %s%s: not the job JSON the API documents\n", srv->url, path);
             rc = SDFQ_CONNECT;
         } else {
-            show(tty, volume, state, percent == percent ? percent : 0, &last);
+            show(tty, volume, state, percent == percent ? percent : 0, &last, last_state);
         }
         int end = state && (!strcmp(state, "done") || !strcmp(state, "failed") ||
                             !strcmp(state, "canceled"));
