@@ -18,7 +18,11 @@ int main(void)
         return check_finish("tdf_accuracy");
     const size_t dims[] = {8, 16, 32, 64, 128};
     accuracy_row rows[5];
-    int rc = accuracy_table(mesh, dims, 5, 256, 0, 0, rows);
+    accuracy_grid grid;
+    int rc = accuracy_grid_make(mesh, 256, 1, 0, 0, &grid);
+    if (!rc)
+        rc = accuracy_table(mesh, &grid, dims, 5, 0, 0, rows);
+    accuracy_grid_free(&grid);
     CHECK(rc == 0, "accuracy table: %s", sdf_strerror(rc));
     printf("  dim   zero order   first order   packed    zero/first  packed/first\n");
     for (int r = 0; !rc && r < 5; r++) {
