@@ -4,9 +4,11 @@
  *   tdf-table MESH [REFERENCE_DIM (256)] [MAX_DIM (128)] [THREADS (0 = all)]
  *             [--half H (1)] [--filters]
  * By default the paper's table (nearest-neighbour resampling, 8^3 .. MAX_DIM^3); --filters
- * prints every reconstruction instead (zero order nearest and trilinear, first order nearest,
- * trilinear and hermite; 16^3 .. MAX_DIM^3): mean and max error and the mean angle between
- * the reconstructed and the exact gradient. --half 0.5 measures over a cube of side 1. */
+ * prints every reconstruction instead (zero order nearest and trilinear; first order
+ * nearest, trilinear and hermite; packed32 first order hermite; 16^3 .. MAX_DIM^3): each
+ * one's mean / max absolute error, hermite's mean error over zero-order trilinear's, and the
+ * mean angle in degrees between the reconstructed and the exact gradient. --half 0.5
+ * measures over a cube of side 1. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,15 +30,20 @@ static void print_paper(const accuracy_row *rows, int count)
 
 static void print_filters(const filter_row *rows, int count)
 {
-    static const char *const names[FILTER_COLUMNS] = {
-        "0th nearest", "0th trilinear", "1st nearest", "1st trilinear", "1st hermite"};
-    printf("| dim | filter | mean error | max error | gradient angle (deg) | mean / 0th "
-           "trilinear |\n|---|---|---|---|---|---|\n");
-    for (int r = 0; r < count; r++)
+    printf("| dim | 0th nearest | 0th trilinear | 1st nearest | 1st trilinear | 1st hermite | "
+           "packed32 hermite | hermite / 0th trilinear | angle 0th trilinear | "
+           "angle 1st trilinear | angle 1st hermite |\n"
+           "|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (int r = 0; r < count; r++) {
+        const accuracy_error *e = rows[r].e;
+        printf("| %zu^3 |", rows[r].dim);
         for (int c = 0; c < FILTER_COLUMNS; c++)
-            printf("| %zu^3 | %s | %.6f | %.5f | %.3f | %.3f |\n", rows[r].dim, names[c],
-                   rows[r].e[c].mean, rows[r].e[c].max, rows[r].e[c].angle,
-                   rows[r].e[c].mean / rows[r].e[FILTER_ZERO_TRILINEAR].mean);
+            printf(" %.6f / %.4f |", e[c].mean, e[c].max);
+        printf(" %.3f | %.2f | %.2f | %.2f |\n",
+               e[FILTER_FIRST_HERMITE].mean / e[FILTER_ZERO_TRILINEAR].mean,
+               e[FILTER_ZERO_TRILINEAR].angle, e[FILTER_FIRST_TRILINEAR].angle,
+               e[FILTER_FIRST_HERMITE].angle);
+    }
 }
 
 int main(int argc, char **argv)

@@ -155,19 +155,24 @@ int filter_table(const sdf_mesh *scaled, const accuracy_grid *grid, const size_t
 {
     static const sdf_volume_filter filters[FILTER_COLUMNS] = {
         SDF_VOLUME_NEAREST, SDF_VOLUME_TRILINEAR, SDF_VOLUME_NEAREST, SDF_VOLUME_TRILINEAR,
-        SDF_VOLUME_HERMITE};
+        SDF_VOLUME_HERMITE, SDF_VOLUME_HERMITE};
+    static const int volume_of[FILTER_COLUMNS] = {0, 0, 1, 1, 1, 2};
     int rc = 0;
     for (int r = 0; !rc && r < count; r++) {
         sdf_bake_options o = {.query = {.threads = threads}};
-        sdf_volume *v[2] = {NULL, NULL};
+        sdf_volume *v[3] = {NULL, NULL, NULL};
         rc = accuracy_bake(scaled, grid, dims[r], o, &v[0]);
         o.order = 1;
         if (!rc)
             rc = accuracy_bake(scaled, grid, dims[r], o, &v[1]);
+        o.encoding = SDF_ENCODING_PACKED32;
+        if (!rc)
+            rc = accuracy_bake(scaled, grid, dims[r], o, &v[2]);
         rows[r].dim = dims[r];
         for (int c = 0; !rc && c < FILTER_COLUMNS; c++)
-            rc = accuracy_measure(v[c >= FILTER_FIRST_NEAREST], filters[c], grid, &rows[r].e[c]);
-        sdf_volume_destroy(v[0]), sdf_volume_destroy(v[1]);
+            rc = accuracy_measure(v[volume_of[c]], filters[c], grid, &rows[r].e[c]);
+        for (int i = 0; i < 3; i++)
+            sdf_volume_destroy(v[i]);
     }
     return rc;
 }

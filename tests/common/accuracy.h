@@ -55,9 +55,10 @@ int accuracy_table(const sdf_mesh *scaled, const accuracy_grid *grid, const size
                    int count, int threads, int with_gradient, accuracy_row *rows);
 
 /* Every reconstruction: zero order nearest and trilinear, first order (the default bake,
- * SDF_NORMALIZE_PLANE) nearest, trilinear and hermite. */
+ * SDF_NORMALIZE_PLANE) nearest, trilinear and hermite, and hermite of the first order packed
+ * into 32 bits a node, as many bytes as zero order. */
 enum { FILTER_ZERO_NEAREST, FILTER_ZERO_TRILINEAR, FILTER_FIRST_NEAREST, FILTER_FIRST_TRILINEAR,
-       FILTER_FIRST_HERMITE, FILTER_COLUMNS };
+       FILTER_FIRST_HERMITE, FILTER_PACKED_HERMITE, FILTER_COLUMNS };
 typedef struct filter_row {
     size_t dim;
     accuracy_error e[FILTER_COLUMNS];
