@@ -72,7 +72,8 @@ static double limited_value(const sdf__hermite_axis ax[3], const double planes[6
     double v = bn->value[self], len = sqrt(pl[0] * pl[0] + pl[1] * pl[1] + pl[2] * pl[2]);
     if (!(len > 0))
         return v;
-    double own = fabs(v) / len, best2 = own * own, at[3] = {ax[0].pos[x], ax[1].pos[y], ax[2].pos[z]};
+    double own = fabs(v) / len, best2 = own * own;
+    const double at[3] = {ax[0].pos[x], ax[1].pos[y], ax[2].pos[z]};
     for (int dz = -1; dz <= 1; dz++)
         for (int dy = -1; dy <= 1; dy++)
             for (int dx = -1; dx <= 1; dx++) {

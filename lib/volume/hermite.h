@@ -5,10 +5,11 @@
  * interpolation of plain node values (both err by h^2 f'' / 8, with opposite signs), so it
  * wastes the gradients a first-order node stores. Here every node contributes its value and
  * gradient from its plane, and its cross derivatives f_xy, f_xz, f_yz, f_xyz from central
- * differences of its neighbours' gradients: a C1 field that reproduces cubics from exact
- * data. Before that, a node's value is limited by its neighbours' closest points: the
- * distance to the surface is at most the distance to any surface point, and a neighbour's
- * plane names one, its foot x_m - P_m(x_m) n_m / |n_m|^2. Step 6 of the TDF paper's
+ * differences of its neighbours' gradients: a C1 field that reproduces a cubic from its
+ * exact tangent planes wherever those differences are central (one node in from the
+ * volume's faces). Before that, a node's value is limited by its neighbours' closest
+ * points: the distance to the surface is at most the distance to any surface point, and a
+ * neighbour's plane names one, its foot x_m - P_m(x_m) n_m / |n_m|^2. Step 6 of the TDF paper's
  * Algorithm 1 (SDF_NORMALIZE_PLANE) inflates a node's value where its fitting grid straddles
  * the medial axis, by up to 1 / |fitted gradient|; the limit pulls such a value back to the
  * nearest neighbour's foot, and leaves every value a plane field or a clean fit gives alone.

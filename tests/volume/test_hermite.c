@@ -3,7 +3,8 @@
  *  - its gradient is the derivative of its value: central differences in double precision
  *    of sdf__hermite_eval on random planes, inside and outside the volume, with and without
  *    the node-value limit; and through sdf_volume_eval on a baked volume;
- *  - a plane field (one plane at every node, unit or not) is reproduced to float rounding;
+ *  - a plane field (one plane at every node, unit or not) is reproduced to float rounding,
+ *    and a cubic's exact tangent planes reproduce it inside the volume;
  *  - C0 and C1 across cell faces: values and gradients one float step either side of a face
  *    agree, where the same probe finds trilinear first order's gradient jumping;
  *  - the limit lowers an inflated node value to its neighbour's foot and never raises one;
@@ -93,6 +94,62 @@ static void test_gradient_is_derivative(void)
     free(g.planes);
 }
 
+/* A random cubic polynomial in x, y, z (all 20 monomials of degree <= 3) and its gradient. */
+static double cubic(const double c[20], const double p[3], double grad[3])
+{
+    double value = 0;
+    int m = 0;
+    grad[0] = grad[1] = grad[2] = 0;
+    for (int i = 0; i <= 3; i++)
+        for (int j = 0; i + j <= 3; j++)
+            for (int k = 0; i + j + k <= 3; k++, m++) {
+                value += c[m] * pow(p[0], i) * pow(p[1], j) * pow(p[2], k);
+                grad[0] += i ? c[m] * i * pow(p[0], i - 1) * pow(p[1], j) * pow(p[2], k) : 0;
+                grad[1] += j ? c[m] * j * pow(p[0], i) * pow(p[1], j - 1) * pow(p[2], k) : 0;
+                grad[2] += k ? c[m] * k * pow(p[0], i) * pow(p[1], j) * pow(p[2], k - 1) : 0;
+            }
+    return value;
+}
+
+/* Exact tangent planes of a cubic at every node: without the limit, cells whose 4 x 4 x 4
+ * block lies inside the volume (central differences there give exact cross derivatives)
+ * reproduce the cubic and its gradient. */
+static void test_cubic(void)
+{
+    sdf_rng rng = {17};
+    grid g = random_grid(&rng);
+    CHECK(g.planes != NULL, "memory");
+    double c[20];
+    for (int m = 0; m < 20; m++)
+        c[m] = sdf_rng_normal(&rng);
+    size_t n = g.dims[0] * g.dims[1] * g.dims[2];
+    for (size_t i = 0; g.planes && i < n; i++) {
+        size_t ijk[3] = {i % g.dims[0], i / g.dims[0] % g.dims[1], i / g.dims[0] / g.dims[1]};
+        double x[3], grad[3];
+        for (int a = 0; a < 3; a++)
+            x[a] = g.origin[a] + (double)ijk[a] * g.spacing[a];
+        double v = cubic(c, x, grad);
+        for (int a = 0; a < 3; a++)
+            g.planes[i][a] = grad[a];
+        g.planes[i][3] = v - (grad[0] * x[0] + grad[1] * x[1] + grad[2] * x[2]);
+    }
+    size_t bad = 0;
+    for (int i = 0; g.planes && i < 2000; i++) {
+        double p[3], value, grad[3], want[3];
+        for (int a = 0; a < 3; a++) /* cells 1 .. dims - 3 */
+            p[a] = g.origin[a] +
+                   (1 + (double)(g.dims[a] - 3) * sdf_rng_uniform(&rng)) * g.spacing[a];
+        hermite_at(&g, p, 0, &value, grad);
+        double exact = cubic(c, p, want);
+        int off = fabs(value - exact) > 1e-9 * (1 + fabs(exact));
+        for (int a = 0; a < 3; a++)
+            off |= fabs(grad[a] - want[a]) > 1e-9 * (1 + fabs(want[a]));
+        bad += (size_t)off;
+    }
+    CHECK(bad == 0, "%zu of 2000 points off the cubic", bad);
+    free(g.planes);
+}
+
 /* One plane at every node, through the public API: values and gradients reproduced. */
 static void test_plane_field(const double plane[4], sdf_tdf_normalize normalize)
 {
@@ -172,7 +229,8 @@ static void face_jumps(const sdf_volume *v, sdf_volume_filter filter, double *va
         /* an inner face: node 1 .. dims - 2 along the axis */
         double face = in.spacing[axis] * (double)(1 + sdf_rng_next(&rng) % (in.dims[axis] - 2));
         memcpy(p + 3, p, 12);
-        p[axis] = nextafterf((float)face, -INFINITY), p[3 + axis] = nextafterf((float)face, INFINITY);
+        p[axis] = nextafterf((float)face, -INFINITY);
+        p[3 + axis] = nextafterf((float)face, INFINITY);
         float val[2], g[6];
         sdf_volume_eval(v, p, 2, filter, val, g, NULL);
         *value_jump = fmax(*value_jump, fabs((double)val[0] - val[1]));
@@ -279,7 +337,8 @@ static void test_baked(const sdf_volume *v, const char *name)
         float p[3], value, g[3];
         for (int a = 0; a < 3; a++) {
             double cell = floor(sdf_rng_uniform(&rng) * (double)(in.dims[a] - 1));
-            p[a] = (float)(in.origin[a] + (cell + 0.1 + 0.8 * sdf_rng_uniform(&rng)) * in.spacing[a]);
+            double t = 0.1 + 0.8 * sdf_rng_uniform(&rng);
+            p[a] = (float)(in.origin[a] + (cell + t) * in.spacing[a]);
         }
         sdf_volume_eval(v, p, 1, SDF_VOLUME_HERMITE, &value, g, NULL);
         for (int a = 0; a < 3; a++) {
@@ -310,6 +369,7 @@ static void test_baked(const sdf_volume *v, const char *name)
 int main(void)
 {
     test_gradient_is_derivative();
+    test_cubic();
     const double unit[4] = {0.48, -0.6, 0.64, 0.35}, steep[4] = {0.6, -1.2, 0.9, -0.7};
     test_plane_field(unit, SDF_NORMALIZE_PLANE);
     test_plane_field(steep, SDF_NORMALIZE_PLANE);
