@@ -343,12 +343,12 @@ enum MHD_Result sdfd_http_volume_query(request *req)
         return sdfd_http_error(req, SDF_EINVAL, "unknown volume mode '%s' (value, gradient)", mode);
     sdfd_volume_query *vq = &req->volume_query;
     *vq = (sdfd_volume_query){.volume_name = req->name, .volume_name_len = strlen(req->name),
-                              .interpolation = SDF_VOLUME_TRILINEAR, .gradient = gradient,
+                              .interpolation = SDF_VOLUME_DEFAULT, .gradient = gradient,
                               .points = req->points_buf, .count = count,
                               .done = volume_query_done, .user = req};
     if (interp && sdf_volume_filter_from_name(interp, &vq->interpolation))
-        return sdfd_http_error(req, SDF_EINVAL, "unknown interpolation '%s' (trilinear, nearest)",
-                               interp);
+        return sdfd_http_error(req, SDF_EINVAL, "unknown interpolation '%s' (default, trilinear, "
+                               "nearest, hermite)", interp);
     if ((rc = sdfd_volume_query_admit(srv, vq, err, sizeof err)))
         return sdfd_http_error(req, rc, "%s", err);
     req->points = count;

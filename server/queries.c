@@ -66,8 +66,19 @@ void sdfd_query_release(sdfd_query *q)
 
 int sdfd_volume_query_admit(sdfd_server *srv, sdfd_volume_query *vq, char *msg, size_t cap)
 {
-    return sdfd_cache_volume(srv->cache, vq->volume_name, vq->volume_name_len, &vq->stored, msg,
-                             cap);
+    int rc = sdfd_cache_volume(srv->cache, vq->volume_name, vq->volume_name_len, &vq->stored,
+                               msg, cap);
+    if (rc || vq->interpolation != SDF_VOLUME_HERMITE)
+        return rc;
+    sdf_volume_info info;
+    sdf_volume_get_info(vq->stored->volume, &info);
+    if (info.order == 1)
+        return 0;
+    snprintf(msg, cap, "interpolation 'hermite' needs a first-order volume; '%s' is zero order "
+             "(trilinear or nearest)", vq->stored->name);
+    sdfd_volume_release(vq->stored);
+    vq->stored = NULL;
+    return SDF_EINVAL;
 }
 
 static void *evaluate(void *arg)

@@ -18,7 +18,9 @@
     X(SDF_SIGN_WINDING, "winding") X(SDF_SIGN_RAYCAST, "raycast") X(SDF_SIGN_NONE, "none")
 #define ENCODING_NAMES(X) X(SDF_ENCODING_FLOAT32, "float32") X(SDF_ENCODING_PACKED32, "packed32")
 #define NORMALIZE_NAMES(X) X(SDF_NORMALIZE_PLANE, "plane") X(SDF_NORMALIZE_GRADIENT, "gradient")
-#define FILTER_NAMES(X) X(SDF_VOLUME_TRILINEAR, "trilinear") X(SDF_VOLUME_NEAREST, "nearest")
+#define FILTER_NAMES(X)                                                                      \
+    X(SDF_VOLUME_DEFAULT, "default") X(SDF_VOLUME_NEAREST, "nearest")                        \
+    X(SDF_VOLUME_TRILINEAR, "trilinear") X(SDF_VOLUME_HERMITE, "hermite")
 #define FILE_NAMES(X) X(SDF_VOLUME_EXR, "exr") X(SDF_VOLUME_NPY, "npy") X(SDF_VOLUME_RAW, "raw")
 
 #define NAME_ROW(value, name) {value, name},

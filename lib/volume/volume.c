@@ -1,6 +1,7 @@
 /* volume.c - the sdf_volume handle and its evaluation: nearest and trilinear reconstruction
- * of zero-order grids and first-order Taylor distance fields (TDF paper, sec. 3-4), with the
- * exact gradient of what is reconstructed. */
+ * of zero-order grids and first-order Taylor distance fields (TDF paper, sec. 3-4), and the
+ * tricubic Hermite reconstruction of first-order ones (volume/hermite.h), with the exact
+ * gradient of what is reconstructed. */
 #include "volume/volume.h"
 
 #include <math.h>
@@ -11,6 +12,7 @@
 #include "core/bigmem.h"
 #include "core/diag.h"
 #include "core/parallel.h"
+#include "volume/hermite.h"
 #include "volume/pack.h"
 
 #define EVAL_CHUNK 16384 /* points per work item: a few milliseconds */
@@ -255,6 +257,22 @@ static void eval_trilinear(const sdf_volume *v, const double p[3], double *value
     grad[0] = g[0], grad[1] = g[1], grad[2] = g[2];
 }
 
+/* Tricubic Hermite (order 1): the planes of the 4 x 4 x 4 nodes around the point's cell. */
+static void eval_hermite(const sdf_volume *v, const double p[3], double *value, double grad[3])
+{
+    const sdf_volume_info *in = &v->info;
+    sdf__hermite_axis ax[3];
+    for (int a = 0; a < 3; a++)
+        sdf__hermite_locate(p[a], in->origin[a], in->spacing[a], in->dims[a], &ax[a]);
+    double planes[64][4];
+    for (int z = 0; z < 4; z++)
+        for (int y = 0; y < 4; y++)
+            for (int x = 0; x < 4; x++)
+                node_plane(v, ax[0].node[x], ax[1].node[y], ax[2].node[z],
+                           planes[(z * 4 + y) * 4 + x]);
+    sdf__hermite_eval(ax, planes, in->normalize == SDF_NORMALIZE_PLANE, value, grad);
+}
+
 typedef struct eval_batch {
     const sdf_volume *volume;
     const float *points;
@@ -271,6 +289,8 @@ static void eval_range(void *ctx, size_t begin, size_t end, int worker)
         double p[3] = {q[0], q[1], q[2]}, val, g[3];
         if (b->filter == SDF_VOLUME_NEAREST)
             eval_nearest(b->volume, p, &val, g);
+        else if (b->filter == SDF_VOLUME_HERMITE)
+            eval_hermite(b->volume, p, &val, g);
         else
             eval_trilinear(b->volume, p, &val, g);
         b->value[i] = (float)val;
@@ -284,8 +304,11 @@ int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
                     sdf_volume_filter filter, float *value, float *gradient, size_t *bad_index)
 {
     if (!volume || (!points && count) || (!value && count) ||
-        (filter != SDF_VOLUME_TRILINEAR && filter != SDF_VOLUME_NEAREST))
+        (unsigned)filter > SDF_VOLUME_HERMITE ||
+        (filter == SDF_VOLUME_HERMITE && volume->info.order != 1))
         return SDF_EINVAL;
+    if (filter == SDF_VOLUME_DEFAULT)
+        filter = volume->info.order == 1 ? SDF_VOLUME_HERMITE : SDF_VOLUME_TRILINEAR;
     for (size_t i = 0; i < 3 * count; i++)
         if (!isfinite(points[i])) {
             if (bad_index)

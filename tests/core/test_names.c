@@ -29,7 +29,7 @@ PAIR(format, sdf_format, 5, sdf_format_from_name, sdf_format_name)
 PAIR(sign, sdf_sign_method, 5, sdf_sign_from_name, sdf_sign_name)
 PAIR(encoding, sdf_volume_encoding, 2, sdf_encoding_from_name, sdf_encoding_name)
 PAIR(normalize, sdf_tdf_normalize, 2, sdf_normalize_from_name, sdf_normalize_name)
-PAIR(filter, sdf_volume_filter, 2, sdf_volume_filter_from_name, sdf_volume_filter_name)
+PAIR(filter, sdf_volume_filter, 4, sdf_volume_filter_from_name, sdf_volume_filter_name)
 PAIR(file, sdf_volume_file, 3, sdf_volume_file_from_name, sdf_volume_file_name)
 
 static void check_pair(const pair *p)
@@ -85,7 +85,7 @@ int main(void)
         {"sign", 5, sign_from, sign_to},
         {"encoding", 2, encoding_from, encoding_to},
         {"normalize", 2, normalize_from, normalize_to},
-        {"filter", 2, filter_from, filter_to},
+        {"filter", 4, filter_from, filter_to},
         {"file", 3, file_from, file_to},
     };
     for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++)

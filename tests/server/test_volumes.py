@@ -104,6 +104,26 @@ class Volumes(unittest.TestCase):
                         if gradient:
                             self.assertTrue(same_bits(r["gradient"], ref[:, 1:4]),
                                             f"{name} {interpolation} {form}: gradient")
+            # First order: hermite over HTTP, and the default (no interpolation given) is
+            # hermite there, trilinear on zero-order volumes; hermite on zero order is refused.
+            default = "hermite" if meta["order"] == 1 else "trilinear"
+            ref = library_eval(exr, points, default, True)
+            body = json.dumps({"points": points.tolist(), "mode": "gradient"}).encode()
+            got = json.loads(urllib.request.urlopen(urllib.request.Request(
+                f"{self.server.url}/v1/volumes/{name}/query", body,
+                {"Content-Type": "application/json"}), timeout=60).read())
+            self.assertTrue(same_bits(np.array(got["distance"], np.float32), ref[:, 0]),
+                            f"{name}: the default interpolation is not {default}")
+            if meta["order"] == 1:
+                for form in ("json", "octet", "npy"):
+                    r = self.c.query_volume(name, points, "hermite", True, form)
+                    self.assertTrue(same_bits(r["distance"], ref[:, 0]) and
+                                    same_bits(r["gradient"], ref[:, 1:4]), f"{name} hermite {form}")
+            else:
+                with self.assertRaises(sdfclient.SdfError) as e:
+                    self.c.query_volume(name, points[:1], "hermite")
+                self.assertEqual(e.exception.status, 422)
+                self.assertIn("needs a first-order volume", e.exception.message)
         array = self.c.download("v1", "npy")
         self.assertEqual((array.dtype, array.shape), (np.float32, (18, 18, 18, 4)))
         # The nearest node's value at a node, through the query route.
@@ -173,7 +193,8 @@ class Volumes(unittest.TestCase):
         far = [[3e38, 3e38, 3e38], [0, 0, 0]]
         octet = self.c.query_volume("far1", far, form="octet")["distance"]
         self.assertTrue(np.isinf(octet[0]) and np.isfinite(octet[1]), octet)
-        text = self.c._request("POST", "/v1/volumes/far1/query", json.dumps({"points": far}),
+        text = self.c._request("POST", "/v1/volumes/far1/query",
+                               json.dumps({"points": far, "interpolation": "trilinear"}),
                                {"Content-Type": "application/json"})[1]
         self.assertTrue(text.startswith(b'{"distance":[null,'), text)
         self.assertEqual(np.float32(json.loads(text)["distance"][1]), octet[1])

@@ -220,7 +220,10 @@ static void test_normalization_accuracy(const sdf_mesh *loaded)
     sdf_mesh *mesh = normalized_mesh(loaded);
     const size_t dims[] = {16, 32};
     accuracy_row rows[2];
-    CHECK(mesh && accuracy_table(mesh, dims, 2, 64, 0, 1, rows) == 0, "accuracy table");
+    accuracy_grid grid = {0};
+    CHECK(mesh && accuracy_grid_make(mesh, 64, 1, 0, 0, &grid) == 0, "reference grid");
+    CHECK(mesh && accuracy_table(mesh, &grid, dims, 2, 0, 1, rows) == 0, "accuracy table");
+    accuracy_grid_free(&grid);
     for (int r = 0; mesh && r < 2; r++)
         CHECK(rows[r].first_gradient < rows[r].first, "%zu^3: gradient-normalised %g, plane %g",
               rows[r].dim, rows[r].first_gradient, rows[r].first);

@@ -433,13 +433,19 @@ const void *sdf_volume_data(const sdf_volume *volume); /* the node words, see ab
 size_t sdf_volume_data_bytes(const sdf_volume *volume);
 
 typedef enum sdf_volume_filter {
-    SDF_VOLUME_TRILINEAR = 0, /* order 0: trilinear interpolation of the node values; order 1:
+    SDF_VOLUME_DEFAULT = 0,   /* the most accurate reconstruction of the volume's order:
+                                 TRILINEAR for order 0, HERMITE for order 1 */
+    SDF_VOLUME_NEAREST,       /* the nearest node's value (order 0) or plane at the point */
+    SDF_VOLUME_TRILINEAR,     /* order 0: trilinear interpolation of the node values; order 1:
                                  of the 8 nodes' coefficients, the plane then evaluated at
                                  the point (exact in the power basis, sec. 3) */
-    SDF_VOLUME_NEAREST,       /* the nearest node's value (order 0) or plane at the point */
+    SDF_VOLUME_HERMITE,       /* order 1 only: tricubic Hermite of the nodes' values and
+                                 gradients, cross derivatives from central differences of
+                                 the neighbours' gradients, each value limited by the
+                                 neighbours' closest points (docs/volumes.md); C1 */
 } sdf_volume_filter;
 
-/* "trilinear", "nearest" -> filter (as sdf_format_from_name). */
+/* "default", "nearest", "trilinear", "hermite" -> filter (as sdf_format_from_name). */
 int sdf_volume_filter_from_name(const char *name, sdf_volume_filter *out);
 const char *sdf_volume_filter_name(sdf_volume_filter filter);
 
@@ -447,9 +453,11 @@ const char *sdf_volume_filter_name(sdf_volume_filter filter);
  * gradient[3 count] - the exact gradient of the reconstructed field (zero order nearest:
  * central differences of the node values around the nearest node). Outside the volume the
  * node lookup clamps to the boundary (as a GPU sampler's clamp-to-edge): zero order
- * continues the boundary values, first order extends the boundary planes linearly.
- * SDF_ENONFINITE (and *bad_index) for a NaN or Inf coordinate, before writing anything.
- * Large batches run on all CPUs (the same floats either way). Thread-safe. */
+ * continues the boundary values, first order extends the boundary planes (hermite: the
+ * boundary's values and derivatives) linearly. SDF_EINVAL for an unknown filter or HERMITE
+ * on a zero-order volume; SDF_ENONFINITE (and *bad_index) for a NaN or Inf coordinate,
+ * before writing anything. Large batches run on all CPUs (the same floats either way).
+ * Thread-safe. */
 int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
                     sdf_volume_filter filter, float *value, float *gradient, size_t *bad_index);
 
