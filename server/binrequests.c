@@ -35,14 +35,16 @@ static void query_done(sdfd_job *job)
     int status = job->status ? sdfd_http_status(job->status) : 200;
     size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
                  4 * sdf_proto_words(job->mode) * job->count;
+    int refused = bj->query.refused; /* by admission, after a load */
     if (job->status) {
-        sdfd_bin_send_error(c, bj->request_id, job->status, job->message);
+        sdfd_bin_send_error(c, bj->request_id, job->status,
+                            refused ? bj->query.refusal : job->message);
         free(bj->frame);
     } else {
         sdfd_bin_enqueue(c, bj->frame, len);
     }
-    sdfd_bin_account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", status, job->count, bj->start,
-                     bj->bytes_in, job->status ? 0 : len);
+    sdfd_bin_account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", status, refused ? 0 : job->count,
+                     bj->start, bj->bytes_in, job->status ? 0 : len);
     sdfd_query_release(&bj->query);
     free(bj->points);
     free(bj);
@@ -88,14 +90,6 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         REFUSE(SDFD_EUNAVAILABLE, unavailable);
         return;
     }
-    sdfd_query q = {.mesh_name = d.name, .mesh_name_len = d.name_len,
-                    .smoothing_name = d.volume_name, .smoothing_name_len = d.volume_name_len,
-                    .job = {.mode = d.mode, .sign = d.sign, .filter = d.filter,
-                            .count = d.count}};
-    if ((rc = sdfd_query_admit(srv, &q, message, sizeof message))) {
-        REFUSE(rc, message);
-        return;
-    }
     bin_job *bj = calloc(1, sizeof *bj);
     size_t words = (size_t)sdf_proto_words(d.mode) * d.count;
     if (bj) {
@@ -106,26 +100,25 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
         if (bj)
             free(bj->frame), free(bj->points);
         free(bj);
-        sdfd_query_release(&q);
         REFUSE(SDF_ENOMEM, "out of memory");
         return;
     }
     memcpy(bj->points, d.points, 12 * (size_t)d.count); /* the input buffer will move on */
     size_t head = sdf_proto_encode_result_head(bj->frame, id, d.mode, d.count);
-    bj->query = q;
-    bj->query.job.points = bj->points;
-    bj->query.job.words = (uint32_t *)(bj->frame + head);
-    bj->query.job.done = query_done;
-    bj->query.job.user = bj;
+    bj->query = (sdfd_query){
+        .mesh_name = d.name, .mesh_name_len = d.name_len, .smoothing_name = d.volume_name,
+        .smoothing_name_len = d.volume_name_len,
+        .job = {.mode = d.mode, .sign = d.sign, .filter = d.filter, .points = bj->points,
+                .count = d.count, .words = (uint32_t *)(bj->frame + head), .done = query_done,
+                .user = bj}};
     bj->b = b;
     bj->conn = c;
     bj->request_id = id;
     bj->start = start;
     bj->bytes_in = bytes_in;
-    count_in_flight(b, c);
-    if ((rc = sdfd_query_submit(srv, &bj->query, message, sizeof message))) {
+    count_in_flight(b, c); /* admission may end on a loader's thread */
+    if ((rc = sdfd_query_admit(srv, &bj->query, message, sizeof message))) {
         REFUSE(rc, message);
-        sdfd_query_release(&bj->query);
         free(bj->frame), free(bj->points), free(bj);
         sdfd_bin_request_finished(b, c);
     }
@@ -160,8 +153,9 @@ static void volume_query_done(sdfd_volume_query *vq)
         sdfd_bin_enqueue(c, vj->frame, len);
     }
     sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY",
-                     vq->status ? sdfd_http_status(vq->status) : 200, vq->count, vj->start,
-                     vj->bytes_in, vq->status ? 0 : len);
+                     vq->status ? sdfd_http_status(vq->status) : 200,
+                     vq->refused ? 0 : vq->count, vj->start, vj->bytes_in,
+                     vq->status ? 0 : len);
     sdfd_volume_query_release(vq);
     free(vj->points);
     free(vj);
@@ -186,13 +180,6 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
         REFUSE(rc ? rc : SDFD_EUNAVAILABLE, unavailable);
         return;
     }
-    sdfd_volume_query q = {.volume_name = d.name, .volume_name_len = d.name_len,
-                           .interpolation = d.interpolation, .gradient = d.gradient,
-                           .count = d.count};
-    if ((rc = sdfd_volume_query_admit(srv, &q, message, sizeof message))) {
-        REFUSE(rc, message);
-        return;
-    }
     volume_job *vj = calloc(1, sizeof *vj);
     if (vj) {
         vj->frame = malloc(SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
@@ -203,27 +190,24 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
         if (vj)
             free(vj->frame), free(vj->points);
         free(vj);
-        sdfd_volume_query_release(&q);
         REFUSE(SDF_ENOMEM, "out of memory");
         return;
     }
     memcpy(vj->points, d.points, 12 * (size_t)d.count); /* the input buffer moves on */
     size_t head = sdf_proto_encode_result_head(
         vj->frame, id, d.gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, d.count);
-    vj->query = q;
-    vj->query.points = vj->points;
-    vj->query.words = (uint32_t *)(vj->frame + head);
-    vj->query.done = volume_query_done;
-    vj->query.user = vj;
+    vj->query = (sdfd_volume_query){
+        .volume_name = d.name, .volume_name_len = d.name_len, .interpolation = d.interpolation,
+        .gradient = d.gradient, .points = vj->points, .count = d.count,
+        .words = (uint32_t *)(vj->frame + head), .done = volume_query_done, .user = vj};
     vj->b = b;
     vj->conn = c;
     vj->request_id = id;
     vj->start = start;
     vj->bytes_in = bytes_in;
-    count_in_flight(b, c);
-    if ((rc = sdfd_volume_query_start(srv, &vj->query, message, sizeof message))) {
+    count_in_flight(b, c); /* admission may end on a loader's thread */
+    if ((rc = sdfd_volume_query_admit(srv, &vj->query, message, sizeof message))) {
         REFUSE(rc, message);
-        sdfd_volume_query_release(&vj->query);
         free(vj->frame), free(vj->points), free(vj);
         sdfd_bin_request_finished(b, c);
     }

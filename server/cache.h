@@ -3,29 +3,30 @@
  *
  * Without a store it passes every call straight to the registry and the volumes: memory
  * only, as if it were not there. With one:
- * - a lookup of a name not in memory loads it from the store (one load at a time per name;
- *   concurrent lookups wait for it), so an item another replica wrote is found;
+ * - a lookup of a name not in memory loads it from the store on a loader thread (loader.h:
+ *   one load at a time per name; the lookups of that name wait for it), so an item another
+ *   replica wrote is found;
  * - a lookup of a name in memory checks the sidecar's stamp at most once a second
- *   (SDFD_CACHE_RECHECK_SECONDS) and reloads or drops the item another replica replaced or
- *   deleted;
+ *   (SDFD_LOADER_RECHECK_SECONDS) and drops the item another replica deleted, or reloads the
+ *   one it replaced (serving the old version until the new one is in);
  * - with a byte budget, the items used least recently are dropped from memory once the
  *   resident bytes pass it (and reloaded on their next use);
  * - an item whose files fail their checks is logged and quarantined, never served;
  * - uploads and deletes go to the store first, and are answered once it has them.
  * Meshes named by --mesh/--mesh-dir are pinned: in memory only, never checked or dropped.
- * Thread-safe; a lookup that loads blocks its caller for the load. */
+ * Thread-safe. sdfd_cache_lookup never waits for a load (the query handlers use it, on the
+ * front ends' threads); sdfd_cache_mesh and sdfd_cache_volume wait on their caller's. */
 #ifndef SDFD_CACHE_H
 #define SDFD_CACHE_H
 
 #include <cjson/cJSON.h>
 #include <stddef.h>
 
+#include "loader.h"
 #include "metrics.h"
 #include "registry.h"
 #include "store.h"
 #include "volumes.h"
-
-#define SDFD_CACHE_RECHECK_SECONDS 1.0
 
 typedef struct sdfd_cache sdfd_cache;
 
@@ -35,6 +36,9 @@ sdfd_cache *sdfd_cache_create(sdfd_store *store, sdfd_registry *registry,
                               sdfd_volumes *volumes, sdfd_metrics *metrics,
                               size_t max_resident_bytes, size_t max_triangles);
 void sdfd_cache_destroy(sdfd_cache *c); /* NULL is a no-op */
+/* Shutdown: finish the loads under way and answer their lookups (before the batcher they
+ * submit to stops); lookups that would load answer SDFD_EUNAVAILABLE from then on. */
+void sdfd_cache_stop_loads(sdfd_cache *c);
 int sdfd_cache_has_store(const sdfd_cache *c);
 
 /* A mesh put in the registry at start from the flags: kept in memory, never from the store. */
@@ -45,11 +49,17 @@ void sdfd_cache_start(sdfd_cache *c);
 
 /* Lookups: a retained reference in *out and 0; SDF_ENOTFOUND; SDFD_EUNAVAILABLE (the store
  * is unreadable, and the item not in memory); SDF_ELIMIT (it does not fit --max-meshes /
- * --max-triangles / --max-volumes / --max-volume-bytes). msg says why. */
+ * --max-triangles / --max-volumes / --max-volume-bytes). msg says why. A load of the item
+ * runs on a loader thread while the caller waits. */
 int sdfd_cache_mesh(sdfd_cache *c, const char *name, size_t n, sdf_mesh **out, char *msg,
                     size_t cap);
 int sdfd_cache_volume(sdfd_cache *c, const char *name, size_t n, sdfd_stored_volume **out,
                       char *msg, size_t cap);
+
+/* The same lookup without waiting: l->kind and l->name set, 0 (l->item), an error
+ * (l->message), or SDFD_LOOKUP_PENDING and l->done will be called with the answer
+ * (sdfd_loader_lookup). */
+int sdfd_cache_lookup(sdfd_cache *c, sdfd_lookup *l);
 
 /* Uploads: `mesh` / `volume` taken over; `file` is the bytes as uploaded (a volume: its EXR).
  * 0 (*replaced set) or an error with msg. */

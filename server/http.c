@@ -197,6 +197,10 @@ static const char *url_argument(void *conn, const char *name)
 
 static enum MHD_Result reply_query(request *req)
 {
+    if (req->query.refused) { /* after a load */
+        req->points = 0;
+        return sdfd_http_error(req, req->query.job.status, "%s", req->query.refusal);
+    }
     if (req->query.job.status)
         return sdfd_http_error(req, req->query.job.status, "query failed: %s",
                                req->query.job.message);
@@ -246,16 +250,15 @@ static enum MHD_Result start_query(request *req)
         if (volume_name[0])
             q->smoothing_name = volume_name, q->smoothing_name_len = strlen(volume_name);
     }
-    if ((rc = sdfd_query_admit(srv, q, err, sizeof err)))
-        return sdfd_http_error(req, rc, "%s", err);
-    req->points = count;
     req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
     if (sdfd_reply_init(&req->reply, req->reply_form, m, count))
         return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
     q->job.words = req->reply.words;
-    sdfd_http_wait(req, reply_query);
-    if ((rc = sdfd_query_submit(srv, q, err, sizeof err))) {
+    req->points = count;
+    sdfd_http_wait(req, reply_query); /* admission may end on a loader's thread */
+    if ((rc = sdfd_query_admit(srv, q, err, sizeof err))) {
         sdfd_http_unwait(req);
+        req->points = 0;
         return sdfd_http_error(req, rc, "%s", err);
     }
     return MHD_YES;

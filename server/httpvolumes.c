@@ -319,6 +319,8 @@ static void volume_query_done(sdfd_volume_query *vq)
 
 static enum MHD_Result reply_volume_query(request *req)
 {
+    if (req->volume_query.refused) /* after a load */
+        req->points = 0;
     if (req->volume_query.status)
         return sdfd_http_error(req, req->volume_query.status, "%s", req->volume_query.message);
     return sdfd_http_results(req);
@@ -349,17 +351,16 @@ enum MHD_Result sdfd_http_volume_query(request *req)
     if (interp && sdf_volume_filter_from_name(interp, &vq->interpolation))
         return sdfd_http_error(req, SDF_EINVAL, "unknown interpolation '%s' (default, trilinear, "
                                "nearest, hermite)", interp);
-    if ((rc = sdfd_volume_query_admit(srv, vq, err, sizeof err)))
-        return sdfd_http_error(req, rc, "%s", err);
-    req->points = count;
     req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
     if (sdfd_reply_init(&req->reply, req->reply_form,
                         gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count))
         return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
     vq->words = req->reply.words;
-    sdfd_http_wait(req, reply_volume_query);
-    if ((rc = sdfd_volume_query_start(srv, vq, err, sizeof err))) {
+    req->points = count;
+    sdfd_http_wait(req, reply_volume_query); /* admission may end on a loader's thread */
+    if ((rc = sdfd_volume_query_admit(srv, vq, err, sizeof err))) {
         sdfd_http_unwait(req);
+        req->points = 0;
         return sdfd_http_error(req, rc, "%s", err);
     }
     return MHD_YES;

@@ -160,6 +160,9 @@ int main(int argc, char **argv)
     sdfd_http_quiesce(http);
     sdfd_binary_quiesce(bin);
     drain(&srv);
+    /* Loads still under way (if the drain timed out) end, and the queries that waited for
+     * them reach the batcher, before it stops. */
+    sdfd_cache_stop_loads(srv.cache);
     /* The batcher finishes any job still queued (if the drain timed out) while both front
      * ends can still take the replies; only then do they close. */
     sdfd_batcher_destroy(srv.batcher);

@@ -248,7 +248,8 @@ class Sdfq(unittest.TestCase):
         r = self.sdfq("query-volume", "cv", self.path("v.npy"), "--gradient", "-o",
                       self.path("vout.npy"))
         self.assertOk(r)
-        _, data = self.http._request("POST", "/v1/volumes/cv/query?mode=gradient",
+        _, data = self.http._request("POST",
+                                     "/v1/volumes/cv/query?mode=gradient&interpolation=trilinear",
                                      pts.tobytes(), {"Content-Type": "application/octet-stream"})
         self.assertEqual(np.load(self.path("vout.npy")).tobytes(), data)
         for fmt in ("exr", "npy", "raw"):

@@ -3,7 +3,8 @@ serves the same bits; SIGKILL at random moments of uploads and bakes leaves ever
 (the old or the new version); two replicas on one directory see each other's writes; a byte
 budget keeps memory bounded while the answers stay exact; damaged store content is
 quarantined and the rest served; a bake interrupted by SIGKILL reads as failed afterwards;
-a store that becomes unreadable turns /readyz to 503."""
+a store that becomes unreadable turns /readyz to 503; a long load from the store stalls no
+other client, on either protocol."""
 import http.client
 import io
 import json
@@ -11,6 +12,7 @@ import os
 import random
 import shutil
 import signal
+import subprocess
 import sys
 import tempfile
 import threading
@@ -23,6 +25,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients"
 import sdfclient  # noqa: E402
 from harness import DATA, Server, metric, same_bits, wait_until  # noqa: E402
 
+SUBDIVIDE = os.path.join(os.path.dirname(__file__), "..", "bench", "subdivide.py")
 RNG = np.random.default_rng(7)
 POINTS = (RNG.random((256, 3), dtype=np.float32) * 2.4 - 1.2).astype(np.float32)
 
@@ -333,6 +336,92 @@ class Store(unittest.TestCase):
                     "not a file sdfd writes"):
             self.assertIn(why, reasons)
         self.assertIn("EXR", reasons)
+
+    # ---- loads ----
+
+    def test_load_does_not_stall(self):
+        """While a replica loads a 1.4M-triangle mesh on demand, its other clients' queries of
+        a resident mesh, over HTTP (new connections, so both I/O threads are probed) and the
+        binary protocol, are answered in well under the load's time; the queries that waited
+        for the load then get the answer the writer gives, a refusal included."""
+        work = tempfile.mkdtemp(prefix="sdfd-big-")
+        self.addCleanup(shutil.rmtree, work, True)
+        big = os.path.join(work, "big.off")
+        subprocess.run([sys.executable, SUBDIVIDE, os.path.join(DATA, "refined_elephant.off"),
+                        big, "--times", "2"], check=True, stdout=subprocess.DEVNULL)
+        a, ca = self.start()
+        b, cb = self.start()  # never looks "big" up before the test's queries
+        cb.upload("small", os.path.join(DATA, "fandisk.off"))
+        small = distances(cb, "small")
+        self.assertEqual(put(a.ports["http"], "/v1/meshes/big", read(big), timeout=600)[0], 201)
+        want = distances(ca, "big")
+        bad = POINTS.copy()
+        bad[3, 1] = np.nan
+        with self.assertRaises(sdfclient.SdfError) as e:
+            ca.query("big", bad)
+        refusal = (e.exception.status, e.exception.code, e.exception.message)
+
+        def query(proto, points):
+            if proto == "http":
+                c = sdfclient.Client(b.url)
+                try:
+                    return c.query("big" if points is not None else "small",
+                                   POINTS if points is None else points, form="octet")["distance"]
+                finally:
+                    c.close()
+            c = sdfclient.BinaryClient("127.0.0.1", b.bin_port)
+            try:
+                return c.query("big" if points is not None else "small",
+                               POINTS if points is None else points)["distance"]
+            finally:
+                c.close()
+
+        answers = {}  # (proto, i) -> (answer or SdfError, when it came)
+
+        def wait_for_load(key, points):
+            try:
+                r = query(key[0], points)
+            except sdfclient.SdfError as err:
+                r = err
+            answers[key] = (r, time.perf_counter())
+
+        loading = [threading.Thread(target=wait_for_load, args=(("http", i), POINTS))
+                   for i in range(4)]
+        loading += [threading.Thread(target=wait_for_load, args=(("binary", 0), POINTS)),
+                    threading.Thread(target=wait_for_load, args=(("http", "bad"), bad)),
+                    threading.Thread(target=wait_for_load, args=(("binary", "bad"), bad))]
+        probes = {"http": [], "binary": []}  # (started, seconds, right answer)
+
+        def probe(proto):
+            while any(t.is_alive() for t in loading):
+                t0 = time.perf_counter()
+                r = query(proto, None)
+                probes[proto].append((t0, time.perf_counter() - t0, same_bits(r, small)))
+
+        sent = time.perf_counter()
+        for t in loading:
+            t.start()
+        probing = [threading.Thread(target=probe, args=(p,)) for p in probes]
+        for t in probing:
+            t.start()
+        for t in loading + probing:
+            t.join(600)
+        load = metric(cb.metrics(), "sdfd_store_load_seconds_sum")
+        self.assertEqual(metric(cb.metrics(), "sdfd_store_loads_total"), 1)
+        first = min(when for _, when in answers.values())
+        self.assertGreater(first - sent, load / 2)  # they did wait for the load
+        for key, (r, _) in answers.items():
+            if key[1] == "bad":
+                self.assertIsInstance(r, sdfclient.SdfError, key)
+                self.assertEqual((r.status, r.code, r.message), refusal, key)
+            else:
+                self.assertTrue(not isinstance(r, Exception) and same_bits(r, want), (key, r))
+        for proto, done in probes.items():
+            during = [p for p in done if p[0] + p[1] < first]
+            self.assertGreaterEqual(len(during), 3, (proto, load, done[:5]))
+            self.assertTrue(all(ok for _, _, ok in done), proto)
+            slowest = max(seconds for _, seconds, _ in during)
+            self.assertLess(slowest, load / 4, (proto, slowest, load))
 
     # ---- jobs ----
 

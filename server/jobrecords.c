@@ -1,0 +1,131 @@
+/* jobrecords.c - bake jobs' records in the store (jobrecords.h): a job's status as one JSON
+ * object, written when the job is accepted and when it ends, read back by any replica. */
+#include "jobrecords.h"
+
+#include <cjson/cJSON.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "errors.h"
+#include "log.h"
+
+static char *job_record(const sdfd_job_status *s)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "id", s->id);
+    cJSON_AddStringToObject(o, "state", sdfd_job_state_name(s->state));
+    cJSON_AddStringToObject(o, "mesh", s->mesh);
+    cJSON_AddStringToObject(o, "volume", s->volume);
+    cJSON_AddNumberToObject(o, "seconds", s->seconds);
+    cJSON_AddNumberToObject(o, "error", s->error);
+    cJSON_AddStringToObject(o, "message", s->message);
+    char *text = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return text;
+}
+
+/* A record back into a status; 0 or -1. */
+static int parse_job(const char *text, sdfd_job_status *out)
+{
+    cJSON *o = cJSON_Parse(text);
+    const cJSON *id = cJSON_GetObjectItemCaseSensitive(o, "id"),
+                *state = cJSON_GetObjectItemCaseSensitive(o, "state"),
+                *mesh = cJSON_GetObjectItemCaseSensitive(o, "mesh"),
+                *volume = cJSON_GetObjectItemCaseSensitive(o, "volume"),
+                *seconds = cJSON_GetObjectItemCaseSensitive(o, "seconds"),
+                *error = cJSON_GetObjectItemCaseSensitive(o, "error"),
+                *message = cJSON_GetObjectItemCaseSensitive(o, "message");
+    int ok = cJSON_IsString(id) && cJSON_IsString(state) && cJSON_IsString(mesh) &&
+             cJSON_IsString(volume) && cJSON_IsNumber(seconds) && cJSON_IsNumber(error) &&
+             cJSON_IsString(message);
+    memset(out, 0, sizeof *out);
+    int found = -1;
+    for (int s = SDFD_JOB_QUEUED; ok && s <= SDFD_JOB_CANCELED; s++)
+        if (!strcmp(state->valuestring, sdfd_job_state_name((sdfd_job_state)s)))
+            found = s;
+    ok = ok && found >= 0;
+    if (ok) {
+        out->state = (sdfd_job_state)found;
+        snprintf(out->id, sizeof out->id, "%s", id->valuestring);
+        snprintf(out->mesh, sizeof out->mesh, "%s", mesh->valuestring);
+        snprintf(out->volume, sizeof out->volume, "%s", volume->valuestring);
+        snprintf(out->message, sizeof out->message, "%s", message->valuestring);
+        out->seconds = seconds->valuedouble;
+        out->error = (int)error->valuedouble;
+        out->progress = out->state == SDFD_JOB_DONE;
+    }
+    cJSON_Delete(o);
+    return ok ? 0 : -1;
+}
+
+int sdfd_jobrecords_started(sdfd_store *store, const sdfd_job_status *s)
+{
+    int fd = sdfd_store_lock_job(store, s->id); /* before the record says queued */
+    char *text = job_record(s);
+    if (text)
+        sdfd_store_write_job(store, s->id, text);
+    free(text);
+    return fd;
+}
+
+void sdfd_jobrecords_ended(sdfd_store *store, const sdfd_job_status *s, int token)
+{
+    char *text = job_record(s);
+    if (text)
+        sdfd_store_write_job(store, s->id, text);
+    free(text);
+    sdfd_store_unlock_job(store, s->id, token);
+}
+
+void sdfd_jobrecords_forgotten(sdfd_store *store, const char *id)
+{
+    sdfd_store_remove_job(store, id);
+}
+
+int sdfd_jobrecords_read(sdfd_store *store, const char *id, sdfd_job_status *out)
+{
+    char *text = sdfd_store_read_job(store, id);
+    int rc = text && !parse_job(text, out) && !strcmp(out->id, id) ? 0 : SDF_ENOTFOUND;
+    free(text);
+    return rc;
+}
+
+void sdfd_jobrecords_restore(sdfd_store *store, sdfd_volumes *volumes)
+{
+    char(*ids)[64];
+    size_t n = sdfd_store_job_ids(store, &ids);
+    for (size_t i = 0; i < n; i++) {
+        sdfd_job_status s;
+        char *text = sdfd_store_read_job(store, ids[i]);
+        int ok = text && !parse_job(text, &s) && !strcmp(s.id, ids[i]);
+        free(text);
+        if (!ok || (s.state != SDFD_JOB_QUEUED && s.state != SDFD_JOB_RUNNING))
+            continue;
+        int fd = sdfd_store_lock_job(store, s.id);
+        if (fd < 0)
+            continue; /* a live replica runs it */
+        /* Its owner may have ended it (record, then unlock) since the record was read. */
+        text = sdfd_store_read_job(store, ids[i]);
+        ok = text && !parse_job(text, &s) && !strcmp(s.id, ids[i]) &&
+             (s.state == SDFD_JOB_QUEUED || s.state == SDFD_JOB_RUNNING);
+        free(text);
+        if (!ok) {
+            sdfd_store_unlock_job(store, ids[i], fd);
+            continue;
+        }
+        s.state = SDFD_JOB_FAILED;
+        s.error = SDFD_EUNAVAILABLE;
+        snprintf(s.message, sizeof s.message, "interrupted: the sdfd running this bake stopped "
+                 "(a restart or a crash) before it finished; bake again");
+        text = job_record(&s);
+        if (text)
+            sdfd_store_write_job(store, s.id, text);
+        free(text);
+        sdfd_store_unlock_job(store, s.id, fd);
+        sdfd_volumes_add_finished(volumes, &s);
+        sdfd_log("warn", "bake_interrupted", "job %s (%s -> %s) was interrupted by a restart",
+                 s.id, s.mesh, s.volume);
+    }
+    free(ids);
+}
