@@ -395,7 +395,7 @@ sys.exit(any(np.asarray(a[k]).tobytes() != np.asarray(b[k]).tobytes() for k in b
         --reference "http://127.0.0.1:$ref" --meshes "" --volumes fandisk-sdf --workers 2 \
         --seconds 1 --requests 8
     kube_play --down "$yaml"
-    check "the pod's volume is removed" podman volume rm "$name-data"
+    check "the pod's volume is removed" bash -c "podman volume rm $name-data >/dev/null"
     kill "$refpid"
     wait "$refpid"
     rm -rf "$yaml" "$meshes"
