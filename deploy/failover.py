@@ -1,18 +1,28 @@
 #!/usr/bin/env python3
-"""failover.py - sdfd replicas behind HAProxy or nginx lose no request when one dies.
+"""failover.py - sdfd replicas on one shared --data-dir behind HAProxy or nginx lose no request
+when one dies.
 
-Starts N replicas of the built sdfd on loopback (each serving the same mesh directory), a
-reference sdfd, and the load balancer from deploy/lb/ (its own file, with only the addresses
-and the routing mode changed), then runs deploy/loadgen.py's load through the balancer. Mid-run
-one replica is SIGKILLed and started again, and later another is SIGTERMed (it drains and
-exits). It passes when:
+Starts N replicas of the built sdfd on loopback, sharing one --data-dir (with a
+--max-resident-bytes below what they are given, so that items leave memory and come back from
+the store), a reference sdfd that loads the same mesh files itself (no store), and the load
+balancer from deploy/lb/ (its own file, with only the addresses and the routing mode changed).
+Through the balancer it uploads the meshes (PUT) and bakes a volume, and checks with
+deploy/shared_store.py that every replica answers them bit-equal to the reference and sees a
+replacement and a deletion within the staleness window. Then it runs deploy/loadgen.py's load
+of the meshes and the volume through the balancer. Mid-run one replica is SIGKILLed and started
+again, and later another is SIGTERMed (it drains and exits). It passes when:
+  - the shared-store checks pass;
   - no request failed and every answer is byte-equal to the reference's;
   - the load ran across both events, the SIGTERMed replica exited 0 and logged its drain;
+  - every name the killed replica served before its kill was served by another replica after;
   - a query on the binary port through the balancer answers the same bits as the reference;
-  - with --mode hash: before the kill each mesh was served by exactly one replica, and every
-    query of a mesh was served by that replica whenever it was up (outside the time from its
-    kill to a few seconds after it was ready again, and after its SIGTERM) -- read from the
-    replicas' own request logs, whose point counts name the mesh (loadgen.py).
+  - with --mode leastconn: the replicas evicted items (each sees every name, and the budget is
+    under their sum);
+  - with --mode hash: during the load before the kill each name was served by exactly one
+    replica, which loaded at most each of its names once (its share fits the budget), and
+    every query of a name was served by that replica whenever it was up (outside the time from
+    its kill to a few seconds after it was ready again, and after its SIGTERM) -- read from the
+    replicas' own request logs, whose point counts name the mesh or volume (loadgen.py).
 
     python3 deploy/failover.py --sdfd build/server/sdfd --lb haproxy --mode hash
 
@@ -41,10 +51,14 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
 import loadgen  # noqa: E402
 import sdfclient  # noqa: E402
+import shared_store  # noqa: E402
 
 MESH_FILES = ("cow.off", "knot1.off", "fandisk.off", "elephant-with-holes.off", "spider.obj",
               "bear.off")
 RECOVERY_SECONDS = 4.0  # a restarted replica is back in rotation by then (checks, fail_timeout)
+TOKEN = "failover-token"
+BAKED = ("fandisk", "fandisk-sdf", 40)  # mesh, volume, resolution
+QUERY_ROUTES = ("/v1/meshes/{name}/query", "/v1/volumes/{name}/query")
 
 
 def free_ports(n):
@@ -79,8 +93,8 @@ def wait_for(what, test, seconds=30):
 class Sdfd:
     """One sdfd process on loopback; each start writes a new log (name.N.log)."""
 
-    def __init__(self, binary, name, mesh_dir, tmp):
-        self.binary, self.name, self.mesh_dir, self.tmp = binary, name, mesh_dir, tmp
+    def __init__(self, binary, name, args, tmp):
+        self.binary, self.name, self.args, self.tmp = binary, name, args, tmp
         self.http_port, self.bin_port = free_ports(2)
         self.proc, self.logs = None, []
 
@@ -94,8 +108,8 @@ class Sdfd:
         with open(log, "wb") as f:
             self.proc = subprocess.Popen(
                 [self.binary, "--http", f"127.0.0.1:{self.http_port}",
-                 "--bin", f"127.0.0.1:{self.bin_port}", "--mesh-dir", self.mesh_dir,
-                 "--threads", "1", "--drain-seconds", "10"],
+                 "--bin", f"127.0.0.1:{self.bin_port}", "--token", TOKEN,
+                 "--threads", "1", "--drain-seconds", "10", *self.args],
                 stdout=subprocess.DEVNULL, stderr=f)
         wait_for(f"{self.name} ready", lambda: get(self.url + "/readyz") == 200)
         return time.time()
@@ -105,8 +119,9 @@ class Sdfd:
             self.proc.kill()
             self.proc.wait()
 
-    def served(self):
-        """(ts, points) of every query answered 200, over all of this replica's logs."""
+    def served(self, since):
+        """(ts, points) of every HTTP query answered 200 from `since` on, over all of this
+        replica's logs."""
         out = []
         for log in self.logs:
             for line in open(log, errors="replace"):
@@ -115,9 +130,24 @@ class Sdfd:
                 except ValueError:
                     continue
                 if (e.get("event") == "request" and e.get("status") == 200
-                        and e.get("route") == "/v1/meshes/{name}/query"):
+                        and e.get("route") in QUERY_ROUTES and e["ts"] >= since):
                     out.append((e["ts"], e["points"]))
         return out
+
+    def metric(self, name):
+        """A counter or gauge from /metrics, as an int."""
+        with urllib.request.urlopen(self.url + "/metrics", timeout=5) as r:
+            for line in r.read().decode().splitlines():
+                if line.split(" ")[0] == name:
+                    return int(float(line.split(" ")[1]))
+        raise RuntimeError(f"{self.name}: no {name} in /metrics")
+
+    def peak_rss(self):
+        """The process's peak resident memory (VmHWM), bytes."""
+        for line in open(f"/proc/{self.proc.pid}/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+        return 0
 
 
 def start_haproxy(tmp, mode, replicas, http_port, bin_port):
@@ -192,106 +222,187 @@ def lb_retries(tmp, lb):
     return n
 
 
-def owners(replicas, n_meshes, until):
-    """mesh index -> set of replica indexes that answered its queries before `until`."""
-    seen = {m: set() for m in range(n_meshes)}
+def owners(replicas, n_names, since, until):
+    """name index -> set of replica indexes that answered its queries in [since, until)."""
+    seen = {m: set() for m in range(n_names)}
     for i, r in enumerate(replicas):
-        for ts, points in r.served():
+        for ts, points in r.served(since):
             if ts < until:
-                seen[points % n_meshes].add(i)
+                seen[points % n_names].add(i)
     return seen
 
 
-def check_hash(replicas, n_meshes, t_kill, windows):
-    """The hashing checks; returns a list of problems (empty when it holds)."""
+def check_hash(replicas, n_names, t0, t_kill, t_term, windows):
+    """The hashing checks; returns a list of problems (empty when it holds) and the owners."""
     problems = []
-    before = owners(replicas, n_meshes, t_kill)
+    before = owners(replicas, n_names, t0, t_kill)
     owner = {}
     for m, s in before.items():
         if len(s) != 1:
-            problems.append(f"mesh {m}: served by replicas {sorted(s)} before the kill")
+            problems.append(f"name {m}: served by replicas {sorted(s)} before the kill")
         else:
             owner[m] = next(iter(s))
     for i, r in enumerate(replicas):
-        for ts, points in r.served():
-            m = points % n_meshes
+        for ts, points in r.served(t0):
+            m = points % n_names
             o = owner.get(m)
             if o is None or o == i:
                 continue
             if not any(a <= ts <= b for a, b in windows[o]):
-                problems.append(f"mesh {m} (owner {o}) served by replica {i} at {ts:.3f}, "
-                                f"while {o} was up")
+                problems.append(f"name {m} (owner {o}) served by replica {i} at "
+                                f"+{ts - t0:.3f} s (kill +{t_kill - t0:.3f}, term "
+                                f"+{t_term - t0:.3f}), while {o} was up")
     return problems, owner
 
 
-def choose_targets(replicas, n_meshes, mode):
-    """(kill, term): in hash mode two replicas that each own a mesh."""
+def check_survivors(replicas, n_names, t0, t_kill, kill):
+    """Every name the killed replica served before its kill, another served after it."""
+    before = owners(replicas, n_names, t0, t_kill)
+    after = owners(replicas, n_names, t_kill, float("inf"))
+    return [f"name {m}: no replica but the killed one served it after the kill"
+            for m in range(n_names) if kill in before[m] and not after[m] - {kill}]
+
+
+def choose_targets(replicas, n_names, mode, t0):
+    """(kill, term): in hash mode two replicas that each own a name."""
     if mode != "hash":
         return 0, 1
     counts = {}
-    for m, s in owners(replicas, n_meshes, float("inf")).items():
+    for m, s in owners(replicas, n_names, t0, float("inf")).items():
         for i in s:
             counts[i] = counts.get(i, 0) + 1
     owning = sorted(counts, key=lambda i: -counts[i])
     if len(owning) < 2:
-        raise RuntimeError(f"hashing put every mesh on one replica ({counts}); use more meshes")
+        raise RuntimeError(f"hashing put every name on one replica ({counts}); use more meshes")
     return owning[0], owning[1]
 
 
+def prepare(a, tmp, ref):
+    """The reference bakes the volume; the budget the replicas get: under the sum of what
+    they will be given (every mesh and the volume), over it less any one item."""
+    job, state = shared_store.bake(ref.url, BAKED[0], BAKED[1], BAKED[2], TOKEN)
+    if state["state"] != "done":
+        raise RuntimeError(f"the reference's bake: {state}")
+    meshes = [os.path.splitext(f)[0] for f in MESH_FILES]
+    sizes = shared_store.resident_bytes(ref.url, meshes, [BAKED[1]])
+    budget = a.max_resident_bytes
+    if budget < 0:
+        budget = sum(sizes.values()) - min(sizes.values()) // 2
+    return sizes, budget
+
+
+def upload_and_check(a, lb_url, replicas, ref, mesh_dir):
+    """Uploads and bakes through the balancer, then the shared-store checks; report, problems."""
+    problems = []
+    for f in MESH_FILES:
+        status, body = shared_store.upload(lb_url, os.path.splitext(f)[0],
+                                           os.path.join(mesh_dir, f), TOKEN)
+        if status not in (200, 201):
+            problems.append(f"PUT {f} through the balancer: {status} {body[:120]!r}")
+    job, state = shared_store.bake(lb_url, BAKED[0], BAKED[1], BAKED[2], TOKEN)
+    if state["state"] != "done":
+        return {}, problems + [f"the bake through the balancer: {state}"]
+    urls = [r.url for r in replicas]
+    problems += shared_store.check_answers(lb_url, urls, ref.url, BAKED[0], BAKED[1], job,
+                                           a.rounds)
+    times, more = shared_store.check_staleness(
+        lb_url, urls, ref.url, TOKEN, (os.path.join(mesh_dir, "cow.off"), "cow"),
+        (os.path.join(mesh_dir, "knot1.off"), "knot1"))
+    return times, problems + more
+
+
+def store_counts(replicas):
+    return [(r.metric("sdfd_store_loads_total"), r.metric("sdfd_store_evictions_total"))
+            for r in replicas]
+
+
+def run_load(a, lb_url, replicas, reqs, n):
+    """The load with its two events; a dict of what happened when."""
+    ev = {}
+    load = threading.Thread(target=lambda: ev.setdefault(
+        "stats", loadgen.run(lb_url, reqs, a.workers, a.seconds, a.max_requests)))
+    ev["counts0"] = store_counts(replicas)
+    ev["t0"] = time.time()
+    load.start()
+    time.sleep(a.seconds * 0.2)
+    ev["kill"], ev["term"] = kill, term = choose_targets(replicas, n, a.mode, ev["t0"])
+    ev["counts1"] = store_counts(replicas)
+    ev["t_kill"] = time.time()
+    replicas[kill].proc.send_signal(signal.SIGKILL)
+    replicas[kill].proc.wait()
+    time.sleep(0.5)
+    ev["t_ready"] = replicas[kill].start()
+    time.sleep(max(0.0, ev["t0"] + a.seconds * 0.55 - time.time()))
+    ev["t_term"] = time.time()
+    replicas[term].proc.send_signal(signal.SIGTERM)
+    ev["term_rc"] = replicas[term].proc.wait(timeout=30)
+    ev["t_exit"] = time.time()
+    load.join()
+    ev["t_end"] = time.time()
+    ev["rss"] = [r.peak_rss() if r.proc.poll() is None else None for r in replicas]
+    return ev
+
+
+def store_checks(a, replicas, ev, n, owner, budget):
+    """The budget's checks; (loads, evictions) per replica from load start to kill, problems."""
+    moved = [(l1 - l0, e1 - e0) for (l0, e0), (l1, e1) in zip(ev["counts0"], ev["counts1"])]
+    problems = []
+    if budget and a.mode == "leastconn" and not any(e for _, e in moved):
+        problems.append(f"no replica evicted anything under a budget of {budget} B")
+    if budget and a.mode == "hash":
+        for i in range(len(replicas)):
+            mine = sum(1 for o in owner.values() if o == i)
+            if moved[i][0] > mine:
+                problems.append(f"replica {i} loaded {moved[i][0]} items from the store during "
+                                f"the load, more than the {mine} names it owns")
+    return moved, problems
+
+
 def scenario(a, tmp):
-    mesh_dir = os.path.join(tmp, "meshes")
+    mesh_dir, data_dir = os.path.join(tmp, "meshes"), os.path.join(tmp, "data")
     os.mkdir(mesh_dir)
     for f in MESH_FILES:
         shutil.copy(os.path.join(ROOT, "tests", "data", f), mesh_dir)
-    meshes = [os.path.splitext(f)[0] for f in MESH_FILES]
-    n = len(meshes)
-    ref = Sdfd(a.sdfd, "reference", mesh_dir, tmp)
-    replicas = [Sdfd(a.sdfd, f"replica{i}", mesh_dir, tmp) for i in range(a.replicas)]
-    procs = [ref] + replicas
-    lb = None
+    names = [os.path.splitext(f)[0] for f in MESH_FILES] + [BAKED[1]]
+    n = len(names)
+    ref = Sdfd(a.sdfd, "reference", ["--mesh-dir", mesh_dir], tmp)
+    procs, lb = [ref], None
     try:
-        for p in procs:
+        ref.start()
+        sizes, budget = prepare(a, tmp, ref)
+        replicas = [Sdfd(a.sdfd, f"replica{i}", ["--data-dir", data_dir,
+                                                 "--max-resident-bytes", str(budget)], tmp)
+                    for i in range(a.replicas)]
+        procs += replicas
+        for p in replicas:
             p.start()
         http_port, bin_port = free_ports(2)
         start = start_haproxy if a.lb == "haproxy" else start_nginx
         lb = start(tmp, a.mode, replicas, http_port, bin_port)
         lb_url = f"http://127.0.0.1:{http_port}"
         wait_for("the balancer", lambda: get(lb_url + "/v1/meshes") == 200)
-        binary_ok = check_binary(bin_port, ref, meshes[0])
-        reqs = loadgen.make_requests(meshes, a.requests)
+        staleness, store_problems = upload_and_check(a, lb_url, replicas, ref, mesh_dir)
+        binary_ok = check_binary(bin_port, ref, names[0])
+        reqs = loadgen.make_requests(names[:-1], a.requests, volumes=names[-1:])
         loadgen.fetch_expected(ref.url, reqs)
-
-        result = {}
-        load = threading.Thread(target=lambda: result.setdefault(
-            "stats", loadgen.run(lb_url, reqs, a.workers, a.seconds, a.max_requests)))
-        t0 = time.time()
-        load.start()
-        time.sleep(a.seconds * 0.2)
-        kill, term = choose_targets(replicas, n, a.mode)
-        t_kill = time.time()
-        replicas[kill].proc.send_signal(signal.SIGKILL)
-        replicas[kill].proc.wait()
-        time.sleep(0.5)
-        t_ready = replicas[kill].start()
-        time.sleep(max(0.0, t0 + a.seconds * 0.55 - time.time()))
-        t_term = time.time()
-        replicas[term].proc.send_signal(signal.SIGTERM)
-        term_rc = replicas[term].proc.wait(timeout=30)
-        t_exit = time.time()
-        load.join()
-        t_end = time.time()
-        stats = result["stats"]
+        ev = run_load(a, lb_url, replicas, reqs, n)
     finally:
         if lb:
             lb.terminate()
             lb.wait(timeout=10)
         for p in procs:
             p.stop()
+    return judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness,
+                 store_problems, binary_ok)
 
+
+def judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness, store_problems, binary_ok):
+    """The report and its problems, from what scenario() saw and the logs."""
+    stats, kill, term = ev["stats"], ev["kill"], ev["term"]
+    t0, t_kill, t_term = ev["t0"], ev["t_kill"], ev["t_term"]
     drain_log = open(replicas[term].logs[-1]).read()
-    retried = lb_retries(tmp, a.lb)
     windows = {i: [] for i in range(len(replicas))}
-    windows[kill].append((t_kill, t_ready + RECOVERY_SECONDS))
+    windows[kill].append((t_kill, ev["t_ready"] + RECOVERY_SECONDS))
     windows[term].append((t_term, float("inf")))
     done = stats.done_at
     report = {
@@ -299,26 +410,34 @@ def scenario(a, tmp):
         **{k: v for k, v in stats.summary().items()},
         "ok_after_kill": sum(t > t_kill for t in done),
         "ok_after_term": sum(t > t_term for t in done),
-        "killed": kill, "restart_ready_s": round(t_ready - t_kill, 3),
-        "terminated": term, "term_exit": term_rc, "drain_s": round(t_exit - t_term, 3),
-        "binary_equal": binary_ok, "lb_retried": retried, "seconds": round(t_end - t0, 1),
+        "killed": kill, "restart_ready_s": round(ev["t_ready"] - t_kill, 3),
+        "terminated": term, "term_exit": ev["term_rc"],
+        "drain_s": round(ev["t_exit"] - t_term, 3), "binary_equal": binary_ok,
+        "lb_retried": lb_retries(tmp, a.lb), "seconds": round(ev["t_end"] - t0, 1),
+        "items_bytes": sum(sizes.values()), "budget_bytes": budget, **staleness,
     }
-    problems = []
+    problems = list(store_problems)
     if stats.failed or stats.mismatched:
         problems.append(f"{stats.failed} failed, {stats.mismatched} mismatched requests")
     if stats.ok < 100 or report["ok_after_kill"] == 0 or report["ok_after_term"] == 0:
         problems.append("the load did not run across both events")
-    if t_end < t_exit:
+    if ev["t_end"] < ev["t_exit"]:
         problems.append("the load ended before the drain")
-    if term_rc != 0 or "SIGTERM: draining" not in drain_log or '"stopped"' not in drain_log:
-        problems.append(f"the SIGTERMed replica exited {term_rc} or did not log its drain")
+    if ev["term_rc"] != 0 or "SIGTERM: draining" not in drain_log or '"stopped"' not in drain_log:
+        problems.append(f"the SIGTERMed replica exited {ev['term_rc']} or did not log its drain")
     if not binary_ok:
         problems.append("a binary query through the balancer differed from the reference")
+    problems += check_survivors(replicas, n, t0, t_kill, kill)
+    owner = {}
     if a.mode == "hash":
-        hp, owner = check_hash(replicas, n, t_kill, windows)
+        hp, owner = check_hash(replicas, n, t0, t_kill, t_term, windows)
         problems += hp
-        report["owner"] = {meshes[m]: o for m, o in owner.items()}
-    served = [len(r.served()) for r in replicas]
+        report["owner"] = {names[m]: o for m, o in owner.items()}
+    moved, sp = store_checks(a, replicas, ev, n, owner, budget)
+    problems += sp
+    report["loads_evictions_before_kill"] = moved
+    report["peak_rss_mb"] = [round(r / 2**20, 1) if r else None for r in ev["rss"]]
+    served = [len(r.served(t0)) for r in replicas]
     report["served_per_replica"] = served
     if min(served) == 0:
         problems.append(f"a replica served nothing: {served}")
@@ -336,17 +455,21 @@ def main():
     ap.add_argument("--workers", type=int, default=6)
     ap.add_argument("--requests", type=int, default=48)
     ap.add_argument("--max-requests", type=int, default=20000)
-    ap.add_argument("--keep", action="store_true", help="keep the logs' folder")
+    ap.add_argument("--max-resident-bytes", type=int, default=-1,
+                    help="the replicas' budget (default: under the sum of the items, over it "
+                    "less any one; 0: none)")
+    ap.add_argument("--rounds", type=int, default=12,
+                    help="queries of the baked mesh and volume through the balancer")
+    ap.add_argument("--keep", action="store_true",
+                    help="keep the logs' folder (kept anyway when the test fails)")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="sdfd-failover-")
-    try:
-        report = scenario(a, tmp)
-    finally:
-        if not a.keep:
-            shutil.rmtree(tmp, ignore_errors=True)
+    report = scenario(a, tmp)
     print(json.dumps(report))
-    if a.keep:
+    if a.keep or report["problems"]:
         print(f"logs: {tmp}")
+    else:
+        shutil.rmtree(tmp, ignore_errors=True)
     if report["problems"]:
         print("FAIL: " + "; ".join(report["problems"]))
         return 1

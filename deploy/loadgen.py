@@ -2,15 +2,16 @@
 """loadgen.py - a bounded, concurrent load of sdfd queries whose every answer is checked.
 
 It makes a fixed set of query requests (JSON and octet-stream bodies, 1 to ~65000 points, modes
-signed, distance, gradient and closest, spread over the given meshes), asks a reference sdfd
+signed, distance, gradient and closest on meshes, value and gradient on volumes, spread over the
+given meshes and volumes), asks a reference sdfd
 for each answer once, then sends them at random from several threads at once to a target (a
 load balancer, say) and compares every answer with the reference's byte for byte. A request
 fails if it raises, or answers anything but 200, or answers other bytes. The load stops by
 itself after --seconds or --max-requests, whichever comes first.
 
-The number of points of a request for mesh i of M is i modulo M, so a replica's request log
-(its "points" field) tells which mesh each query it served was for (deploy/failover.py uses
-that to check hashing).
+The names are numbered meshes first, then volumes; the number of points of a request for name i
+of M is i modulo M, so a replica's request log (its "points" field) tells which mesh or volume
+each query it served was for (deploy/failover.py uses that to check hashing).
 
     python3 deploy/loadgen.py --target http://127.0.0.1:8080 --reference http://127.0.0.1:18080 \\
         --meshes demo --workers 6 --seconds 10
@@ -29,6 +30,7 @@ import urllib.parse
 import numpy as np
 
 MODES = ("signed", "distance", "gradient", "closest")
+VOLUME_MODES = ("value", "gradient")
 JSON_MAX_POINTS = 3000  # a JSON body of this many points is ~150 KB
 OCTET_MAX_POINTS = 65000  # 780 KB: under haproxy's and nginx's 1 MiB retry buffers
 
@@ -36,8 +38,8 @@ OCTET_MAX_POINTS = 65000  # 780 KB: under haproxy's and nginx's 1 MiB retry buff
 class Request:
     """One query: where it goes, its body and headers."""
 
-    def __init__(self, mesh_index, mesh, path, body, content_type):
-        self.mesh_index, self.mesh, self.path = mesh_index, mesh, path
+    def __init__(self, name_index, name, path, body, content_type):
+        self.name_index, self.name, self.path = name_index, name, path
         self.body, self.content_type = body, content_type
         self.expected = None
 
@@ -49,30 +51,34 @@ class Request:
         return r.status, r.read()
 
 
-def point_count(rng, limit, mesh_index, n_meshes):
-    """Log-uniform in 1..limit, then moved to the residue mesh_index modulo n_meshes."""
+def point_count(rng, limit, name_index, n_names):
+    """Log-uniform in 1..limit, then moved to the residue name_index modulo n_names."""
     n = int(np.exp(rng.uniform(0, np.log(limit))))
-    n = n - n % n_meshes + mesh_index
-    return n if n > 0 else n + n_meshes
+    n = n - n % n_names + name_index
+    return n if n > 0 else n + n_names
 
 
-def make_requests(meshes, count, seed=1):
-    """`count` requests, mesh by mesh in turn, half JSON and half octet-stream."""
+def make_requests(meshes, count, seed=1, volumes=()):
+    """`count` requests, name by name in turn (meshes, then volumes), half JSON and half
+    octet-stream."""
     rng = np.random.default_rng(seed)
+    names = [("meshes", m, MODES) for m in meshes] + [("volumes", v, VOLUME_MODES)
+                                                      for v in volumes]
     out = []
     for k in range(count):
-        i = k % len(meshes)
-        octet = (k // len(meshes)) % 2 == 1
-        n = point_count(rng, OCTET_MAX_POINTS if octet else JSON_MAX_POINTS, i, len(meshes))
+        i = k % len(names)
+        kind, name, modes = names[i]
+        octet = (k // len(names)) % 2 == 1
+        n = point_count(rng, OCTET_MAX_POINTS if octet else JSON_MAX_POINTS, i, len(names))
         pts = rng.uniform(-1.5, 1.5, (n, 3)).astype(np.float32)
-        mode = MODES[rng.integers(len(MODES))]
-        base = "/v1/meshes/" + urllib.parse.quote(meshes[i]) + "/query"
+        mode = modes[rng.integers(len(modes))]
+        base = f"/v1/{kind}/" + urllib.parse.quote(name) + "/query"
         if octet:
-            out.append(Request(i, meshes[i], base + "?mode=" + mode,
+            out.append(Request(i, name, base + "?mode=" + mode,
                                pts.astype("<f4").tobytes(), "application/octet-stream"))
         else:
             body = json.dumps({"points": pts.tolist(), "mode": mode}).encode()
-            out.append(Request(i, meshes[i], base, body, "application/json"))
+            out.append(Request(i, name, base, body, "application/json"))
     return out
 
 
@@ -161,14 +167,17 @@ def run(target, requests, workers=6, seconds=20.0, max_requests=100000, timeout=
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--target", required=True, help="URL the load goes to")
-    ap.add_argument("--reference", required=True, help="URL of an sdfd serving the same meshes")
+    ap.add_argument("--reference", required=True,
+                    help="URL of an sdfd serving the same meshes and volumes")
     ap.add_argument("--meshes", default="demo", help="comma-separated mesh names")
+    ap.add_argument("--volumes", default="", help="comma-separated volume names")
     ap.add_argument("--requests", type=int, default=48, help="distinct requests made")
     ap.add_argument("--workers", type=int, default=6, help="concurrent connections")
     ap.add_argument("--seconds", type=float, default=10)
     ap.add_argument("--max-requests", type=int, default=100000)
     a = ap.parse_args()
-    reqs = make_requests(a.meshes.split(","), a.requests)
+    volumes = [v for v in a.volumes.split(",") if v]
+    reqs = make_requests([m for m in a.meshes.split(",") if m], a.requests, volumes=volumes)
     fetch_expected(a.reference, reqs)
     s = run(a.target, reqs, a.workers, a.seconds, a.max_requests)
     print(json.dumps(s.summary()))

@@ -1,13 +1,17 @@
 #!/bin/bash
 # test.sh - tests what deploy/ ships, on one Debian 12 machine with no container registry:
 #   lb     HAProxy and nginx (deploy/lb/) in both routing modes in front of 3 sdfd replicas
-#          under load, one replica SIGKILLed and restarted, another SIGTERMed: no failed
-#          request, every answer equal to a reference sdfd's (deploy/failover.py)
+#          sharing one --data-dir: meshes uploaded and a volume baked through the balancer are
+#          answered by every replica; under load, one replica SIGKILLed and restarted, another
+#          SIGTERMed: no failed request, every answer equal to a reference sdfd's
+#          (deploy/failover.py, deploy/shared_store.py)
 #   image  deploy/Dockerfile built from a clean copy of the repository (git ls-files): size,
-#          a query, the HEALTHCHECK, a drain on `podman stop`, non-root, read-only root
+#          a query, the HEALTHCHECK, a drain on `podman stop`, non-root, read-only root, a
+#          store on a volume that outlives the container
 #   k8s    deploy/k8s/ passes yamllint and two schema checks, and broken manifests fail them
-#   pod    deploy/podman/sdfd-pod.yaml under `podman kube play`: answers through HAProxy equal
-#          to sdfd's own
+#   pod    deploy/podman/sdfd-pod.yaml under `podman kube play`: a mesh uploaded and a volume
+#          baked through HAProxy answer through it and on each replica as sdfd's own, and
+#          again after the pod is replaced
 #
 #   deploy/test.sh [PART...]       (default: all four; run as root)
 #
@@ -191,7 +195,51 @@ part_image() {
     kill "$refpid"
     wait "$refpid"
     podman_quiet rm -f -t 0 "$name" >/dev/null
+    image_store "$meshes" "$name"
     rm -rf "$meshes"
+}
+
+# The image with a store (SDFD_DATA_DIR) on a host directory: an upload outlives the container,
+# and the HEALTHCHECK fails while the store is unreadable.
+image_store() { # meshes-dir container-name
+    local meshes=$1 name=$2 data http ref refpid
+    data=$(mktemp -d)
+    chown 10001:10001 "$data"
+    http=$(free_port) ref=$(free_port)
+    store_container() { # starts the container on $data
+        "${PODMAN_RUN[@]}" -d --name "$name" --read-only -v "$data:/data" \
+            -e SDFD_DATA_DIR=/data -e SDFD_HTTP=127.0.0.1:$http \
+            -e SDFD_BIN=127.0.0.1:$(free_port) "$IMAGE" >/dev/null
+    }
+    store_container
+    check "the container becomes ready on an empty store" wait_ready "http://127.0.0.1:$http" 60
+    check "with a store and no mesh flags it serves no mesh" \
+        test "$(curl -sf "http://127.0.0.1:$http/v1/meshes")" = '{"meshes":[]}'
+    check "a mesh PUT to the container is stored in the volume" bash -c \
+        "curl -sf -o /dev/null -X PUT --data-binary @$meshes/fandisk.off \
+         'http://127.0.0.1:$http/v1/meshes/fandisk?format=off' && test -s $data/meshes/fandisk.json"
+    podman_quiet rm -f -t 10 "$name" >/dev/null
+    build/server/sdfd --http 127.0.0.1:$ref --bin 127.0.0.1:$(free_port) \
+        --mesh-dir "$meshes" 2>/dev/null &
+    refpid=$!
+    store_container
+    check "a new container on the same store becomes ready" \
+        wait_ready "http://127.0.0.1:$http" 60
+    wait_ready "http://127.0.0.1:$ref" 60
+    check "a new container serves it from the store, as the host build does" \
+        same_answer "http://127.0.0.1:$http" "http://127.0.0.1:$ref" fandisk
+    kill "$refpid"
+    wait "$refpid"
+    chmod 000 "$data"
+    sleep 1.5
+    check "the health check fails while the store is unreadable" bash -c \
+        "curl -s http://127.0.0.1:$http/readyz | grep -q 'store unreadable' &&
+         ! podman healthcheck run $name >/dev/null 2>&1"
+    chmod 700 "$data"
+    sleep 1.5
+    check "and passes again once it is readable" podman healthcheck run "$name"
+    podman_quiet rm -f -t 0 "$name" >/dev/null
+    rm -rf "$data"
 }
 
 # Mutated copies of deploy/k8s/deployment.yaml, each broken one way, for the checks to refuse.
@@ -215,6 +263,15 @@ PYEOF
     cp deploy/k8s/*.yaml "$1/kustomize"
     sed -i 's/terminationGracePeriodSeconds: .*/terminationGracePeriodSeconds: 25/' \
         "$1/kustomize/deployment.yaml"
+    local k
+    for k in store-ro memory; do
+        mkdir "$1/$k"
+        cp deploy/k8s/*.yaml "$1/$k"
+    done
+    # the store mounted read-only; a memory limit under the ConfigMap's budgets
+    sed -i 's|mountPath: /data|mountPath: /data\n              readOnly: true|' \
+        "$1/store-ro/deployment.yaml"
+    sed -i 's/memory: 1Gi/memory: 768Mi/' "$1/memory/deployment.yaml"
 }
 
 part_k8s() {
@@ -241,6 +298,12 @@ part_k8s() {
         bash -c "! yamllint -s -c deploy/k8s/check/yamllint.yaml $bad/lint.yaml >/dev/null"
     check "a grace period shorter than preStop + drain fails the kustomize check" \
         bash -c "! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/kustomize"
+    check "a read-only store fails the kustomize check" bash -c \
+        "grep -q 'readOnly: true' $bad/store-ro/deployment.yaml &&
+         ! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/store-ro"
+    check "a memory limit under the budgets fails the kustomize check" bash -c \
+        "grep -q 'memory: 768Mi' $bad/memory/deployment.yaml &&
+         ! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/memory"
     check "the unbroken copy passes the kustomize check" bash -c \
         "sed -i 's/terminationGracePeriodSeconds: 25/terminationGracePeriodSeconds: 40/' \
          $bad/kustomize/deployment.yaml && $PY deploy/k8s/check/check_manifests.py \
@@ -248,7 +311,8 @@ part_k8s() {
     rm -rf "$bad"
 }
 
-# deploy/podman/sdfd-pod.yaml with free ports for its six and a pod name of its own.
+# deploy/podman/sdfd-pod.yaml with free ports for its six, and a pod name and a volume (its
+# store) of its own.
 render_pod() { # out-file pod-name
     $PY - "$1" "$2" <<'PYEOF'
 import re, socket, sys
@@ -262,6 +326,9 @@ for p in ("8080", "9090", "8081", "9091", "8082", "9092"):
     s.close()
 text = re.sub(r"\b(8080|9090|8081|9091|8082|9092)\b", lambda m: ports[m.group(1)], text)
 text = text.replace("\n  name: sdfd\n", f"\n  name: {name}\n", 1)
+if text.count("claimName: sdfd-data\n") != 1:
+    sys.exit("sdfd-pod.yaml: expected one claimName: sdfd-data")
+text = text.replace("claimName: sdfd-data\n", f"claimName: {name}-data\n")
 open(out, "w").write(text)
 print(" ".join(ports[p] for p in ("8080", "9090", "8081", "8082")))
 PYEOF
@@ -284,18 +351,29 @@ part_pod() {
     check "the sdfd image builds" build_image || return
     check "the haproxy image builds" build_image deploy/lb/haproxy.Dockerfile \
         localhost/sdfd-haproxy:latest || return
-    local yaml name=sdfd-test-$$ ports lb lbbin r1 r2
+    local yaml name=sdfd-test-$$ lb lbbin r1 r2 meshes ref refpid
     yaml=$(mktemp --suffix .yaml)
     read -r lb lbbin r1 r2 < <(render_pod "$yaml" "$name")
+    # the reference: the host build, loading the same files itself
+    meshes=$(mktemp -d)
+    cp tests/data/fandisk.off tests/data/cow.off tests/data/knot1.off "$meshes"
+    ref=$(free_port)
+    build/server/sdfd --http 127.0.0.1:$ref --bin 127.0.0.1:$(free_port) --mesh-dir "$meshes" \
+        2>/dev/null &
+    refpid=$!
+    wait_ready "http://127.0.0.1:$ref" 60
     check "podman kube play starts the pod" kube_play "$yaml"
-    check "both replicas become ready" bash -c \
-        "$(declare -f wait_ready); wait_ready http://127.0.0.1:$r1 60 && wait_ready http://127.0.0.1:$r2 60"
-    check "HAProxy in the pod answers" wait_ready "http://127.0.0.1:$lb" 30
+    pod_ready "$lb" "$r1" "$r2"
+    check "through HAProxy: a mesh uploaded and a volume baked answer there and on each replica as sdfd's own; a replacement and a delete reach both replicas" \
+        $PY deploy/shared_store.py --lb "http://127.0.0.1:$lb" --reference "http://127.0.0.1:$ref" \
+        --replica "http://127.0.0.1:$r1" --replica "http://127.0.0.1:$r2" \
+        --mesh "fandisk=$meshes/fandisk.off" --swap "cow=$meshes/cow.off" \
+        "knot1=$meshes/knot1.off"
     check "answers through HAProxy equal sdfd's own" \
-        same_answer "http://127.0.0.1:$lb" "http://127.0.0.1:$r1" demo
+        same_answer "http://127.0.0.1:$lb" "http://127.0.0.1:$ref" fandisk
     check "a load through HAProxy: every answer equal to sdfd's own" $PY deploy/loadgen.py \
-        --target "http://127.0.0.1:$lb" --reference "http://127.0.0.1:$r1" --meshes demo \
-        --workers 4 --seconds 4
+        --target "http://127.0.0.1:$lb" --reference "http://127.0.0.1:$ref" --meshes fandisk \
+        --volumes fandisk-sdf --workers 4 --seconds 4
     check "both replicas served queries" bash -c \
         "[ \"\$($(declare -f served_points); served_points http://127.0.0.1:$r1)\" -gt 0 ] &&
          [ \"\$($(declare -f served_points); served_points http://127.0.0.1:$r2)\" -gt 0 ]"
@@ -304,11 +382,31 @@ import sys, numpy as np
 sys.path.insert(0, 'clients/python')
 import sdfclient
 p = np.random.default_rng(5).uniform(-2, 2, (3000, 3)).astype(np.float32)
-a = sdfclient.BinaryClient('127.0.0.1', $lbbin).query('demo', p, mode='closest')
-b = sdfclient.Client('http://127.0.0.1:$r1').query('demo', p, mode='closest')
+a = sdfclient.BinaryClient('127.0.0.1', $lbbin).query('fandisk', p, mode='closest')
+b = sdfclient.Client('http://127.0.0.1:$ref').query('fandisk', p, mode='closest')
 sys.exit(any(np.asarray(a[k]).tobytes() != np.asarray(b[k]).tobytes() for k in b))"
     check "podman kube play --down stops it" kube_play --down "$yaml"
-    rm -f "$yaml"
+    # a new pod on the same volume serves what the first one stored
+    kube_play "$yaml"
+    pod_ready "$lb" "$r1" "$r2"
+    check "a new pod on the same volume answers the upload through HAProxy as sdfd does" \
+        same_answer "http://127.0.0.1:$lb" "http://127.0.0.1:$ref" fandisk
+    check "... and the baked volume" $PY deploy/loadgen.py --target "http://127.0.0.1:$lb" \
+        --reference "http://127.0.0.1:$ref" --meshes "" --volumes fandisk-sdf --workers 2 \
+        --seconds 1 --requests 8
+    kube_play --down "$yaml"
+    check "the pod's volume is removed" bash -c "podman volume rm $name-data >/dev/null"
+    kill "$refpid"
+    wait "$refpid"
+    rm -rf "$yaml" "$meshes"
+}
+
+pod_ready() { # lb-port replica-ports...
+    local lb=$1
+    shift
+    check "both replicas become ready" bash -c "$(declare -f wait_ready); for p in $*; do
+        wait_ready http://127.0.0.1:\$p 60 || exit 1; done"
+    check "HAProxy in the pod answers" wait_ready "http://127.0.0.1:$lb" 30
 }
 
 for part in $parts; do

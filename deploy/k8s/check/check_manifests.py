@@ -10,7 +10,10 @@
    PersistentVolumeClaim the pods use exists; probes name container ports; the grace period
    outlasts the preStop sleep plus SDFD_DRAIN_SECONDS; containers run as non-root with a
    read-only root and no capabilities, with requests and limits; the Prometheus annotation
-   names the HTTP port; SDFD_THREADS fits the CPU limit.
+   names the HTTP port; SDFD_THREADS fits the CPU limit; SDFD_DATA_DIR is mounted read-write
+   from a ReadWriteMany claim (sdfd could not create it on the read-only root); the memory
+   limit covers 16 MiB + 2.9 x SDFD_MAX_RESIDENT_BYTES + SDFD_MAX_BUFFERED_BYTES +
+   SDFD_MAX_VOLUME_BYTES (docs/deploy.md, "Sizing replicas").
 
     python3 deploy/k8s/check/check_manifests.py FILE.yaml...
     python3 deploy/k8s/check/check_manifests.py --kustomize deploy/k8s
@@ -149,7 +152,51 @@ def check_container(c, pod, annotations, names):
     cpus = int(cpu[:-1]) / 1000 if cpu.endswith("m") else float(cpu)
     if int(env.get("SDFD_THREADS", 0)) == 0 or int(env["SDFD_THREADS"]) > max(cpus, 1):
         problems.append("SDFD_THREADS must be set, at most the CPU limit")
+    problems += check_store(c, pod, env, names["claims"])
+    problems += check_memory(c, env)
     return problems
+
+
+def check_store(c, pod, env, claims):
+    """SDFD_DATA_DIR: a read-write mount of a ReadWriteMany claim, mounted read-write."""
+    path = env.get("SDFD_DATA_DIR")
+    if not path:
+        return [f"{c['name']}: SDFD_DATA_DIR is not set (replicas would not share a store)"]
+    mounts = [m for m in c.get("volumeMounts", []) if m.get("mountPath") == path]
+    if len(mounts) != 1 or mounts[0].get("readOnly"):
+        return [f"{c['name']}: SDFD_DATA_DIR {path} is not one read-write volumeMount"]
+    vols = {v["name"]: v for v in pod.get("volumes", [])}
+    pvc = vols.get(mounts[0]["name"], {}).get("persistentVolumeClaim")
+    if not pvc or pvc.get("readOnly"):
+        return [f"{c['name']}: {path} is not a read-write persistentVolumeClaim"]
+    claim = claims.get(pvc.get("claimName"))
+    if claim and "ReadWriteMany" not in claim.get("spec", {}).get("accessModes", []):
+        return [f"PersistentVolumeClaim {pvc['claimName']}: not ReadWriteMany, so replicas on "
+                f"different nodes cannot share it"]
+    return []
+
+
+def quantity(text):
+    """A Kubernetes memory quantity (512Mi, 1Gi, 1G, 1000) in bytes."""
+    units = {"Ki": 2**10, "Mi": 2**20, "Gi": 2**30, "Ti": 2**40, "k": 10**3, "M": 10**6,
+             "G": 10**9, "T": 10**12}
+    m = re.fullmatch(r"(\d+)([KMGT]i?|k)?", str(text))
+    if not m:
+        raise ValueError(f"memory quantity {text!r}")
+    return int(m.group(1)) * units.get(m.group(2), 1)
+
+
+def check_memory(c, env):
+    limit = c.get("resources", {}).get("limits", {}).get("memory")
+    if limit is None:
+        return []
+    need = (16 * 2**20 + 2.9 * int(env.get("SDFD_MAX_RESIDENT_BYTES", 0))
+            + int(env.get("SDFD_MAX_BUFFERED_BYTES", 2**31))
+            + int(env.get("SDFD_MAX_VOLUME_BYTES", 2**32)))
+    if quantity(limit) < need:
+        return [f"{c['name']}: memory limit {limit} under the {need / 2**20:.0f} MiB the "
+                f"ConfigMap's budgets allow"]
+    return []
 
 
 def check_kustomize(directory):
@@ -161,9 +208,10 @@ def check_kustomize(directory):
     problems += [f"kustomization.yaml: {f} does not exist" for f in sorted(listed - present)]
     docs = load(sorted(os.path.join(directory, f) for f in present & listed))
     names = {k: {} for k in ("ConfigMap", "Secret", "PersistentVolumeClaim")}
-    for k in names:
+    for k in list(names):
         for d in by_kind(docs, k):
             names[k][d["metadata"]["name"]] = {**d.get("data", {}), **d.get("stringData", {})}
+    names["claims"] = {d["metadata"]["name"]: d for d in by_kind(docs, "PersistentVolumeClaim")}
     deps = by_kind(docs, "Deployment")
     if len(deps) != 1:
         return problems + [f"expected one Deployment, found {len(deps)}"]
