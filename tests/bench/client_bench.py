@@ -11,7 +11,9 @@ signed, sign auto, on mesh NAME (default demo): `binary` through BinaryClient, `
 `json` through Client in that body form. Sent once untimed, then R times (default 2), best
 reported. Timed is what a program pays: from the numpy array of points to the answer's
 arrays. --out writes the distances as raw little-endian float32 (the data of sdf-bench
---out's .npy), to be compared byte for byte. The last line printed is `throughput: X Mq/s`.
+--out's .npy), to be compared byte for byte. Also printed: the client's CPU time (this
+process's, user and system) per timed request, which the machine's other work inflates far
+less than the wall time. The last line printed is `throughput: X Mq/s`.
 Needs numpy (Debian's python3-numpy, hence /usr/bin/python3)."""
 import argparse
 import os
@@ -47,19 +49,21 @@ def main() -> None:
         http = sdfclient.Client(a.http)
         def query() -> sdfclient.Result:
             return http.query(a.name, points, form=a.form)
-    best = float("inf")
-    for i in range(-1, max(a.repeat, 1)):  # i = -1: the untimed warm-up
-        t0 = time.perf_counter()
+    best, cpu, repeat = float("inf"), 0.0, max(a.repeat, 1)
+    for i in range(-1, repeat):  # i = -1: the untimed warm-up
+        t0, c0 = time.perf_counter(), time.process_time()
         answer = query()
         t = time.perf_counter() - t0
         if i >= 0:
             best = min(best, t)
+            cpu += time.process_time() - c0
     n = len(points)
     if answer["distance"].shape != (n,):
         sys.exit(f"client_bench.py: the answer holds {answer['distance'].shape} values, not {n}")
     if a.out:
         answer["distance"].astype("<f4").tofile(a.out)
     print(f"points: {n} client: sdfclient.py form: {a.form} requests: 1")
+    print(f"client cpu ms: {1e3 * cpu / repeat:.1f}")
     print(f"seconds: {best:.4f}")
     print(f"throughput: {n / best / 1e6:.4f} Mq/s")
 

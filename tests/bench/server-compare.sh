@@ -13,7 +13,9 @@
 # says whether a client's distances are the in-process ones bit for bit. Each of these rows is
 # the best of R runs after a warm-up, and its ratio is against an in-process run (best of R on
 # the same points) made just before it, shown in the "in-process" column, so that a machine
-# shared with other work moves both sides of a ratio alike.
+# shared with other work moves both sides of a ratio alike. "client CPU ms" is the client
+# process's CPU time (user + system) per request, which that other work inflates far less
+# than the wall time: what the client itself costs.
 #
 # 64 concurrent clients x 1,000 points over binary and octet-stream (sdfd-bench): their
 # requests coalesce into batches of up to 64,000 points, so the in-process library on 64,000
@@ -22,7 +24,7 @@
 # those clients call the server, 1,000 points at a time (best of 200 calls on one request's
 # points). These rows' ratios are against the first in-process run.
 #
-# Environment: N points (default 1000000), R runs per 1 x N row (default 3), NODE (node).
+# Environment: N points (default 1000000), R runs per 1 x N row (default 5), NODE (node).
 # Needs a release build in build/, node and /usr/bin/python3 with numpy.
 #
 #   tests/bench/server-compare.sh [MESH...]     (default: fandisk, refined_elephant)
@@ -30,7 +32,7 @@ set -eu
 cd "$(dirname "$0")/../.."
 [ "$#" -gt 0 ] || set -- tests/data/fandisk.off tests/data/refined_elephant.off
 n=${N:-1000000}
-r=${R:-3}
+r=${R:-5}
 node=${NODE:-node}
 tmp=$(mktemp -d)
 log=$tmp/log
@@ -41,8 +43,9 @@ mqs() { awk '/^throughput:/ {print $2}'; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN {printf "%.2f", a / b}'; }
 
 echo "| mesh | path | clients x points | Mq/s | in-process Mq/s | vs in-process |" \
-    "latency p50 / p99 ms | vs in-process 64,000 | vs in-process 1,000 | same bits |"
-echo "| --- | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | --- |"
+    "latency p50 / p99 ms | vs in-process 64,000 | vs in-process 1,000 | client CPU ms |" \
+    "same bits |"
+echo "| --- | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- |"
 for mesh in "$@"; do
     build/server/sdfd --http 127.0.0.1:0 --bin 127.0.0.1:0 --mesh "m=$mesh" 2>"$log" &
     pid=$!
@@ -53,15 +56,15 @@ for mesh in "$@"; do
     base=$(build/tests/bench/sdf-bench "$mesh" --workload band --n "$n" --threads 2 \
         --repeat "$r" --points-out "$tmp/points.npy" --out "$tmp/expect.npy" | mqs)
     tail -c $((4 * n)) "$tmp/expect.npy" >"$tmp/expect.f32"
-    echo "| $name | in-process sdf-bench | 1 x $n | $base | $base | 1.00 | | | | |"
+    echo "| $name | in-process sdf-bench | 1 x $n | $base | $base | 1.00 | | | | | |"
     small=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 64000 --threads 2 \
         --repeat 20 | mqs)
     echo "| $name | in-process sdf-bench | 1 x 64000 | $small | $base |" \
-        "$(ratio "$small" "$base") | | 1.00 | | |"
+        "$(ratio "$small" "$base") | | 1.00 | | | |"
     request=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 1000 --threads 2 \
         --repeat 200 | mqs)
     echo "| $name | in-process sdf-bench | 1 x 1000 | $request | $base |" \
-        "$(ratio "$request" "$base") | | | 1.00 | |"
+        "$(ratio "$request" "$base") | | | 1.00 | | |"
 
     # One request of all N points, each row next to its own in-process run.
     one() { # label same-bits command...
@@ -70,12 +73,15 @@ for mesh in "$@"; do
         pair=$(build/tests/bench/sdf-bench "$mesh" "$tmp/points.npy" --threads 2 \
             --repeat "$r" | mqs)
         rm -f "$tmp/got.f32"
-        v=$("$@" | mqs)
+        out=$("$@")
+        v=$(echo "$out" | mqs)
+        cpu=$(echo "$out" | awk '/^client cpu ms:/ {print $4}')
         same=
         if [ "$check" = check ]; then
             same=$(cmp -s "$tmp/expect.f32" "$tmp/got.f32" && echo yes || echo NO)
         fi
-        echo "| $name | $label | 1 x $n | $v | $pair | $(ratio "$v" "$pair") | | | | $same |"
+        echo "| $name | $label | 1 x $n | $v | $pair | $(ratio "$v" "$pair") | | | | $cpu |" \
+            "$same |"
     }
     for form in binary octet json; do
         one "sdfd-bench $form" - build/tests/bench/sdfd-bench "$mesh" "$tmp/points.npy" \
@@ -102,7 +108,7 @@ for mesh in "$@"; do
         v=$(echo "$out" | mqs)
         lat=$(echo "$out" | awk '/^latency/ {print $4 " / " $6}')
         echo "| $name | sdfd-bench $form | 64 x 1000 | $v | $base | $(ratio "$v" "$base") |" \
-            "$lat | $(ratio "$v" "$small") | $(ratio "$v" "$request") | |"
+            "$lat | $(ratio "$v" "$small") | $(ratio "$v" "$request") | | |"
     done
     kill "$pid"
     wait "$pid" 2>/dev/null || true

@@ -11,7 +11,9 @@
  * same form. Sent once untimed, then R times (default 2), best reported. Timed is what a
  * program pays: from the Float32Array of points to the answer's Float32Array. --out writes
  * the distances as raw little-endian float32 (the data of sdf-bench --out's .npy), to be
- * compared byte for byte. The last line printed is `throughput: X Mq/s`. */
+ * compared byte for byte. Also printed: the client's CPU time (this process's, user and
+ * system, every thread) per timed request, which the machine's other work inflates far less
+ * than the wall time. The last line printed is `throughput: X Mq/s`. */
 import { readFileSync, writeFileSync } from 'node:fs';
 import { performance } from 'node:perf_hooks';
 import { BinaryClient, Client, parseNpy } from 'sdfd-client';
@@ -64,13 +66,15 @@ if (a.form === 'binary') {
   query = () => c.query(a.name, points, { form: a.form });
   close = () => {};
 }
-let best = Infinity, answer;
+let best = Infinity, cpu = 0, answer;
 for (let i = -1; i < a.repeat; i++) { /* i = -1: the untimed warm-up */
-  const t0 = performance.now();
+  const t0 = performance.now(), c0 = process.cpuUsage();
   answer = await query();
-  const t = (performance.now() - t0) / 1e3;
-  if (i >= 0)
+  const t = (performance.now() - t0) / 1e3, c = process.cpuUsage(c0);
+  if (i >= 0) {
     best = Math.min(best, t);
+    cpu += (c.user + c.system) / 1e3;
+  }
 }
 await close();
 if (answer.count !== n)
@@ -78,5 +82,6 @@ if (answer.count !== n)
 if (a.out)
   writeFileSync(a.out, new Uint8Array(answer.distance.buffer, answer.distance.byteOffset, 4 * n));
 console.log(`points: ${n} client: sdfd-client.js form: ${a.form} requests: 1`);
+console.log(`client cpu ms: ${(cpu / a.repeat).toFixed(1)}`);
 console.log(`seconds: ${best.toFixed(4)}`);
 console.log(`throughput: ${(n / best / 1e6).toFixed(4)} Mq/s`);
