@@ -10,12 +10,14 @@
 # (clients/js/bench/client-bench.js: BinaryClient, and Client over fetch with octet-stream and
 # JSON bodies) and the Python client (client_bench.py: BinaryClient, Client with octet and
 # JSON). All read the points the first sdf-bench run wrote (--points-out), and the last column
-# says whether a client's distances are the in-process ones bit for bit. Each of these rows is
-# the best of R runs after a warm-up, and its ratio is against an in-process run (best of R on
-# the same points) made just before it, shown in the "in-process" column, so that a machine
-# shared with other work moves both sides of a ratio alike. "client CPU ms" is the client
-# process's CPU time (user + system) per request, which that other work inflates far less
-# than the wall time: what the client itself costs.
+# says whether a client's distances are the in-process ones bit for bit. Each of these rows
+# takes R rounds, each an in-process run (sdf-bench on the same points) then the row's program
+# (a warm-up request, then timed ones), each timing 2 calls; the row shows the best of all
+# its timed calls and the in-process best of its rounds (the "in-process" column), the ratio's
+# base. Interleaved so, the two sides of a ratio see the same moments of a machine shared with
+# other work. "client CPU ms" is the client process's CPU time (user + system) per timed
+# request, which that other work inflates far less than the wall time: what the client itself
+# costs.
 #
 # 64 concurrent clients x 1,000 points over binary and octet-stream (sdfd-bench): their
 # requests coalesce into batches of up to 64,000 points, so the in-process library on 64,000
@@ -24,7 +26,7 @@
 # those clients call the server, 1,000 points at a time (best of 200 calls on one request's
 # points). These rows' ratios are against the first in-process run.
 #
-# Environment: N points (default 1000000), R runs per 1 x N row (default 5), NODE (node).
+# Environment: N points (default 1000000), R rounds per 1 x N row (default 3), NODE (node).
 # Needs a release build in build/, node and /usr/bin/python3 with numpy.
 #
 #   tests/bench/server-compare.sh [MESH...]     (default: fandisk, refined_elephant)
@@ -32,7 +34,7 @@ set -eu
 cd "$(dirname "$0")/../.."
 [ "$#" -gt 0 ] || set -- tests/data/fandisk.off tests/data/refined_elephant.off
 n=${N:-1000000}
-r=${R:-5}
+r=${R:-3}
 node=${NODE:-node}
 tmp=$(mktemp -d)
 log=$tmp/log
@@ -67,15 +69,21 @@ for mesh in "$@"; do
         "$(ratio "$request" "$base") | | | 1.00 | | |"
 
     # One request of all N points, each row next to its own in-process run.
-    one() { # label same-bits command...
+    max() { awk -v a="$1" -v b="$2" 'BEGIN {print (a > b ? a : b)}'; }
+    one() { # label check|- command... (the command takes --repeat)
         label=$1 check=$2
         shift 2
-        pair=$(build/tests/bench/sdf-bench "$mesh" "$tmp/points.npy" --threads 2 \
-            --repeat "$r" | mqs)
-        rm -f "$tmp/got.f32"
-        out=$("$@")
-        v=$(echo "$out" | mqs)
-        cpu=$(echo "$out" | awk '/^client cpu ms:/ {print $4}')
+        pair=0 v=0 cpus=
+        for _ in $(seq "$r"); do
+            pair=$(max "$pair" "$(build/tests/bench/sdf-bench "$mesh" "$tmp/points.npy" \
+                --threads 2 --repeat 2 | mqs)")
+            rm -f "$tmp/got.f32"
+            out=$("$@" --repeat 2)
+            v=$(max "$v" "$(echo "$out" | mqs)")
+            cpus="$cpus $(echo "$out" | awk '/^client cpu ms:/ {print $4}')"
+        done
+        cpu=$(echo "$cpus" | awk 'NF {s = 0; for (i = 1; i <= NF; i++) s += $i;
+            printf "%.1f", s / NF}')
         same=
         if [ "$check" = check ]; then
             same=$(cmp -s "$tmp/expect.f32" "$tmp/got.f32" && echo yes || echo NO)
@@ -85,20 +93,19 @@ for mesh in "$@"; do
     }
     for form in binary octet json; do
         one "sdfd-bench $form" - build/tests/bench/sdfd-bench "$mesh" "$tmp/points.npy" \
-            --name m --http "127.0.0.1:$http" --bin "127.0.0.1:$bin" --form "$form" \
-            --repeat "$r"
+            --name m --http "127.0.0.1:$http" --bin "127.0.0.1:$bin" --form "$form"
     done
     one "C client binary" check build/tests/bench/sdfc-bench "$tmp/points.npy" \
-        --bin "127.0.0.1:$bin" --name m --repeat "$r" --out "$tmp/got.f32"
+        --bin "127.0.0.1:$bin" --name m --out "$tmp/got.f32"
     for form in binary octet json; do
         one "JS client $form" check "$node" clients/js/bench/client-bench.js \
             "$tmp/points.npy" --form "$form" --bin "127.0.0.1:$bin" \
-            --http "http://127.0.0.1:$http" --name m --repeat "$r" --out "$tmp/got.f32"
+            --http "http://127.0.0.1:$http" --name m --out "$tmp/got.f32"
     done
     for form in binary octet json; do
         one "Python client $form" check /usr/bin/python3 tests/bench/client_bench.py \
             "$tmp/points.npy" --form "$form" --bin "127.0.0.1:$bin" \
-            --http "http://127.0.0.1:$http" --name m --repeat "$r" --out "$tmp/got.f32"
+            --http "http://127.0.0.1:$http" --name m --out "$tmp/got.f32"
     done
 
     # 64 clients of 1,000 points.
