@@ -68,7 +68,7 @@ for mesh in "$@"; do
     echo "| $name | in-process sdf-bench | 1 x 1000 | $request | $base |" \
         "$(ratio "$request" "$base") | | | 1.00 | | |"
 
-    # One request of all N points, each row next to its own in-process run.
+    # One request of all N points, each row in rounds with in-process runs.
     max() { awk -v a="$1" -v b="$2" 'BEGIN {print (a > b ? a : b)}'; }
     one() { # label check|- command... (the command takes --repeat)
         label=$1 check=$2
