@@ -6,7 +6,7 @@
  *             [--samples N] [--min-samples N] [--sample-gradient 0|1]
  *             [--sign auto|pseudonormal|winding|raycast|none]
  *             [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]
- *             [--workspace 0|1]
+ *             [--workspace 0|1] [--points-out POINTS.npy]
  *
  * Points come from POINTS.npy (float32 or float64, shape (N, 3)) or are generated
  * (--workload, default band, 1,000,000 points). The batch is timed R times (default 2) after
@@ -14,7 +14,9 @@
  * sdf_workspace, as sdfd's batcher does (the first timed call fills it; default 0: each call
  * allocates its own scratch). --out writes float32 results:
  * distance/signed (N,); gradient (N, 4) = distance, gradient xyz; closest (N, 4) = distance,
- * closest point xyz. The last line printed is always `throughput: X Mq/s`. */
+ * closest point xyz. --points-out writes the points queried as float32 (N, 3), so that other
+ * programs (the clients' benches in server-compare.sh) can send exactly these points.
+ * The last line printed is always `throughput: X Mq/s`. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -27,7 +29,7 @@
 #include "sdf/sdf.h"
 
 typedef struct args {
-    const char *mesh, *points, *out, *workload, *mode;
+    const char *mesh, *points, *out, *points_out, *workload, *mode;
     size_t n;
     uint64_t seed;
     sdf_sign_method sign;
@@ -44,7 +46,8 @@ static void usage(void)
             "                 [--sample-gradient 0|1 (filtered-gradient: the samples' mean)]\n"
             "                 [--sign auto|pseudonormal|winding|raycast|none]\n"
             "                 [--threads N] [--repeat R] [--out OUT.npy] [--traversal packets|single]\n"
-            "                 [--workspace 0|1 (1: one sdf_workspace for every call, as sdfd)]\n");
+            "                 [--workspace 0|1 (1: one sdf_workspace for every call, as sdfd)]\n"
+            "                 [--points-out POINTS.npy (the points queried, float32 (N, 3))]\n");
     exit(2);
 }
 
@@ -94,6 +97,7 @@ static args parse_args(int argc, char **argv)
         else if (!strcmp(s, "--threads")) a.threads = (int)parse_long(v, s);
         else if (!strcmp(s, "--repeat")) a.repeat = (int)parse_long(v, s);
         else if (!strcmp(s, "--out")) a.out = v;
+        else if (!strcmp(s, "--points-out")) a.points_out = v;
         else if (!strcmp(s, "--workspace")) a.workspace = parse_long(v, s) != 0;
         else if (!strcmp(s, "--traversal")) {
             if (strcmp(v, "packets") && strcmp(v, "single")) {
@@ -122,6 +126,20 @@ static args parse_args(int argc, char **argv)
     return a;
 }
 
+/* The points as a float32 (N, 3) .npy, for the programs that must send the same ones. */
+static void write_points(const char *path, const float *points, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    char header[128];
+    size_t shape[2] = {n, 3};
+    long len = sdf_npy_write_header(header, sizeof header, 2, shape);
+    if (!f || len < 0 || fwrite(header, 1, (size_t)len, f) != (size_t)len ||
+        fwrite(points, 12, n, f) != n || fclose(f)) {
+        fprintf(stderr, "sdf-bench: cannot write %s: %s\n", path, strerror(errno));
+        exit(1);
+    }
+}
+
 int main(int argc, char **argv)
 {
     args a = parse_args(argc, argv);
@@ -146,6 +164,8 @@ int main(int argc, char **argv)
             return 2;
         }
     }
+    if (a.points_out)
+        write_points(a.points_out, points, n);
     int filtered = !strncmp(a.mode, "filtered", 8);
     int gradient = !strcmp(a.mode, "gradient") || !strcmp(a.mode, "filtered-gradient");
     int closest = !strcmp(a.mode, "closest");
