@@ -33,7 +33,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     FUZZ_CHECK(count <= MAX_POINTS && owned);
-    (void)fuzz_touch_floats(points, 3 * count);
+    fuzz_touch_floats(points, 3 * count);
     free(points);
     char buf[32];
     sdf_proto_mode mode;
