@@ -152,13 +152,15 @@ def texts():
         {"points": [[0, 0, 0], [1, 2, 3]], "mode": "signed", "sign": "winding"},
         {"points": [0.5, -1e-3, 2e10, 1, 2, 3], "mode": "closest", "ignored": {"a": [1, None]}},
         {"points": [[0, 0, 0]], "mode": "filtered",
-         "filter": {"kernel": "bump", "cap": 0.1, "samples": 16, "smooth": {"sphere": [0, 0, 0, 1]}}},
+         "filter": {"kernel": "bump", "cap": 0.1, "samples": 16,
+                    "smooth": {"sphere": [0, 0, 0, 1]}}},
         {"mode": "value", "interpolation": "nearest", "points": [[1.5, 2.5, -3.5]]},
     ]
     for i, q in enumerate(queries):
         put("json_query", "query%d.json" % i, json.dumps(q))
     put("json_query", "escapes.json",
-        '{"mo\\u0064e": "gradient", "x": "\\"\\\\\\/\\b\\f\\n\\r\\t", "points": [ [ 1E2 , -0.0, 3e-2 ] ]}')
+        '{"mo\\u0064e": "gradient", "x": "\\"\\\\\\/\\b\\f\\n\\r\\t",'
+        ' "points": [ [ 1E2 , -0.0, 3e-2 ] ]}')
     filters = [
         {"kernel": "gaussian", "cap": 0.05, "a": 0.5, "samples": 64, "min_samples": 8, "seed": 7},
         {"kernel": "bump", "cap": 0.2, "b": 0.1, "allow_wide_bump": True, "grid": True,

@@ -74,7 +74,8 @@ for h in $harnesses; do
     else
         passed=$((passed + 1))
     fi
-    printf '%-12s %10s %8s %6s %6s %6s  %s\n' "$h" "$(field "$log" stat::number_of_executed_units)" \
+    printf '%-12s %10s %8s %6s %6s %6s  %s\n' "$h" \
+        "$(field "$log" stat::number_of_executed_units)" \
         "$(field "$log" stat::average_exec_per_sec)" "$(field "$log" cov)" "$(field "$log" ft)" \
         "$(grep -o 'corp: [0-9]*' "$log" | tail -1 | sed 's/corp: //')" "$result"
 done
