@@ -457,7 +457,9 @@ static int parse_npy(char *body, size_t len, size_t max_points, float **points, 
         return fail(err, cap, SDF_ELIMIT, "%zu points, more than the limit of %zu", info.shape[0],
                     max_points);
     *count = info.shape[0];
-    if (info.dtype == SDF_NPY_F32) { /* the header is a multiple of 64 bytes: data aligned */
+    /* NumPy pads its headers to 64 bytes, so float32 data is used in place; a header of
+     * another length leaves it unaligned, and it is copied like float64 data. */
+    if (info.dtype == SDF_NPY_F32 && info.data_offset % sizeof(float) == 0) {
         *points = (float *)(body + info.data_offset);
         *owned = 0;
         return 0;
@@ -466,6 +468,10 @@ static int parse_npy(char *body, size_t len, size_t max_points, float **points, 
     if (!p)
         return fail(err, cap, SDF_ENOMEM, "out of memory");
     for (size_t i = 0; i < 3 * *count; i++) {
+        if (info.dtype == SDF_NPY_F32) {
+            memcpy(&p[i], body + info.data_offset + 4 * i, 4);
+            continue;
+        }
         double d;
         memcpy(&d, body + info.data_offset + 8 * i, 8);
         p[i] = (float)d;

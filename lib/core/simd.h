@@ -1,11 +1,12 @@
 /* simd.h - wider vectors where the CPU has them, one portable binary everywhere.
  *
  * The hot lane loops (points/packet.c) are plain C that the compiler vectorizes. Built for
- * baseline x86-64 they use 4-wide SSE2; SDF__SIMD_CLONES asks GCC (and clang >= 14) to also
+ * baseline x86-64 they use 4-wide SSE2; SDF__SIMD_CLONES asks GCC (and clang >= 15) to also
  * compile the function for x86-64-v3 (AVX2 + FMA, 8 floats per vector) and pick the version
  * when the program loads (an ifunc), so no -march flag is needed and old CPUs still run.
- * Elsewhere the macro
- * is empty. Only float pre-filters run in cloned code: every answer is decided by the
+ * Elsewhere the macro is empty; so under clang 14, which names the dispatcher "f.ifunc" where
+ * other files look for "f" (they fail to link), the library is built for baseline x86-64 only.
+ * Only float pre-filters run in cloned code: every answer is decided by the
  * double-precision triangle test, compiled once, so results do not depend on the CPU. */
 #ifndef SDF_CORE_SIMD_H
 #define SDF_CORE_SIMD_H
@@ -22,7 +23,7 @@
 #endif
 #if defined(__x86_64__) && defined(__ELF__) && !defined(SDF__UNDER_TSAN) && \
     ((defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 11) || \
-     (defined(__clang__) && __clang_major__ >= 14))
+     (defined(__clang__) && __clang_major__ >= 15))
 #define SDF__SIMD_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define SDF__SIMD_CLONES

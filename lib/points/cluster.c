@@ -155,11 +155,24 @@ SDF__HOT_INLINE const sdf__float_triangle *prepared(sdf__cluster *c, int j, cons
     return f;
 }
 
+/* clang checks the vector ABI of each call in a function compiled for AVX before it inlines
+ * anything, and rejects a 32-byte vector passed to a helper compiled without AVX: under
+ * clang the entry point compiled twice (core/simd.h) passes only pointers and scalars to
+ * this body, inlined into each clone. GCC checks after inlining, so there the body is
+ * the entry point itself (a wrapper would move its stack slots). */
+#if defined(__clang__)
+SDF__HOT_INLINE int cluster_closest(sdf__cluster *c, const sdf__tree *tree,
+                                    const float *positions, const uint32_t *triangles,
+                                    float extent, const char *points, size_t stride,
+                                    const double *bound, const uint8_t *want, int n,
+                                    sdf__hit *hits)
+#else
 SDF__SIMD_CLONES
 int sdf__cluster_closest(sdf__cluster *c, const sdf__tree *tree, const float *positions,
                          const uint32_t *triangles, float extent, const char *points,
                          size_t stride, const double *bound, const uint8_t *want, int n,
                          sdf__hit *hits)
+#endif
 {
     const float slack_abs = SDF__LANE_SLACK_ABS_OF_EXTENT * extent;
     const float exact_below2 = (FLOAT_DISTANCE_MIN * slack_abs) * (FLOAT_DISTANCE_MIN * slack_abs);
@@ -233,3 +246,15 @@ int sdf__cluster_closest(sdf__cluster *c, const sdf__tree *tree, const float *po
     }
     return 0;
 }
+
+#if defined(__clang__)
+SDF__SIMD_CLONES
+int sdf__cluster_closest(sdf__cluster *c, const sdf__tree *tree, const float *positions,
+                         const uint32_t *triangles, float extent, const char *points,
+                         size_t stride, const double *bound, const uint8_t *want, int n,
+                         sdf__hit *hits)
+{
+    return cluster_closest(c, tree, positions, triangles, extent, points, stride, bound, want, n,
+                           hits);
+}
+#endif

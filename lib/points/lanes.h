@@ -110,12 +110,24 @@ SDF__HOT_INLINE unsigned sdf__v8i_or_lanes(sdf__v8i v)
     return (unsigned)(x | x >> 32);
 }
 
+/* Lane i of v8i `v` from its lane p[i], for a constant permutation p given as eight indices.
+ * GCC spells a permutation __builtin_shuffle (a vector of indices), clang
+ * __builtin_shufflevector (the indices as constant arguments); both compile a constant one to
+ * the same single shuffle. */
+#if defined(__clang__)
+#define SDF__V8I_PERMUTE(v, p0, p1, p2, p3, p4, p5, p6, p7) \
+    __builtin_shufflevector((v), (v), p0, p1, p2, p3, p4, p5, p6, p7)
+#else
+#define SDF__V8I_PERMUTE(v, p0, p1, p2, p3, p4, p5, p6, p7) \
+    __builtin_shuffle((v), (sdf__v8i){p0, p1, p2, p3, p4, p5, p6, p7})
+#endif
+
 /* One layer of a sorting network on eight keys: lane i and lane partner[i] trade places when
- * out of order; `first` marks the lower lane of each pair (unpaired lanes are their own
- * partner and keep their key). Branchless, so unpredictable orders cost no mispredictions. */
-SDF__HOT_INLINE sdf__v8i sdf__v8i_sort_layer(sdf__v8i v, sdf__v8i partner, sdf__v8i first)
+ * out of order, where w holds each lane's partner's key; `first` marks the lower lane of each
+ * pair (unpaired lanes are their own partner and keep their key). Branchless, so
+ * unpredictable orders cost no mispredictions. */
+SDF__HOT_INLINE sdf__v8i sdf__v8i_sort_layer(sdf__v8i v, sdf__v8i w, sdf__v8i first)
 {
-    sdf__v8i w = __builtin_shuffle(v, partner);
     sdf__v8i less = v < w;
     sdf__v8i lo = (v & less) | (w & ~less), hi = (w & less) | (v & ~less);
     return (lo & first) | (hi & ~first);
@@ -125,17 +137,17 @@ SDF__HOT_INLINE sdf__v8i sdf__v8i_sort_layer(sdf__v8i v, sdf__v8i partner, sdf__
  * layers; checked exhaustively on 0/1 inputs, which suffices for a sorting network). */
 SDF__HOT_INLINE sdf__v8i sdf__v8i_sort(sdf__v8i v)
 {
-    v = sdf__v8i_sort_layer(v, (sdf__v8i){1, 0, 3, 2, 5, 4, 7, 6},
+    v = sdf__v8i_sort_layer(v, SDF__V8I_PERMUTE(v, 1, 0, 3, 2, 5, 4, 7, 6),
                             (sdf__v8i){-1, 0, -1, 0, -1, 0, -1, 0});
-    v = sdf__v8i_sort_layer(v, (sdf__v8i){2, 3, 0, 1, 6, 7, 4, 5},
+    v = sdf__v8i_sort_layer(v, SDF__V8I_PERMUTE(v, 2, 3, 0, 1, 6, 7, 4, 5),
                             (sdf__v8i){-1, -1, 0, 0, -1, -1, 0, 0});
-    v = sdf__v8i_sort_layer(v, (sdf__v8i){0, 2, 1, 3, 4, 6, 5, 7},
+    v = sdf__v8i_sort_layer(v, SDF__V8I_PERMUTE(v, 0, 2, 1, 3, 4, 6, 5, 7),
                             (sdf__v8i){0, -1, 0, 0, 0, -1, 0, 0});
-    v = sdf__v8i_sort_layer(v, (sdf__v8i){4, 5, 6, 7, 0, 1, 2, 3},
+    v = sdf__v8i_sort_layer(v, SDF__V8I_PERMUTE(v, 4, 5, 6, 7, 0, 1, 2, 3),
                             (sdf__v8i){-1, -1, -1, -1, 0, 0, 0, 0});
-    v = sdf__v8i_sort_layer(v, (sdf__v8i){0, 1, 4, 5, 2, 3, 6, 7},
+    v = sdf__v8i_sort_layer(v, SDF__V8I_PERMUTE(v, 0, 1, 4, 5, 2, 3, 6, 7),
                             (sdf__v8i){0, 0, -1, -1, 0, 0, 0, 0});
-    v = sdf__v8i_sort_layer(v, (sdf__v8i){0, 2, 1, 4, 3, 6, 5, 7},
+    v = sdf__v8i_sort_layer(v, SDF__V8I_PERMUTE(v, 0, 2, 1, 4, 3, 6, 5, 7),
                             (sdf__v8i){0, -1, 0, -1, 0, -1, 0, 0});
     return v;
 }

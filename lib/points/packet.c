@@ -4,8 +4,13 @@
  * exact double test (geom/triangle.c, another file) decides every answer, so their
  * multiply-adds may fuse where the CPU has FMA: the answers stay bit for bit the same, and
  * the walks take fewer instructions. The rest of the library keeps ISO C's unfused
- * arithmetic, so its floats do not depend on the CPU. */
+ * arithmetic, so its floats do not depend on the CPU. Each compiler names the switch its own
+ * way. */
+#if defined(__clang__)
+#pragma clang fp contract(fast)
+#else
 #pragma GCC optimize("fp-contract=fast")
+#endif
 #include "points/packet.h"
 
 #include <math.h>
@@ -350,9 +355,20 @@ typedef struct wide_entry {
     float dist2;
 } wide_entry;
 
+/* clang checks the vector ABI of each call in a function compiled for AVX before it inlines
+ * anything, and rejects a 32-byte vector passed to a helper compiled without AVX: under
+ * clang the entry point compiled twice (core/simd.h) passes only pointers and scalars to
+ * this body, inlined into each clone. GCC checks after inlining, so there the body is
+ * the entry point itself (a wrapper would move its stack slots). */
+#if defined(__clang__)
+SDF__HOT_INLINE void closest_point_walk(const sdf__tree *tree, const float *positions,
+                                        const uint32_t *triangles, float extent, const float p[3],
+                                        double bound2, sdf__hit *hit)
+#else
 SDF__SIMD_CLONES
 void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
                         float extent, const float p[3], double bound2, sdf__hit *hit)
+#endif
 {
     const float tie_abs = TIE_ABS_OF_EXTENT * extent;
     const float x = p[0], y = p[1], z = p[2];
@@ -402,6 +418,15 @@ void sdf__closest_point(const sdf__tree *tree, const float *positions, const uin
     double q[3] = {x, y, z};
     decide_lane(positions, triangles, q, &lane, tie_abs, hit);
 }
+
+#if defined(__clang__)
+SDF__SIMD_CLONES
+void sdf__closest_point(const sdf__tree *tree, const float *positions, const uint32_t *triangles,
+                        float extent, const float p[3], double bound2, sdf__hit *hit)
+{
+    closest_point_walk(tree, positions, triangles, extent, p, bound2, hit);
+}
+#endif
 
 /* Culling compares the double box distance against the best exact distance grown by this
  * factor: both round by ~1e-16, and a node as near as the best may hold a lower-numbered

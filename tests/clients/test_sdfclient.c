@@ -50,7 +50,7 @@ static float *random_points(size_t n, unsigned seed)
     float *p = malloc(12 * (n ? n : 1));
     srand(seed);
     for (size_t i = 0; i < 3 * n; i++)
-        p[i] = (float)rand() / RAND_MAX * 3.0f - 1.5f;
+        p[i] = (float)rand() / (float)RAND_MAX * 3.0f - 1.5f;
     return p;
 }
 
