@@ -28,6 +28,7 @@
 #include "httpreq.h"
 #include "httpslice.h"
 #include "httpvolumes.h"
+#include "page.h"
 #include "log.h"
 #include "net.h"
 
@@ -79,7 +80,8 @@ static int parse_route(request *req, const char *url)
     static const struct { const char *path; sdfd_route route; } fixed[] = {
         {"/healthz", SDFD_ROUTE_HEALTH}, {"/readyz", SDFD_ROUTE_READY},
         {"/metrics", SDFD_ROUTE_METRICS}, {"/v1/meshes", SDFD_ROUTE_MESHES},
-        {"/v1/jobs", SDFD_ROUTE_JOBS}, {"/v1/volumes", SDFD_ROUTE_VOLUMES}};
+        {"/v1/jobs", SDFD_ROUTE_JOBS}, {"/v1/volumes", SDFD_ROUTE_VOLUMES},
+        {"/", SDFD_ROUTE_PAGE}};
     /* collection/{name}[suffix] */
     static const struct { const char *collection, *suffix; sdfd_route route; } named[] = {
         {"/v1/meshes/", "", SDFD_ROUTE_MESH}, {"/v1/meshes/", "/query", SDFD_ROUTE_QUERY},
@@ -87,7 +89,8 @@ static int parse_route(request *req, const char *url)
         {"/v1/volumes/", "", SDFD_ROUTE_VOLUME}, {"/v1/volumes/", "/data", SDFD_ROUTE_VOLUME_DATA},
         {"/v1/volumes/", "/query", SDFD_ROUTE_VOLUME_QUERY},
         {"/v1/meshes/", "/slice.png", SDFD_ROUTE_SLICE},
-        {"/v1/volumes/", "/slice.png", SDFD_ROUTE_VOLUME_SLICE}};
+        {"/v1/volumes/", "/slice.png", SDFD_ROUTE_VOLUME_SLICE},
+        {"/static/", "", SDFD_ROUTE_PAGE}};
     for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++) {
         if (!strcmp(url, fixed[i].path)) {
             req->route = fixed[i].route;
@@ -399,6 +402,8 @@ static enum MHD_Result dispatch(request *req)
     case SDFD_ROUTE_SLICE:
     case SDFD_ROUTE_VOLUME_SLICE:
         return sdfd_http_slice(req);
+    case SDFD_ROUTE_PAGE:
+        return sdfd_http_page(req);
     default:
         return sdfd_http_error(req, SDF_ENOTFOUND, "no such route");
     }
