@@ -3,9 +3,9 @@
  *
  * Colours: a signed field is shown in a perceptually uniform diverging map (Moreland's
  * "cool to warm", interpolated in his Msh form of CIELAB): blue inside (negative), red
- * outside, white at zero, over a range symmetric about zero so that equal distances inside
+ * outside, his neutral near-white (L* = 88) at zero, over a range symmetric about zero so that equal distances inside
  * and outside get equal strength. A non-negative field (unsigned distance, gradient
- * magnitude, error) uses the warm half from white at 0. Iso lines every `step`, the zero set
+ * magnitude, error) uses the warm half from that near-white at 0. Iso lines every `step`, the zero set
  * (sign changes between neighbouring pixels) as a black line one pixel wide, drawn on the
  * pixel of each changing pair nearer the level, so the line lies within half a pixel of it.
  * Non-finite values are grey. The legend is a strip below the slice: the range's end values
