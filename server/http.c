@@ -26,7 +26,9 @@
 #include "errors.h"
 #include "filterparams.h"
 #include "httpreq.h"
+#include "httpslice.h"
 #include "httpvolumes.h"
+#include "page.h"
 #include "log.h"
 #include "net.h"
 
@@ -78,13 +80,17 @@ static int parse_route(request *req, const char *url)
     static const struct { const char *path; sdfd_route route; } fixed[] = {
         {"/healthz", SDFD_ROUTE_HEALTH}, {"/readyz", SDFD_ROUTE_READY},
         {"/metrics", SDFD_ROUTE_METRICS}, {"/v1/meshes", SDFD_ROUTE_MESHES},
-        {"/v1/jobs", SDFD_ROUTE_JOBS}, {"/v1/volumes", SDFD_ROUTE_VOLUMES}};
+        {"/v1/jobs", SDFD_ROUTE_JOBS}, {"/v1/volumes", SDFD_ROUTE_VOLUMES},
+        {"/", SDFD_ROUTE_PAGE}};
     /* collection/{name}[suffix] */
     static const struct { const char *collection, *suffix; sdfd_route route; } named[] = {
         {"/v1/meshes/", "", SDFD_ROUTE_MESH}, {"/v1/meshes/", "/query", SDFD_ROUTE_QUERY},
         {"/v1/meshes/", "/bake", SDFD_ROUTE_BAKE}, {"/v1/jobs/", "", SDFD_ROUTE_JOB},
         {"/v1/volumes/", "", SDFD_ROUTE_VOLUME}, {"/v1/volumes/", "/data", SDFD_ROUTE_VOLUME_DATA},
-        {"/v1/volumes/", "/query", SDFD_ROUTE_VOLUME_QUERY}};
+        {"/v1/volumes/", "/query", SDFD_ROUTE_VOLUME_QUERY},
+        {"/v1/meshes/", "/slice.png", SDFD_ROUTE_SLICE},
+        {"/v1/volumes/", "/slice.png", SDFD_ROUTE_VOLUME_SLICE},
+        {"/static/", "", SDFD_ROUTE_PAGE}};
     for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++) {
         if (!strcmp(url, fixed[i].path)) {
             req->route = fixed[i].route;
@@ -128,7 +134,8 @@ static int authorized(const request *req)
                 req->route == SDFD_ROUTE_BAKE ||
                 (cfg->auth_queries &&
                  (req->route == SDFD_ROUTE_QUERY || req->route == SDFD_ROUTE_VOLUME_QUERY ||
-                  req->route == SDFD_ROUTE_VOLUME_DATA)); /* a download is every node's answer */
+                  req->route == SDFD_ROUTE_VOLUME_DATA || /* a download is every node's answer */
+                  req->route == SDFD_ROUTE_SLICE || req->route == SDFD_ROUTE_VOLUME_SLICE));
     if (!cfg->token || !needs)
         return 1;
     const char *h = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
@@ -399,6 +406,11 @@ static enum MHD_Result dispatch(request *req)
         return sdfd_http_volume_data(req);
     case SDFD_ROUTE_VOLUME_QUERY:
         return sdfd_http_volume_query(req);
+    case SDFD_ROUTE_SLICE:
+    case SDFD_ROUTE_VOLUME_SLICE:
+        return sdfd_http_slice(req);
+    case SDFD_ROUTE_PAGE:
+        return sdfd_http_page(req);
     default:
         return sdfd_http_error(req, SDF_ENOTFOUND, "no such route");
     }
@@ -469,6 +481,7 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
     sdf_mesh_release(req->uploaded);
     sdfd_volume_release(req->stored);
     free(req->out_body);
+    free(req->route_state);
     if (req->points_owned)
         free(req->points_buf);
     free(req->reply.buffer);

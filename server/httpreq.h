@@ -59,6 +59,7 @@ struct sdfd_http_request {
     sdf_volume_file file_type;
     char *out_body;
     size_t out_len;
+    void *route_state;            /* a route module's own (httpslice.c), freed at completion */
 };
 
 /* ---- responses ---- */

@@ -14,7 +14,8 @@ static const char *const route_names[SDFD_ROUTE_COUNT] = {
     "/healthz", "/readyz", "/metrics", "/v1/meshes", "/v1/meshes/{name}",
     "/v1/meshes/{name}/query", "/v1/meshes/{name}/bake", "/v1/jobs", "/v1/jobs/{id}",
     "/v1/volumes", "/v1/volumes/{name}", "/v1/volumes/{name}/data", "/v1/volumes/{name}/query",
-    "bin:query", "bin:volume_query", "bin:other", "other"};
+    "bin:query", "bin:volume_query", "bin:other", "other",
+    "/v1/meshes/{name}/slice.png", "/v1/volumes/{name}/slice.png", "page"};
 
 const char *sdfd_route_name(sdfd_route route)
 {

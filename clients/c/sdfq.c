@@ -65,6 +65,18 @@ static const command commands[] = {
      "usage: sdfq download VOLUME -o FILE [--format exr|npy|raw]\n"
      "Save a volume (-o - writes it to stdout). The format defaults from FILE's extension\n"
      "(.npy, .raw, else exr).\n"},
+    {"slice", sdfq_cmd_slice,
+     "o: volume format: axis: at: normal: origin: bounds: size: mode: sign: interpolation: "
+     "step: samples: seed: kernel: cap:",
+     "usage: sdfq slice NAME -o FILE [--volume] [--axis x|y|z] [--at F] [options]\n"
+     "Save a slice of mesh NAME (or, with --volume, of the volume NAME) as a PNG picture, or\n"
+     "its values as a float32 (H, W) npy file (docs/api.md, Slices; -o - writes to stdout).\n"
+     "  --format png|npy    default from FILE's extension (.npy, else png)\n"
+     "  --axis, --at        the plane across x, y or z (default z) at a coordinate\n"
+     "  --normal nx,ny,nz --origin x,y,z   any plane instead\n"
+     "  --bounds x0,y0,z0,x1,y1,z1 --size N (pixels of the longer side, default 512)\n"
+     "  --mode signed|distance|filtered|gradient|error --sign S --interpolation I --step F\n"
+     "  --samples N --seed S --kernel gaussian|bump --cap F   mode filtered's parameters\n"},
     {"delete", sdfq_cmd_delete, "volume job",
      "usage: sdfq delete [--volume|--job] NAME...\n"
      "Delete meshes (default), volumes or jobs (a running job is canceled).\n"},

@@ -131,6 +131,28 @@ class InstalledPackage(unittest.TestCase):
                 self.assertEqual(got[key].dtype, np.float32, key)
                 self.assertEqual(got[key].tobytes(), want.tobytes(), key)
 
+    def test_slices(self):
+        out = os.path.join(self.tmp.name, "slice.npz")
+        self.venv_python(
+            "import numpy as np, sdfclient\n"
+            f"c = sdfclient.Client({self.server.url!r})\n"
+            "s = c.slice('demo', axis='x', at=0.5, size=48, format='npy')\n"
+            "png = c.slice('demo', axis='x', at=0.5, size=48, mode='filtered', filter={'samples': 8})\n"
+            "assert png['bytes'][:8] == b'\\x89PNG\\r\\n\\x1a\\n'\n"
+            "j, i = 5, 40\n"
+            "p = s['first'] + i * s['right'] + j * s['down']\n"
+            f"np.savez({out!r}, values=s['values'], p=p, size=[s['width'], s['height']])\n")
+        with np.load(out) as got:
+            values, p, (w, h) = got["values"], got["p"], got["size"]
+        self.assertEqual(values.shape, (h, w))
+        self.assertEqual(max(w, h), 48)
+        self.assertAlmostEqual(p[0], 0.5, places=6)
+        body = json.dumps({"points": [p.tolist()]}).encode()
+        req = urllib.request.Request(f"{self.server.url}/v1/meshes/demo/query", body,
+                                     {"Content-Type": "application/json"})
+        with urllib.request.urlopen(req, timeout=60) as r:
+            self.assertAlmostEqual(json.load(r)["distance"][0], float(values[5, 40]), places=5)
+
     def test_readme_examples_run(self):
         blocks = readme_examples()
         self.assertEqual(len(blocks), 2)

@@ -213,7 +213,7 @@ class Sdfq(unittest.TestCase):
 
     def test_usage_and_help(self):
         for cmd in ("query", "query-volume", "meshes", "upload", "bake", "download", "delete",
-                    "volumes"):
+                    "volumes", "slice"):
             r = self.sdfq(cmd, "--help")
             self.assertOk(r)
             self.assertIn(f"usage: sdfq {cmd}", r.stdout.decode())
@@ -226,6 +226,28 @@ class Sdfq(unittest.TestCase):
         self.assertFails(self.sdfq("meshes", "--bin", "nocolon"), 1, "HOST:PORT")
 
     # ---- the other subcommands ----
+
+    def test_slice(self):
+        args = ("--axis", "y", "--at", "0.02", "--size", "80", "--mode", "filtered",
+                "--samples", "8", "--seed", "4")
+        self.assertOk(self.sdfq("slice", "fandisk", "-o", self.path("s.png"), *args))
+        _, png = self.http._request("GET", "/v1/meshes/fandisk/slice.png?axis=y&at=0.02&size=80"
+                                    "&mode=filtered&samples=8&seed=4")
+        with open(self.path("s.png"), "rb") as f:
+            self.assertEqual(f.read(), png)
+        self.assertTrue(png.startswith(b"\x89PNG"))
+        self.assertOk(self.sdfq("slice", "fandisk", "-o", self.path("s.npy"), *args))
+        got = np.load(self.path("s.npy"))
+        _, data = self.http._request("GET", "/v1/meshes/fandisk/slice.png?axis=y&at=0.02&size=80"
+                                     "&mode=filtered&samples=8&seed=4&format=npy")
+        self.assertEqual(got.tobytes(), np.load(io.BytesIO(data)).tobytes())
+        self.assertEqual(max(got.shape), 80)
+        r = self.sdfq("slice", "fandisk", "-o", self.path("never.png"), "--axis", "w")
+        self.assertFails(r, 2, "422", "axis")
+        self.assertFalse(os.path.exists(self.path("never.png")))
+        self.assertFails(self.sdfq("slice", "nope", "--volume", "-o", self.path("n.png")), 2,
+                         "ENOTFOUND")
+        self.assertFails(self.sdfq("slice", "fandisk"), 1, "-o")
 
     def test_meshes_upload_bake_download_delete(self):
         self.assertOk(self.sdfq("upload", "cow", os.path.join(DATA, "cow.off")))

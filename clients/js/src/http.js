@@ -266,6 +266,47 @@ export class Client {
     return splitWords(words, count, w);
   }
 
+  /* ---- slices ---- */
+
+  /** GET /v1/meshes/{name}/slice.png, or with `volume: true` /v1/volumes/{name}/slice.png:
+   * a plane of the field (docs/api.md, Slices). Options: axis, at, normal, origin (triples),
+   * bounds ([x0, y0, z0, x1, y1, z1]), size, mode, sign, interpolation, step, filter (as in
+   * query, for mode "filtered"), format ("png", default, or "npy"). Returns {format, bytes,
+   * width, height, first, right, down, range, step} (pixel (i, j) is centred at first +
+   * i right + j down), and for npy the values as a Float32Array of height x width. */
+  async slice(name, options = {}) {
+    const { volume = false, format = 'png', filter, signal, ...rest } = options;
+    if (!['png', 'npy'].includes(format))
+      throw new TypeError(`format must be "png" or "npy", not ${JSON.stringify(format)}`);
+    const args = new URLSearchParams();
+    for (const [k, v] of Object.entries(rest)) {
+      if (v !== undefined)
+        args.set(k, Array.isArray(v) || ArrayBuffer.isView(v) ? Array.from(v, String).join(',') : String(v));
+    }
+    if (filter)
+      filterArgs(checkFilter(filter), args);
+    if (format !== 'png')
+      args.set('format', format);
+    const query = args.toString() ? `?${args}` : '';
+    const res = await this.#request('GET',
+      `/v1/${volume ? 'volumes' : 'meshes'}/${seg(name)}/slice.png${query}`, { signal });
+    const bytes = new Uint8Array(await res.arrayBuffer());
+    const numbers = (h) => (res.headers.get(`X-SDF-Slice-${h}`) ?? '').split(',').map(Number);
+    const [width, height] = numbers('Size');
+    const out = {
+      format, bytes, width, height, first: numbers('First'), right: numbers('Right'),
+      down: numbers('Down'), range: numbers('Range'), step: numbers('Step')[0],
+    };
+    if (format === 'npy') {
+      const a = parseNpy(bytes);
+      if (a.descr !== '<f4' || a.shape.length !== 2 || a.shape[0] !== height || a.shape[1] !== width)
+        throw new RangeError(`unexpected slice npy ${a.descr} ${a.shape}`);
+      const w = leWords(a.data);
+      out.values = new Float32Array(w.buffer, w.byteOffset, w.length);
+    }
+    return out;
+  }
+
   /* ---- bakes and jobs ---- */
 
   /** POST /v1/meshes/{name}/bake with the parameters of docs/api.md's table (volume,

@@ -211,6 +211,46 @@ export declare class Client {
   deleteVolume(name: string, options?: RequestOptions): Promise<void>;
   download(name: string, options?: RequestOptions & { format?: VolumeFormat }): Promise<VolumeDownload>;
   queryVolume(name: string, points: Points, options?: VolumeQueryOptions): Promise<QueryResult>;
+  /** GET .../slice.png of a mesh, or of a volume with `volume: true` (docs/api.md, Slices). */
+  slice(name: string, options?: SliceOptions): Promise<Slice>;
+}
+
+export type SliceMode = 'signed' | 'distance' | 'filtered' | 'gradient' | 'error';
+
+export interface SliceOptions extends RequestOptions {
+  /** a volume's slice (default: a mesh's) */
+  volume?: boolean;
+  axis?: 'x' | 'y' | 'z';
+  at?: number;
+  normal?: ArrayLike<number>;
+  origin?: ArrayLike<number>;
+  /** x0, y0, z0, x1, y1, z1 */
+  bounds?: ArrayLike<number>;
+  /** pixels along the longer side, 1..2048 (default 512) */
+  size?: number;
+  mode?: SliceMode;
+  sign?: Sign;
+  interpolation?: Interpolation;
+  step?: number;
+  filter?: FilterParams;
+  format?: 'png' | 'npy';
+}
+
+export interface Slice {
+  format: 'png' | 'npy';
+  /** the PNG or npy file */
+  bytes: Uint8Array;
+  width: number;
+  height: number;
+  /** pixel (i, j) is centred at first + i * right + j * down */
+  first: number[];
+  right: number[];
+  down: number[];
+  /** min, max of the finite values */
+  range: number[];
+  step: number;
+  /** npy: height x width values, rows from the top */
+  values?: Float32Array;
 }
 
 export declare const MODES: Readonly<Record<Mode, number>>;

@@ -129,6 +129,34 @@ describe('HTTP client', { timeout: 120000 }, () => {
     await assert.rejects(c.query('fandisk', points, { mode: 'filtered', filter: { sample: 8 } }), TypeError);
   });
 
+  test('slices: PNG and npy, the plane in the headers, the values those of a query', async () => {
+    const png = await c.slice('fandisk', { axis: 'y', at: 0.01, size: 64 });
+    assert.equal(png.format, 'png');
+    assert.deepEqual([...png.bytes.subarray(0, 8)], [0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a]);
+    assert.equal(Math.max(png.width, png.height), 64);
+    const npy = await c.slice('fandisk', { axis: 'y', at: 0.01, size: 64, format: 'npy' });
+    assert.equal(npy.values.length, npy.width * npy.height);
+    assert.deepEqual([npy.width, npy.height, npy.first, npy.right, npy.down],
+      [png.width, png.height, png.first, png.right, png.down]);
+    /* the centre of pixel (i, j) queried on its own gives that pixel's value */
+    for (const [i, j] of [[0, 0], [7, 30], [npy.width - 1, npy.height - 1]]) {
+      const p = [0, 1, 2].map((a) => npy.first[a] + i * npy.right[a] + j * npy.down[a]);
+      assert.ok(Math.abs(p[1] - 0.01) < 1e-6);
+      const q = await c.query('fandisk', [p]);
+      assert.ok(Math.abs(q.distance[0] - npy.values[j * npy.width + i]) < 1e-6, `pixel ${i}, ${j}`);
+    }
+    const lo = Math.min(...npy.values), hi = Math.max(...npy.values);
+    assert.ok(Math.abs(npy.range[0] - lo) < 1e-6 && Math.abs(npy.range[1] - hi) < 1e-6);
+    const filtered = await c.slice('fandisk', { size: 32, format: 'npy', mode: 'filtered', filter: { samples: 8, seed: 2 } });
+    const raw = await c.slice('fandisk', { size: 32, format: 'npy' });
+    assert.ok(!sameBits(filtered.values, raw.values), 'the filter arguments changed nothing');
+    const plane = await c.slice('fandisk', { normal: [0, 0, 1], origin: [0, 0, 0.1], bounds: [-1, -1, -1, 1, 1, 1], size: 16, format: 'npy' });
+    assert.deepEqual([plane.width, plane.height], [16, 16]);
+    await assert.rejects(c.slice('fandisk', { format: 'gif' }), TypeError);
+    await rejectsWith(c.slice('fandisk', { size: 0 }), 422, 'EINVAL');
+    await rejectsWith(c.slice('fandisk', { volume: true }), 404, 'ENOTFOUND');
+  });
+
   test('errors: unknown mesh 404, bad bodies and values 422', async () => {
     await rejectsWith(c.query('nope', points), 404, 'ENOTFOUND');
     await rejectsWith(c.query('nope', points, { form: 'json' }), 404, 'ENOTFOUND');

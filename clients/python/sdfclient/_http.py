@@ -174,6 +174,42 @@ class Client:
             return {"distance": a}
         return {"distance": a[:, 0].copy(), "gradient": a[:, 1:4].copy()}
 
+    # ---- slices (docs/api.md, Slices) ----
+
+    def slice(self, name: str, volume: bool = False, format: str = "png",
+              filter: Optional[Mapping[str, Any]] = None, **args: Any) -> Dict[str, Any]:
+        """GET /v1/meshes/{name}/slice.png (or, with volume=True, the volume's): a plane of
+        the field. `args` are the route's URL arguments: axis, at, normal, origin, bounds
+        (sequences are sent as x,y,z), size, mode, sign, interpolation, step; `filter` the
+        filtered mode's parameters. Returns {"format", "bytes", "width", "height", "first",
+        "right", "down", "range", "step"}: pixel (i, j) is centred at first + i * right +
+        j * down; with format="npy" also "values", float32 (height, width)."""
+        if format not in ("png", "npy"):
+            raise ValueError("format must be png or npy")
+        query: Dict[str, str] = {}
+        for k, v in args.items():
+            if v is not None:
+                query[k] = ",".join(repr(float(x)) for x in v) if isinstance(
+                    v, (list, tuple, np.ndarray)) else str(v)
+        query.update(_url_filter(_filter(filter)))
+        if format != "png":
+            query["format"] = format
+        kind = "volumes" if volume else "meshes"
+        q = "?" + urllib.parse.urlencode(query) if query else ""
+        resp, data = self._request("GET", f"/v1/{kind}/{name}/slice.png{q}")
+
+        def numbers(h: str) -> List[float]:
+            return [float(x) for x in (resp.getheader("X-SDF-Slice-" + h) or "").split(",")]
+        width, height = (int(x) for x in numbers("Size"))
+        out: Dict[str, Any] = {
+            "format": format, "bytes": data, "width": width, "height": height,
+            "first": np.array(numbers("First")), "right": np.array(numbers("Right")),
+            "down": np.array(numbers("Down")), "range": tuple(numbers("Range")),
+            "step": numbers("Step")[0]}
+        if format == "npy":
+            out["values"] = np.load(io.BytesIO(data))
+        return out
+
     # ---- volumes (docs/volumes.md) ----
 
     def bake(self, name: str, volume: Optional[str] = None, **params: Any) -> Dict[str, Any]:

@@ -1,0 +1,167 @@
+/* test_page.mjs - sdfd's page (GET /) in a real browser: Debian's headless Chromium driven
+ * over the DevTools protocol by puppeteer-core, against a real sdfd started here. It picks a
+ * mesh, moves the slider, switches modes, probes a point, bakes a volume watching the progress
+ * bar reach 100 %, opens the volume's error slice, saves screenshots (page-mesh.png, page.png in SCREENSHOT_DIR, the
+ * build directory under meson) and fails on any console error or uncaught exception. */
+import { spawn } from 'node:child_process';
+import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import path from 'node:path';
+import { createInterface } from 'node:readline';
+import { after, before, test } from 'node:test';
+import assert from 'node:assert/strict';
+import puppeteer from 'puppeteer-core';
+
+const SDFD = process.env.SDFD ?? 'build/server/sdfd';
+const DATA = process.env.SDF_TEST_DATA ?? 'tests/data';
+const CHROMIUM = process.env.CHROMIUM ?? '/usr/bin/chromium';
+const SHOTS = process.env.SCREENSHOT_DIR ?? '.';
+
+let server, base, browser, page, profile;
+const errors = [];
+
+/* sdfd on a free loopback port: the port and readiness come from its JSON log. */
+function startServer() {
+  const proc = spawn(SDFD, ['--http', '127.0.0.1:0', '--bin', '127.0.0.1:0'],
+    { stdio: ['ignore', 'ignore', 'pipe'] });
+  return new Promise((resolve, reject) => {
+    let port;
+    const timer = setTimeout(() => reject(new Error('sdfd did not become ready')), 60000);
+    createInterface({ input: proc.stderr }).on('line', (line) => {
+      let e;
+      try {
+        e = JSON.parse(line);
+      } catch {
+        return;
+      }
+      if (e.event === 'listening' && e.proto === 'http')
+        port = e.port;
+      if (e.event === 'ready') {
+        clearTimeout(timer);
+        resolve({ proc, url: `http://127.0.0.1:${port}` });
+      }
+    });
+    proc.on('exit', (code) => reject(new Error(`sdfd exited with ${code}`)));
+  });
+}
+
+before(async () => {
+  ({ proc: server, url: base } = await startServer());
+  const put = await fetch(`${base}/v1/meshes/fandisk`,
+    { method: 'PUT', body: readFileSync(path.join(DATA, 'fandisk.off')) });
+  assert.equal(put.status, 201);
+  profile = mkdtempSync(path.join(tmpdir(), 'sdfd-page-'));
+  browser = await puppeteer.launch({
+    executablePath: CHROMIUM,
+    headless: true,
+    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync',
+      `--user-data-dir=${profile}`],
+  });
+  page = await browser.newPage();
+  await page.setViewport({ width: 1200, height: 900 });
+  page.on('console', (m) => {
+    if (m.type() === 'error')
+      errors.push(`console: ${m.text()} ${JSON.stringify(m.location())}`);
+  });
+  page.on('pageerror', (e) => errors.push(`exception: ${e.message}`));
+  page.on('requestfailed', (r) => errors.push(`request failed: ${r.url()} ${r.failure()?.errorText}`));
+});
+
+after(async () => {
+  await browser?.close();
+  server?.kill('SIGTERM');
+  if (profile)
+    rmSync(profile, { recursive: true, force: true });
+});
+
+const version = () => page.$eval('#slice', (img) => Number(img.dataset.version ?? 0));
+
+/* Do `action`, then wait until the slice shown is a newer one than before it. */
+async function newSlice(action) {
+  const before = await version();
+  await action();
+  await page.waitForFunction((v) => Number(document.getElementById('slice').dataset.version ?? 0) > v
+    && document.getElementById('slice').complete, { timeout: 60000 }, before);
+  const [w, h] = await page.$eval('#slice', (img) => [img.naturalWidth, img.naturalHeight]);
+  assert.ok(w > 100 && h > 100, `slice ${w} x ${h}`);
+}
+
+test('the page and its files are served from the binary', async () => {
+  const index = await fetch(`${base}/`);
+  assert.equal(index.status, 200);
+  assert.match(index.headers.get('content-type'), /^text\/html/);
+  assert.match(await index.text(), /<script type="module" src="\/static\/page.js">/);
+  for (const f of ['page.js', 'page.css', 'index.js', 'http.js', 'errors.js', 'wire.js']) {
+    const r = await fetch(`${base}/static/${f}`);
+    assert.equal(r.status, 200, f);
+    const source = path.join(f.startsWith('page') ? '../../../server/page' : '../../../clients/js/src', f);
+    assert.equal(await r.text(), readFileSync(new URL(source, import.meta.url), 'utf8'), f);
+  }
+  assert.equal((await fetch(`${base}/static/nothing.js`)).status, 404);
+});
+
+test('pick a mesh, slide, switch modes, probe, bake, view the error', async () => {
+  await page.goto(`${base}/`);
+  await page.waitForSelector('body[data-ready="1"]', { timeout: 60000 });
+  const names = await page.$$eval('#meshes tbody tr', (rows) => rows.map((r) => r.dataset.name));
+  assert.deepEqual(names, ['demo', 'fandisk']);
+
+  await newSlice(() => page.click('#meshes tbody tr[data-name="fandisk"]'));
+  const report = await page.$eval('#report', (dl) => dl.textContent);
+  assert.match(report, /triangles12946/);
+  assert.match(await page.$eval('#view-title', (e) => e.textContent), /fandisk/);
+
+  const at0 = await page.$eval('#at-value', (e) => e.textContent);
+  await newSlice(() => page.$eval('#at', (el) => {
+    el.value = '300';
+    el.dispatchEvent(new Event('input'));
+  }));
+  const at1 = await page.$eval('#at-value', (e) => e.textContent);
+  assert.notEqual(at0, at1);
+  await newSlice(() => page.select('#axis', 'x'));
+  for (const mode of ['filtered', 'gradient', 'signed']) {
+    await newSlice(() => page.select('#mode', mode));
+    assert.equal(await page.$eval('#slice', (img) => img.dataset.mode), mode);
+  }
+  assert.match(await page.$eval('#status', (e) => e.textContent), /signed \d+×\d+/);
+
+  /* probe the middle of the slice: a distance, a closest point and a unit gradient */
+  const box = await (await page.$('#slice')).boundingBox();
+  await page.mouse.click(box.x + box.width / 2, box.y + box.height * 0.4);
+  await page.waitForFunction(() => /distance/.test(document.getElementById('probe').textContent));
+  const probe = await page.$eval('#probe', (e) => e.textContent);
+  const numbers = (label) => probe.match(new RegExp(`${label}\\s+\\(([^)]*)\\)`))[1].split(',').map(Number);
+  const distance = Number(probe.match(/distance\s+(\S+)/)[1]);
+  assert.ok(Number.isFinite(distance), probe);
+  const [p, c, g] = [numbers('point'), numbers('closest'), numbers('gradient')];
+  const gap = Math.hypot(...p.map((x, a) => x - c[a]));
+  assert.ok(Math.abs(gap - Math.abs(distance)) < 1e-3 * (1 + gap), probe);
+  assert.ok(Math.abs(Math.hypot(...g) - 1) < 1e-3, probe);
+  assert.equal(await page.$eval('#marker', (m) => m.hidden), false);
+  await page.screenshot({ path: path.join(SHOTS, 'page-mesh.png'), fullPage: true });
+
+  /* bake: the bar moves to 100 % and the volume is listed */
+  await page.$eval('#bake [name=volume]', (el) => { el.value = 'fan32'; });
+  await page.$eval('#bake [name=resolution]', (el) => { el.value = '40'; });
+  const seen = new Set();
+  const watch = setInterval(async () => {
+    try {
+      seen.add(await page.$eval('#bake-percent', (e) => e.textContent));
+    } catch { /* the page is busy */ }
+  }, 20);
+  await page.click('#bake button');
+  await page.waitForFunction(() => document.getElementById('bake-percent').textContent === '100 %',
+    { timeout: 120000 });
+  clearInterval(watch);
+  assert.equal(await page.$eval('#bake-progress', (e) => e.value), 1);
+  assert.ok(seen.size >= 2, `the bar showed only ${[...seen]}`);
+  await page.waitForSelector('#volumes tbody tr[data-name="fan32"]');
+  await newSlice(() => page.click('#volumes tbody tr[data-name="fan32"]'));
+  assert.equal(await page.$eval('#slice', (img) => img.dataset.mode), 'error');
+  await page.mouse.click(box.x + box.width / 2, box.y + box.height * 0.4);
+  await page.waitForFunction(() => /value/.test(document.getElementById('probe').textContent));
+
+  await page.screenshot({ path: path.join(SHOTS, 'page.png'), fullPage: true });
+  assert.deepEqual(errors, []);
+});
