@@ -519,29 +519,44 @@ size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_M
     return list ? n : 0;
 }
 
-size_t sdfd_store_names(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+/* The stems of DIR's "*.json" files (sidecars, job records) that `accept` takes, each shorter
+ * than `width`, as rows of `width` bytes in *out (NULL when there are none). */
+static size_t json_stems(const char *dir, size_t width, int (*accept)(const char *, size_t),
+                         char **out)
 {
-    char dir[4096];
-    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
     size_t n = 0;
-    char(*list)[SDFD_MAX_NAME + 1] = NULL;
+    char *rows = NULL;
     DIR *d = opendir(dir);
     for (struct dirent *e; d && (e = readdir(d));) {
         size_t len = strlen(e->d_name);
-        if (len <= 5 || strcmp(e->d_name + len - 5, ".json") || len - 5 > SDFD_STORE_MAX_NAME ||
-            !sdfd_valid_name(e->d_name, len - 5))
+        if (len <= 5 || strcmp(e->d_name + len - 5, ".json") || len - 5 >= width ||
+            !accept(e->d_name, len - 5))
             continue;
-        void *grown = realloc(list, (n + 1) * sizeof *list);
+        void *grown = realloc(rows, (n + 1) * width);
         if (!grown)
             break;
-        list = grown;
-        snprintf(list[n++], sizeof *list, "%.*s", (int)(len - 5), e->d_name);
+        rows = grown;
+        snprintf(rows + n++ * width, width, "%.*s", (int)(len - 5), e->d_name);
     }
     if (d)
         closedir(d);
-    if (list)
-        qsort(list, n, sizeof *list, by_text);
-    *names = list;
+    *out = rows;
+    return n;
+}
+
+static int item_stem(const char *stem, size_t len)
+{
+    return len <= SDFD_STORE_MAX_NAME && sdfd_valid_name(stem, len);
+}
+
+size_t sdfd_store_names(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+{
+    char dir[4096], *rows;
+    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    size_t n = json_stems(dir, sizeof **names, item_stem, &rows);
+    if (rows)
+        qsort(rows, n, sizeof **names, by_text);
+    *names = (char(*)[SDFD_MAX_NAME + 1])rows;
     return n;
 }
 
@@ -600,25 +615,17 @@ void sdfd_store_unlock_job(sdfd_store *s, const char *id, int fd)
         close(fd);
 }
 
+static int job_stem(const char *stem, size_t len)
+{
+    (void)len;
+    return stem[0] != '.';
+}
+
 size_t sdfd_store_job_ids(sdfd_store *s, char (**ids)[64])
 {
-    char dir[4096];
+    char dir[4096], *rows;
     path_of(s, dir, sizeof dir, "jobs", NULL);
-    size_t n = 0;
-    char(*list)[64] = NULL;
-    DIR *d = opendir(dir);
-    for (struct dirent *e; d && (e = readdir(d));) {
-        size_t len = strlen(e->d_name);
-        if (len < 6 || len - 5 >= 64 || e->d_name[0] == '.' || strcmp(e->d_name + len - 5, ".json"))
-            continue;
-        void *grown = realloc(list, (n + 1) * sizeof *list);
-        if (!grown)
-            break;
-        list = grown;
-        snprintf(list[n++], sizeof *list, "%.*s", (int)(len - 5), e->d_name);
-    }
-    if (d)
-        closedir(d);
-    *ids = list;
+    size_t n = json_stems(dir, sizeof **ids, job_stem, &rows);
+    *ids = (char(*)[64])rows;
     return n;
 }
