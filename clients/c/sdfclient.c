@@ -472,6 +472,20 @@ static int rx_pump(sdfc_client *c, int *frames)
         r->got += (size_t)got;
     }
 }
+/* Wait for `events` on the socket until `deadline` (now_ms's clock; no limit when the reply
+ * timeout is negative): 0, or the connection marked broken with SDFC_ETIMEDOUT or SDFC_EIO. */
+static int wait_deadline(sdfc_client *c, double deadline, short events)
+{
+    int left = -1;
+    if (c->reply_timeout_ms >= 0) {
+        double l = deadline - now_ms();
+        if (l <= 0)
+            return set_broken(c, SDFC_ETIMEDOUT);
+        left = l > INT_MAX ? INT_MAX : (int)l + 1;
+    }
+    return wait_fd(c->fd, events, left) < 0 ? set_broken(c, SDFC_EIO) : 0;
+}
+
 
 /* Block until at least one more frame completes, or the reply timeout passes. */
 static int rx_one(sdfc_client *c)
@@ -481,15 +495,8 @@ static int rx_one(sdfc_client *c)
         int frames = 0, rc = rx_pump(c, &frames);
         if (rc || frames)
             return rc;
-        int left = -1;
-        if (c->reply_timeout_ms >= 0) {
-            double l = deadline - now_ms();
-            if (l <= 0)
-                return set_broken(c, SDFC_ETIMEDOUT);
-            left = l > INT_MAX ? INT_MAX : (int)l + 1;
-        }
-        if (wait_fd(c->fd, POLLIN, left) < 0)
-            return set_broken(c, SDFC_EIO);
+        if ((rc = wait_deadline(c, deadline, POLLIN)))
+            return rc;
     }
 }
 
@@ -515,15 +522,8 @@ static int tx(sdfc_client *c, struct iovec *iov, int iovcnt)
                 return rc;
             if (frames)
                 deadline = now_ms() + c->reply_timeout_ms;
-            int left = -1;
-            if (c->reply_timeout_ms >= 0) {
-                double l = deadline - now_ms();
-                if (l <= 0)
-                    return set_broken(c, SDFC_ETIMEDOUT);
-                left = l > INT_MAX ? INT_MAX : (int)l + 1;
-            }
-            if (wait_fd(c->fd, POLLIN | POLLOUT, left) < 0)
-                return set_broken(c, SDFC_EIO);
+            if ((rc = wait_deadline(c, deadline, POLLIN | POLLOUT)))
+                return rc;
             continue;
         }
         deadline = now_ms() + c->reply_timeout_ms;
