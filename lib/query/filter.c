@@ -779,6 +779,10 @@ static int query_filtered(const sdf_mesh *mesh, const float *points, size_t coun
         free_scratch(&s);
         return rc;
     }
+    if (count == 0) { /* the options are checked: callers validate this way, cheaply */
+        free_scratch(&s);
+        return 0;
+    }
     sdf__samples samples;
     if (sdf__samples_draw(&f, &samples)) {
         free_scratch(&s);

@@ -438,6 +438,12 @@ static void expect_refused(const sdf_mesh *m, sdf_filter_options opt, const char
     int rc = sdf_query_filtered(m, p, 1, NULL, &opt, &r, &diag);
     CHECK(rc == SDF_EINVAL && strstr(diag.message, needle),
           "expected EINVAL mentioning \"%s\", got %d \"%s\"", needle, rc, diag.message);
+    /* No points only checks the options (sdfd validates requests this way): the same refusal */
+    sdf_query_result none = {0};
+    sdf_diag diag0 = {0};
+    rc = sdf_query_filtered(m, NULL, 0, NULL, &opt, &none, &diag0);
+    CHECK(rc == SDF_EINVAL && !strcmp(diag0.message, diag.message),
+          "no points: expected \"%s\", got %d \"%s\"", diag.message, rc, diag0.message);
 }
 
 static void test_bad_parameters(const sdf_mesh *m, double diag)
@@ -469,6 +475,8 @@ static void test_bad_parameters(const sdf_mesh *m, double diag)
     sdf_filter_options wide = {.kernel = SDF_KERNEL_BUMP, .cap = 0.01 * diag, .b = 0.02 * diag,
                                .allow_wide_bump = 1};
     CHECK(sdf_query_filtered(m, p, 1, NULL, &wide, &r, NULL) == 0, "wide bump with opt-in");
+    sdf_query_result none = {0};
+    CHECK(sdf_query_filtered(m, NULL, 0, NULL, &wide, &none, NULL) == 0, "no points, good options");
     /* Closest points are not part of the filtered field. */
     float c[3];
     sdf_query_result rc = {.distance = g, .closest = c};

@@ -322,7 +322,7 @@ typedef struct sdf_filter_options {
  * a bad one fails with SDF_EINVAL and a message in *diag (which states the bound for a bump
  * that is too wide). The same points, options and seed give the same floats on any thread
  * count. Costs n + 1 signed-distance queries per point (n + 27 when adaptive), evaluated as
- * packets. */
+ * packets. With count 0 it only checks the options, allocating nothing for samples. */
 int sdf_query_filtered(const sdf_mesh *mesh, const float *points, size_t count,
                        const sdf_query_options *opts, const sdf_filter_options *filter,
                        sdf_query_result *out, sdf_diag *diag);
