@@ -1,4 +1,4 @@
-/* jobrecords.h - bake jobs' records in the store (DIR/jobs/ID.json, store.h), so that every
+/* jobrecords.h - jobs' records (bakes and field operations) in the store (DIR/jobs/ID.json, store.h), so that every
  * replica reads a job's state and a restart knows which jobs it interrupted. The cache
  * (cache.h) calls these from the volumes' job hooks. */
 #ifndef SDFD_JOBRECORDS_H
