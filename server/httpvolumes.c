@@ -1,7 +1,7 @@
 /* httpvolumes.c - the HTTP routes of baked volumes (docs/api.md, "Volumes"): bake jobs and
- * field-operation jobs (volumes.h runs them), job status and cancellation, volume metadata, downloads (npy and
- * raw streamed from the stored volume, EXR compressed on a worker thread), uploads, and
- * queries (the handler's, queries.h, as for the binary protocol). */
+ * field-operation jobs (volumes.h runs them), job status and cancellation, volume metadata,
+ * downloads (npy and raw streamed from the stored volume, EXR compressed on a worker thread),
+ * uploads, and queries (the handler's, queries.h, as for the binary protocol). */
 #include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>

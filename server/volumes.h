@@ -8,10 +8,10 @@
  * A job runs on its own thread; at most `max_running` jobs (bakes and field operations
  * alike) run at once (each uses the configured geometry threads), the rest wait queued and
  * start in arrival order. Progress and cancellation go through the progress callbacks of
- * sdf_volume_bake and sdf_volume_apply_ops. Finished jobs stay listed (their state and error)
- * until `max_jobs` newer ones push the oldest finished out. This module holds what is in
- * memory; with a store (cache.h) its hooks keep a finished bake's volume there before the job
- * says done, and record every job, so other replicas and a restart see both. Thread-safe. */
+ * sdf_volume_bake and sdf_volume_apply_ops. Finished jobs stay listed (their state and
+ * error) until `max_jobs` newer ones push the oldest finished out. This module holds what is
+ * in memory; with a store (cache.h) its hooks keep a finished job's volume there before the
+ * job says done, and record every job, so other replicas and a restart see both. Thread-safe. */
 #ifndef SDFD_VOLUMES_H
 #define SDFD_VOLUMES_H
 
@@ -130,8 +130,9 @@ typedef struct sdfd_bake_request {
  * Every admission rule is here: SDF_EINVAL for options the library refuses (its message)
  * and for ops on a bake that is not order 0 float32, SDF_ELIMIT when the bake would cost
  * more distance queries than max_queries or break the byte limit (the volume, plus the more
- * of the bake's working memory and its ops' result and scratch), SDFD_EBUSY when max_jobs are still unfinished, SDFD_EUNAVAILABLE when shutting
- * down; on failure the references are released and `err` says why. */
+ * of the bake's working memory and its ops' result and scratch), SDFD_EBUSY when max_jobs
+ * are still unfinished, SDFD_EUNAVAILABLE when shutting down; on failure the references are
+ * released and `err` says why. */
 int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
                       const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
                       size_t err_cap);
