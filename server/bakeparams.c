@@ -2,6 +2,7 @@
  * and has nested objects, so a tree is the clear way to read it. */
 #include "bakeparams.h"
 #include "errors.h"
+#include "opsparams.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -93,7 +94,7 @@ static int resolution(const cJSON *item, sdf_bake_options *o, char *err, size_t 
 }
 
 static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *names,
-                   int *field, char *err, size_t cap)
+                   int *field, unsigned *ops_seen, char *err, size_t cap)
 {
     sdf_bake_options *o = &out->options;
     const char *key = item->string;
@@ -173,8 +174,12 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
                         "sample_gradient");
         return rc;
     }
+    int rc = sdfd_ops_key(item, &out->ops, ops_seen, err, cap);
+    if (rc != SDFD_OPS_NOT_MINE)
+        return rc;
     snprintf(err, cap, "unknown key '%s' (volume, bounds, margin, resolution, order, H, delta, "
-                       "normalize, field, filter, encoding, sign)", key);
+                       "normalize, field, filter, encoding, sign, ops, solver, iterations, band, "
+                       "strict)", key);
     return SDF_EINVAL;
 }
 
@@ -183,12 +188,14 @@ int sdfd_bake_from_json(const char *text, size_t len, sdfd_bake_request *out,
 {
     memset(out, 0, sizeof *out);
     memset(names, 0, sizeof *names);
+    sdfd_ops_defaults(&out->ops);
     cJSON *root = cJSON_ParseWithLength(text, len);
     if (!root) {
         snprintf(err, cap, "the body is not valid JSON");
         return SDFD_ESYNTAX;
     }
     int rc = 0, field = -1;
+    unsigned ops_seen = 0;
     if (!cJSON_IsObject(root))
         rc = fail(err, cap, "the body must be a JSON %s", "object");
     const char *twice = rc ? NULL : sdfd_json_repeated_key(root);
@@ -197,7 +204,10 @@ int sdfd_bake_from_json(const char *text, size_t len, sdfd_bake_request *out,
         rc = SDF_EINVAL;
     }
     for (const cJSON *item = root->child; !rc && item; item = item->next)
-        rc = one_key(item, out, names, &field, err, cap);
+        rc = one_key(item, out, names, &field, &ops_seen, err, cap);
+    if (!rc && ops_seen == SDFD_OPS_KEY_OTHER) /* a solver for no ops: a mistake */
+        rc = fail(err, cap, "'solver', 'iterations', 'band' and 'strict' apply to '%s'; give "
+                            "the operations too", "ops");
     if (!rc && field == 0 && out->filtered)
         rc = fail(err, cap, "a '%s' object needs \"field\": \"filtered\" (or no field)", "filter");
     if (!rc && field == 1)

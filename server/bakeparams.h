@@ -3,7 +3,8 @@
  *    "resolution": n | [n, m, k], "order": 0 | 1, "H": h, "delta": d,
  *    "normalize": "plane" | "gradient",
  *    "field": "raw" | "filtered", "filter": {...}, "encoding": "float32" | "packed32",
- *    "sign": "auto" | ...}
+ *    "sign": "auto" | ...,
+ *    "ops": [...], "solver": ..., "iterations": n, "band": b, "strict": bool (opsparams.h)}
  * Every key is optional; an unknown key is an error (a typo must not bake the wrong volume).
  * Only syntax and types are checked here; values are judged by sdf_volume_plan, so the
  * messages are the library's. */

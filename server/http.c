@@ -88,6 +88,7 @@ static int parse_route(request *req, const char *url)
         {"/v1/meshes/", "/bake", SDFD_ROUTE_BAKE}, {"/v1/jobs/", "", SDFD_ROUTE_JOB},
         {"/v1/volumes/", "", SDFD_ROUTE_VOLUME}, {"/v1/volumes/", "/data", SDFD_ROUTE_VOLUME_DATA},
         {"/v1/volumes/", "/query", SDFD_ROUTE_VOLUME_QUERY},
+        {"/v1/volumes/", "/ops", SDFD_ROUTE_VOLUME_OPS},
         {"/v1/meshes/", "/slice.png", SDFD_ROUTE_SLICE},
         {"/v1/volumes/", "/slice.png", SDFD_ROUTE_VOLUME_SLICE},
         {"/static/", "", SDFD_ROUTE_PAGE}};
@@ -131,7 +132,7 @@ static int authorized(const request *req)
 {
     const sdfd_config *cfg = &req->srv->cfg;
     int needs = !strcmp(req->method, "PUT") || !strcmp(req->method, "DELETE") ||
-                req->route == SDFD_ROUTE_BAKE ||
+                req->route == SDFD_ROUTE_BAKE || req->route == SDFD_ROUTE_VOLUME_OPS ||
                 (cfg->auth_queries &&
                  (req->route == SDFD_ROUTE_QUERY || req->route == SDFD_ROUTE_VOLUME_QUERY ||
                   req->route == SDFD_ROUTE_VOLUME_DATA || /* a download is every node's answer */
@@ -377,6 +378,7 @@ static enum MHD_Result dispatch(request *req)
                          .buffered_bytes = atomic_load(&srv->buffered),
                          .batch_scratch_bytes = sdfd_batcher_kept_bytes(srv->batcher)};
         sdfd_volumes_usage(srv->volumes, &g.volume_bytes, &g.bakes_running, &g.bakes_queued);
+        sdfd_volumes_ops_usage(srv->volumes, &g.ops_running, &g.ops_queued);
         sdfd_cache_stats st;
         sdfd_cache_stats_get(srv->cache, &st);
         g.resident_bytes = st.resident_bytes, g.resident_budget = st.budget;
@@ -394,6 +396,8 @@ static enum MHD_Result dispatch(request *req)
         return start_query(req);
     case SDFD_ROUTE_BAKE:
         return sdfd_http_bake(req);
+    case SDFD_ROUTE_VOLUME_OPS:
+        return sdfd_http_volume_ops(req);
     case SDFD_ROUTE_JOBS:
         return sdfd_http_jobs(req);
     case SDFD_ROUTE_JOB:

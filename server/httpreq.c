@@ -25,6 +25,7 @@ const char *sdfd_http_allowed_methods(sdfd_route route)
     case SDFD_ROUTE_QUERY:
     case SDFD_ROUTE_BAKE:
     case SDFD_ROUTE_VOLUME_QUERY:
+    case SDFD_ROUTE_VOLUME_OPS:
         return "POST";
     case SDFD_ROUTE_JOB:
         return "GET, HEAD, DELETE";

@@ -1,7 +1,7 @@
-/* httpvolumes.c - the HTTP routes of baked volumes (docs/api.md, "Volumes"): bake jobs
- * (volumes.h runs them), job status and cancellation, volume metadata, downloads (npy and
- * raw streamed from the stored volume, EXR compressed on a worker thread), uploads, and
- * queries (the handler's, queries.h, as for the binary protocol). */
+/* httpvolumes.c - the HTTP routes of baked volumes (docs/api.md, "Volumes"): bake jobs and
+ * field-operation jobs (volumes.h runs them), job status and cancellation, volume metadata,
+ * downloads (npy and raw streamed from the stored volume, EXR compressed on a worker thread),
+ * uploads, and queries (the handler's, queries.h, as for the binary protocol). */
 #include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
@@ -12,8 +12,23 @@
 #include "errors.h"
 #include "httpvolumes.h"
 #include "log.h"
+#include "opsparams.h"
 
 typedef sdfd_http_request request;
+
+/* A job's field-operation caveats, when it applied ops and ended done. */
+static void add_caveats(cJSON *o, const sdfd_job_status *s)
+{
+    static const struct { unsigned bit; const char *name; } names[] = {
+        {SDF_FIELD_CAVEAT_BAND, "band"}, {SDF_FIELD_CAVEAT_GRID, "grid"},
+        {SDF_FIELD_CAVEAT_TOPOLOGY, "topology"}};
+    cJSON *list = cJSON_AddArrayToObject(o, "caveats");
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (s->caveats & names[i].bit)
+            cJSON_AddItemToArray(list, cJSON_CreateString(names[i].name));
+    if (s->caveats)
+        cJSON_AddStringToObject(o, "warning", s->warning);
+}
 
 static cJSON *job_json(const sdfd_job_status *s)
 {
@@ -22,10 +37,13 @@ static cJSON *job_json(const sdfd_job_status *s)
     snprintf(href, sizeof href, "/v1/jobs/%s", s->id);
     cJSON_AddStringToObject(o, "id", s->id);
     cJSON_AddStringToObject(o, "href", href);
+    cJSON_AddStringToObject(o, "kind", sdfd_job_kind_name(s->kind));
     cJSON_AddStringToObject(o, "state", sdfd_job_state_name(s->state));
     cJSON_AddNumberToObject(o, "progress", s->progress);
     cJSON_AddNumberToObject(o, "percent", floor(s->progress * 1000) / 10);
     cJSON_AddStringToObject(o, "mesh", s->mesh);
+    if (s->kind == SDFD_JOB_OPS)
+        cJSON_AddStringToObject(o, "source", s->source);
     cJSON_AddStringToObject(o, "volume", s->volume);
     cJSON_AddNumberToObject(o, "seconds", s->seconds);
     if (s->cancel_requested) /* until it reaches its next step and ends canceled */
@@ -35,7 +53,23 @@ static cJSON *job_json(const sdfd_job_status *s)
         cJSON_AddStringToObject(err, "code", sdfd_errname(s->error));
         cJSON_AddStringToObject(err, "message", s->message);
     }
+    if (s->has_ops && s->state == SDFD_JOB_DONE)
+        add_caveats(o, s);
     return o;
+}
+
+/* 202 with the job just started and its Location, as a bake or an ops job answers. */
+static enum MHD_Result reply_started(request *req, const char id[24])
+{
+    sdfd_job_status status;
+    sdfd_volumes_job(req->srv->volumes, id, &status);
+    sdfd_http_header location = {MHD_HTTP_HEADER_LOCATION, ""};
+    snprintf(location.value, sizeof location.value, "/v1/jobs/%s", id);
+    cJSON *json = job_json(&status);
+    char *text = cJSON_PrintUnformatted(json);
+    cJSON_Delete(json);
+    return text ? sdfd_http_send(req, 202, "application/json", text, strlen(text), &location, 1)
+                : MHD_NO;
 }
 
 enum MHD_Result sdfd_http_bake(request *req)
@@ -73,15 +107,28 @@ enum MHD_Result sdfd_http_bake(request *req)
     rc = sdfd_volumes_bake(srv->volumes, mesh, req->name, volume, &bake, id, err, sizeof err);
     if (rc)
         return sdfd_http_error(req, rc, "%s", err);
-    sdfd_job_status status;
-    sdfd_volumes_job(srv->volumes, id, &status);
-    sdfd_http_header location = {MHD_HTTP_HEADER_LOCATION, ""};
-    snprintf(location.value, sizeof location.value, "/v1/jobs/%s", id);
-    cJSON *json = job_json(&status);
-    char *text = cJSON_PrintUnformatted(json);
-    cJSON_Delete(json);
-    return text ? sdfd_http_send(req, 202, "application/json", text, strlen(text), &location, 1)
-                : MHD_NO;
+    return reply_started(req, id);
+}
+
+enum MHD_Result sdfd_http_volume_ops(request *req)
+{
+    sdfd_server *srv = req->srv;
+    sdfd_ops_request ops; /* the body is JSON whatever its Content-Type says, as a bake's */
+    char volume[SDFD_MAX_NAME + 1], err[512];
+    int rc = sdfd_ops_from_json(req->body, req->len, &ops, volume, err, sizeof err);
+    if (rc)
+        return sdfd_http_error(req, rc, "%s", err);
+    sdfd_stored_volume *source;
+    if ((rc = sdfd_cache_volume(srv->cache, req->name, strlen(req->name), &source, err,
+                                sizeof err)))
+        return sdfd_http_error(req, rc, "%s", err);
+    char id[24];
+    /* The job takes over the source's reference, also when it fails to start. */
+    rc = sdfd_volumes_ops(srv->volumes, source, volume[0] ? volume : req->name, &ops, id, err,
+                          sizeof err);
+    if (rc)
+        return sdfd_http_error(req, rc, "%s", err);
+    return reply_started(req, id);
 }
 
 enum MHD_Result sdfd_http_job(request *req)

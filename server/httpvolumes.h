@@ -6,6 +6,7 @@
 #include "httpreq.h"
 
 enum MHD_Result sdfd_http_bake(sdfd_http_request *req);         /* POST /v1/meshes/{name}/bake */
+enum MHD_Result sdfd_http_volume_ops(sdfd_http_request *req);   /* POST /v1/volumes/{name}/ops */
 enum MHD_Result sdfd_http_jobs(sdfd_http_request *req);         /* GET /v1/jobs */
 enum MHD_Result sdfd_http_job(sdfd_http_request *req);          /* GET, DELETE /v1/jobs/{id} */
 enum MHD_Result sdfd_http_volumes(sdfd_http_request *req);      /* GET /v1/volumes */

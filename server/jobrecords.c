@@ -1,5 +1,7 @@
-/* jobrecords.c - bake jobs' records in the store (jobrecords.h): a job's status as one JSON
- * object, written when the job is accepted and when it ends, read back by any replica. */
+/* jobrecords.c - jobs' records in the store (jobrecords.h): a job's status as one JSON
+ * object, written when the job is accepted and when it ends, read back by any replica. The
+ * keys an ops job added ("kind", "source", "ops", "caveats", "warning") are optional when
+ * read: a record without them is a bake's. */
 #include "jobrecords.h"
 
 #include <cjson/cJSON.h>
@@ -14,15 +16,39 @@ static char *job_record(const sdfd_job_status *s)
 {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "id", s->id);
+    cJSON_AddStringToObject(o, "kind", sdfd_job_kind_name(s->kind));
     cJSON_AddStringToObject(o, "state", sdfd_job_state_name(s->state));
     cJSON_AddStringToObject(o, "mesh", s->mesh);
+    cJSON_AddStringToObject(o, "source", s->source);
     cJSON_AddStringToObject(o, "volume", s->volume);
+    cJSON_AddBoolToObject(o, "ops", s->has_ops);
+    cJSON_AddNumberToObject(o, "caveats", s->caveats);
+    cJSON_AddStringToObject(o, "warning", s->warning);
     cJSON_AddNumberToObject(o, "seconds", s->seconds);
     cJSON_AddNumberToObject(o, "error", s->error);
     cJSON_AddStringToObject(o, "message", s->message);
     char *text = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
     return text;
+}
+
+/* The optional keys of a record (see the top). */
+static void parse_ops(const cJSON *o, sdfd_job_status *out)
+{
+    const cJSON *kind = cJSON_GetObjectItemCaseSensitive(o, "kind"),
+                *source = cJSON_GetObjectItemCaseSensitive(o, "source"),
+                *ops = cJSON_GetObjectItemCaseSensitive(o, "ops"),
+                *caveats = cJSON_GetObjectItemCaseSensitive(o, "caveats"),
+                *warning = cJSON_GetObjectItemCaseSensitive(o, "warning");
+    if (cJSON_IsString(kind))
+        sdfd_job_kind_from_name(kind->valuestring, &out->kind);
+    if (cJSON_IsString(source))
+        snprintf(out->source, sizeof out->source, "%s", source->valuestring);
+    out->has_ops = cJSON_IsTrue(ops);
+    if (cJSON_IsNumber(caveats) && caveats->valuedouble >= 0 && caveats->valuedouble < 256)
+        out->caveats = (unsigned)caveats->valuedouble;
+    if (cJSON_IsString(warning))
+        snprintf(out->warning, sizeof out->warning, "%s", warning->valuestring);
 }
 
 /* A record back into a status; 0 or -1. */
@@ -54,6 +80,7 @@ static int parse_job(const char *text, sdfd_job_status *out)
         out->seconds = seconds->valuedouble;
         out->error = (int)error->valuedouble;
         out->progress = out->state == SDFD_JOB_DONE;
+        parse_ops(o, out);
     }
     cJSON_Delete(o);
     return ok ? 0 : -1;
@@ -116,16 +143,19 @@ void sdfd_jobrecords_restore(sdfd_store *store, sdfd_volumes *volumes)
         }
         s.state = SDFD_JOB_FAILED;
         s.error = SDFD_EUNAVAILABLE;
-        snprintf(s.message, sizeof s.message, "interrupted: the sdfd running this bake stopped "
-                 "(a restart or a crash) before it finished; bake again");
+        snprintf(s.message, sizeof s.message, "interrupted: the sdfd running this %s stopped "
+                 "(a restart or a crash) before it finished; %s again",
+                 s.kind == SDFD_JOB_OPS ? "job" : "bake",
+                 s.kind == SDFD_JOB_OPS ? "post the ops" : "bake");
         text = job_record(&s);
         if (text)
             sdfd_store_write_job(store, s.id, text);
         free(text);
         sdfd_store_unlock_job(store, s.id, fd);
         sdfd_volumes_add_finished(volumes, &s);
-        sdfd_log("warn", "bake_interrupted", "job %s (%s -> %s) was interrupted by a restart",
-                 s.id, s.mesh, s.volume);
+        sdfd_log("warn", "bake_interrupted", "job %s (%s, %s -> %s) was interrupted by a restart",
+                 s.id, sdfd_job_kind_name(s.kind), s.kind == SDFD_JOB_OPS ? s.source : s.mesh,
+                 s.volume);
     }
     free(ids);
 }

@@ -1,6 +1,6 @@
-/* jobrecords.h - bake jobs' records in the store (DIR/jobs/ID.json, store.h), so that every
- * replica reads a job's state and a restart knows which jobs it interrupted. The cache
- * (cache.h) calls these from the volumes' job hooks. */
+/* jobrecords.h - jobs' records (bakes and field operations) in the store (DIR/jobs/ID.json,
+ * store.h), so that every replica reads a job's state and a restart knows which jobs it
+ * interrupted. The cache (cache.h) calls these from the volumes' job hooks. */
 #ifndef SDFD_JOBRECORDS_H
 #define SDFD_JOBRECORDS_H
 

@@ -15,7 +15,8 @@ static const char *const route_names[SDFD_ROUTE_COUNT] = {
     "/v1/meshes/{name}/query", "/v1/meshes/{name}/bake", "/v1/jobs", "/v1/jobs/{id}",
     "/v1/volumes", "/v1/volumes/{name}", "/v1/volumes/{name}/data", "/v1/volumes/{name}/query",
     "bin:query", "bin:volume_query", "bin:other", "other",
-    "/v1/meshes/{name}/slice.png", "/v1/volumes/{name}/slice.png", "page"};
+    "/v1/meshes/{name}/slice.png", "/v1/volumes/{name}/slice.png", "page",
+    "/v1/volumes/{name}/ops"};
 
 const char *sdfd_route_name(sdfd_route route)
 {
@@ -183,6 +184,9 @@ char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len)
     emit(&o, "# HELP sdfd_bakes Bake jobs by state.\n# TYPE sdfd_bakes gauge\n"
              "sdfd_bakes{state=\"running\"} %zu\nsdfd_bakes{state=\"queued\"} %zu\n",
          g->bakes_running, g->bakes_queued);
+    emit(&o, "# HELP sdfd_ops_jobs Field-operation jobs by state.\n# TYPE sdfd_ops_jobs gauge\n"
+             "sdfd_ops_jobs{state=\"running\"} %zu\nsdfd_ops_jobs{state=\"queued\"} %zu\n",
+         g->ops_running, g->ops_queued);
     emit(&o, "# HELP sdfd_resident_bytes Bytes of the meshes and volumes in memory.\n"
              "# TYPE sdfd_resident_bytes gauge\nsdfd_resident_bytes %zu\n", g->resident_bytes);
     emit(&o, "# HELP sdfd_resident_budget_bytes --max-resident-bytes (0: none).\n"

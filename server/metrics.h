@@ -13,7 +13,7 @@ typedef enum sdfd_route {
     SDFD_ROUTE_MESH, SDFD_ROUTE_QUERY, SDFD_ROUTE_BAKE, SDFD_ROUTE_JOBS, SDFD_ROUTE_JOB,
     SDFD_ROUTE_VOLUMES, SDFD_ROUTE_VOLUME, SDFD_ROUTE_VOLUME_DATA, SDFD_ROUTE_VOLUME_QUERY,
     SDFD_ROUTE_BIN_QUERY, SDFD_ROUTE_BIN_VOLUME_QUERY, SDFD_ROUTE_BIN_OTHER, SDFD_ROUTE_OTHER,
-    SDFD_ROUTE_SLICE, SDFD_ROUTE_VOLUME_SLICE, SDFD_ROUTE_PAGE,
+    SDFD_ROUTE_SLICE, SDFD_ROUTE_VOLUME_SLICE, SDFD_ROUTE_PAGE, SDFD_ROUTE_VOLUME_OPS,
     SDFD_ROUTE_COUNT
 } sdfd_route;
 
@@ -32,6 +32,7 @@ void sdfd_metrics_store_load(sdfd_metrics *m, double seconds);
 /* Gauges owned elsewhere, read when /metrics is rendered. */
 typedef struct sdfd_gauges {
     size_t meshes_loaded, volumes_loaded, volume_bytes, bakes_running, bakes_queued;
+    size_t ops_running, ops_queued; /* field-operation jobs */
     size_t buffered_bytes; /* request bodies and binary input held (--max-buffered-bytes) */
     size_t batch_scratch_bytes; /* what the batcher keeps between batches */
     size_t resident_bytes, resident_budget; /* meshes and volumes in memory; the budget */

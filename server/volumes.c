@@ -1,5 +1,6 @@
-/* volumes.c - stored volumes and bake jobs (see volumes.h). One mutex guards both lists; a
- * condition variable hands freed bake slots to the queued jobs in arrival order. */
+/* volumes.c - stored volumes and the jobs that make them, bakes and field operations (see
+ * volumes.h). One mutex guards both lists; a condition variable hands freed job slots to the
+ * queued jobs in arrival order. */
 #include "volumes.h"
 
 #include <pthread.h>
@@ -17,15 +18,19 @@ typedef struct job {
     sdfd_volumes *owner;
     sdfd_job_status status;       /* under the owner's lock, but for progress */
     _Atomic double progress;
+    double phase_base, phase_scale; /* the running phase's share of progress: bake, ops */
     atomic_int cancel;
     double started;
-    size_t reserved;              /* bytes promised to this bake */
-    sdf_mesh *mesh;
-    sdfd_bake_request req;
+    size_t reserved;              /* bytes promised to this job */
+    sdf_mesh *mesh;               /* a bake's */
+    sdfd_stored_volume *source;   /* an ops job's */
+    sdfd_bake_request req;        /* an ops job: req.ops only */
     pthread_t thread;             /* none for a job restored by sdfd_volumes_add_finished */
     int has_thread;
     int finished;                 /* the thread has left the lock for the last time */
     int token;                    /* from hooks.started */
+    unsigned caveats;             /* its ops' caveats, until the status takes them */
+    char warning[256];
 } job;
 
 struct sdfd_volumes {
@@ -46,6 +51,23 @@ static const char *const state_names[] = {"queued", "running", "done", "failed",
 const char *sdfd_job_state_name(sdfd_job_state s)
 {
     return (unsigned)s <= SDFD_JOB_CANCELED ? state_names[s] : "unknown";
+}
+
+static const char *const kind_names[] = {"bake", "ops"};
+
+const char *sdfd_job_kind_name(sdfd_job_kind k)
+{
+    return (unsigned)k <= SDFD_JOB_OPS ? kind_names[k] : "unknown";
+}
+
+int sdfd_job_kind_from_name(const char *name, sdfd_job_kind *out)
+{
+    for (int k = SDFD_JOB_BAKE; k <= SDFD_JOB_OPS; k++)
+        if (!strcmp(name, kind_names[k])) {
+            *out = (sdfd_job_kind)k;
+            return 0;
+        }
+    return SDF_EINVAL;
 }
 
 sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_running,
@@ -231,14 +253,30 @@ int sdfd_volume_eval_words(const sdf_volume *v, const float *points, size_t coun
     return rc;
 }
 
+/* Under the lock: how many jobs of `kind` run and wait. */
+static void count_jobs(const sdfd_volumes *v, sdfd_job_kind kind, size_t *running,
+                       size_t *queued)
+{
+    *running = *queued = 0;
+    for (const job *j = v->jobs; j; j = j->next)
+        if (j->status.kind == kind) {
+            *running += j->status.state == SDFD_JOB_RUNNING;
+            *queued += j->status.state == SDFD_JOB_QUEUED;
+        }
+}
+
 void sdfd_volumes_usage(sdfd_volumes *v, size_t *bytes, size_t *running, size_t *queued)
 {
     pthread_mutex_lock(&v->lock);
     *bytes = v->bytes;
-    *running = (size_t)v->running;
-    *queued = 0;
-    for (const job *j = v->jobs; j; j = j->next)
-        *queued += j->status.state == SDFD_JOB_QUEUED;
+    count_jobs(v, SDFD_JOB_BAKE, running, queued);
+    pthread_mutex_unlock(&v->lock);
+}
+
+void sdfd_volumes_ops_usage(sdfd_volumes *v, size_t *running, size_t *queued)
+{
+    pthread_mutex_lock(&v->lock);
+    count_jobs(v, SDFD_JOB_OPS, running, queued);
     pthread_mutex_unlock(&v->lock);
 }
 
@@ -251,10 +289,21 @@ static size_t volume_bytes(const sdf_volume_info *planned)
     return nodes * (size_t)sdf_volume_channels(planned) * 4;
 }
 
+size_t sdfd_ops_bytes(size_t nodes, const sdfd_ops_request *req)
+{
+    int offsets = 0;
+    for (size_t i = 0; i < req->count; i++)
+        offsets |= req->ops[i].kind != SDF_FIELD_REDISTANCE;
+    size_t per_node = 4 + 9 + (req->options.solver == SDF_FIELD_SUSSMAN ? 4 : 0) +
+                      (offsets ? 4 : 0);
+    return nodes * per_node;
+}
+
+/* Both libraries' progress callbacks: the phase's fraction into the job's. */
 static int on_progress(void *user, double fraction)
 {
     job *j = user;
-    atomic_store(&j->progress, fraction);
+    atomic_store(&j->progress, j->phase_base + j->phase_scale * fraction);
     return atomic_load(&j->cancel);
 }
 
@@ -279,10 +328,9 @@ static int first_in_line(const sdfd_volumes *v, const job *j)
     return oldest == j;
 }
 
-static void *run_job(void *arg)
+/* Wait for a slot, in arrival order; returns whether the job was canceled first. */
+static int take_slot(sdfd_volumes *v, job *j)
 {
-    job *j = arg;
-    sdfd_volumes *v = j->owner;
     pthread_mutex_lock(&v->lock);
     while ((v->running >= v->max_running || !first_in_line(v, j)) && !atomic_load(&j->cancel))
         pthread_cond_wait(&v->slot_free, &v->lock);
@@ -293,56 +341,94 @@ static void *run_job(void *arg)
         pthread_cond_broadcast(&v->slot_free); /* the next in line may fit too */
     }
     pthread_mutex_unlock(&v->lock);
+    return canceled;
+}
 
-    sdf_volume *volume = NULL;
-    sdf_diag diag = {0};
-    int rc = SDF_ECANCELED;
-    if (!canceled) {
-        sdfd_log("info", "bake_started", "job %s: %s -> %s", j->status.id, j->status.mesh,
-                 j->status.volume);
-        rc = sdf_volume_bake(j->mesh, &j->req.options, &volume, &diag);
+/* The job's field operations on `in` into *out; the caveats that fired are kept in j->caveats
+ * and j->warning (the status takes them under the lock when the job ends). */
+static int apply_ops(job *j, const sdf_volume *in, sdf_volume **out, sdf_diag *diag)
+{
+    sdf_field_options o = j->req.ops.options;
+    o.progress = on_progress;
+    o.user = j;
+    o.threads = j->owner->threads;
+    unsigned caveats = 0;
+    int rc = sdf_volume_apply_ops(in, j->req.ops.ops, j->req.ops.count, &o, out, &caveats, diag);
+    if (!rc && caveats) {
+        j->caveats = caveats;
+        snprintf(j->warning, sizeof j->warning, "%s", diag->message);
     }
-    sdfd_stored_volume *stored = NULL;
-    if (!rc && !(stored = calloc(1, sizeof *stored))) {
+    return rc;
+}
+
+/* The job's work: an ops job's operations, or a bake and then its operations (progress:
+ * the bake 0..0.5, the operations 0.5..1; a bake without them 0..1). */
+static int work(job *j, sdf_volume **out, sdf_diag *diag)
+{
+    if (j->status.kind == SDFD_JOB_OPS)
+        return apply_ops(j, j->source->volume, out, diag);
+    j->phase_scale = j->req.ops.count ? 0.5 : 1.0;
+    int rc = sdf_volume_bake(j->mesh, &j->req.options, out, diag);
+    if (rc || !j->req.ops.count)
+        return rc;
+    sdf_volume *baked = *out;
+    *out = NULL;
+    j->phase_base = 0.5; /* the bake's callbacks have all returned */
+    rc = apply_ops(j, baked, out, diag);
+    sdf_volume_destroy(baked);
+    return rc;
+}
+
+/* The finished volume as a stored one, kept by the hook (the store) first, before the job
+ * says done, so a client that saw "done" finds it after a restart, and on every replica.
+ * NULL with *rc and diag set when it cannot be. Takes `volume` over. */
+static sdfd_stored_volume *keep(job *j, sdf_volume *volume, int *rc, sdf_diag *diag)
+{
+    sdfd_volumes *v = j->owner;
+    sdfd_stored_volume *stored = calloc(1, sizeof *stored);
+    if (!stored) {
         sdf_volume_destroy(volume);
-        rc = SDF_ENOMEM;
-        snprintf(diag.message, sizeof diag.message, "no memory to store the volume");
+        *rc = SDF_ENOMEM;
+        snprintf(diag->message, sizeof diag->message, "no memory to store the volume");
+        return NULL;
     }
-    if (stored) {
-        atomic_init(&stored->refs, 1);
-        stored->volume = volume;
-        snprintf(stored->name, sizeof stored->name, "%s", j->status.volume);
-        snprintf(stored->mesh, sizeof stored->mesh, "%s", j->status.mesh);
-        snprintf(stored->job, sizeof stored->job, "%s", j->status.id);
-        stored->bake_seconds = sdfd_now() - j->started;
-        /* Kept before the job says done, so a client that saw "done" finds it after a
-         * restart, and on every replica. */
-        if (v->hooks.keep && (rc = v->hooks.keep(v->hooks.user, stored, diag.message,
-                                                  sizeof diag.message))) {
-            sdfd_volume_release(stored);
-            stored = NULL;
-        }
+    atomic_init(&stored->refs, 1);
+    stored->volume = volume;
+    snprintf(stored->name, sizeof stored->name, "%s", j->status.volume);
+    snprintf(stored->mesh, sizeof stored->mesh, "%s", j->status.mesh);
+    snprintf(stored->job, sizeof stored->job, "%s", j->status.id);
+    stored->bake_seconds = sdfd_now() - j->started;
+    if (v->hooks.keep &&
+        (*rc = v->hooks.keep(v->hooks.user, stored, diag->message, sizeof diag->message))) {
+        sdfd_volume_release(stored);
+        return NULL;
     }
-    sdf_mesh_release(j->mesh);
-    sdf_mesh_release(j->req.smoothing_mesh);
-    j->mesh = j->req.smoothing_mesh = NULL;
+    return stored;
+}
 
+/* The job's end: its volume listed, its slot and bytes freed, its final status recorded. */
+static void finish(job *j, int canceled, sdfd_stored_volume *stored, int rc, sdf_diag *diag)
+{
+    sdfd_volumes *v = j->owner;
     pthread_mutex_lock(&v->lock);
     if (!canceled)
         v->running--;
     v->reserved -= j->reserved;
     j->reserved = 0;
     if (stored && (rc = put_locked(v, stored)))
-        snprintf(diag.message, sizeof diag.message,
-                 "the baked volume no longer fits --max-volumes / --max-volume-bytes");
+        snprintf(diag->message, sizeof diag->message,
+                 "the volume made no longer fits --max-volumes / --max-volume-bytes");
     j->status.state = !rc ? SDFD_JOB_DONE : rc == SDF_ECANCELED ? SDFD_JOB_CANCELED : SDFD_JOB_FAILED;
     if (j->status.state == SDFD_JOB_FAILED) {
         j->status.error = rc;
         snprintf(j->status.message, sizeof j->status.message, "%s",
-                 diag.message[0] ? diag.message : sdfd_strerror(rc));
+                 diag->message[0] ? diag->message : sdfd_strerror(rc));
     }
-    if (!rc)
+    if (!rc) {
         atomic_store(&j->progress, 1.0);
+        j->status.caveats = j->caveats;
+        snprintf(j->status.warning, sizeof j->status.warning, "%s", j->warning);
+    }
     j->status.seconds = sdfd_now() - j->started;
     sdfd_job_status final;
     snapshot(j, &final);
@@ -353,7 +439,32 @@ static void *run_job(void *arg)
     pthread_mutex_lock(&v->lock);
     j->finished = 1; /* only now may it be forgotten, so its record cannot outlive it */
     pthread_mutex_unlock(&v->lock);
-    sdfd_log("info", "bake_finished", "job %s: %s after %.3f s", j->status.id,
+}
+
+static void *run_job(void *arg)
+{
+    job *j = arg;
+    const char *kind = sdfd_job_kind_name(j->status.kind);
+    int canceled = take_slot(j->owner, j);
+    sdf_volume *volume = NULL;
+    sdf_diag diag = {0};
+    int rc = SDF_ECANCELED;
+    if (!canceled) {
+        sdfd_log("info", j->status.kind == SDFD_JOB_OPS ? "ops_started" : "bake_started",
+                 "job %s: %s -> %s", j->status.id,
+                 j->status.kind == SDFD_JOB_OPS ? j->status.source : j->status.mesh,
+                 j->status.volume);
+        rc = work(j, &volume, &diag);
+    }
+    sdfd_stored_volume *stored = rc ? NULL : keep(j, volume, &rc, &diag);
+    sdf_mesh_release(j->mesh);
+    sdf_mesh_release(j->req.smoothing_mesh);
+    sdfd_volume_release(j->source);
+    j->mesh = j->req.smoothing_mesh = NULL;
+    j->source = NULL;
+    finish(j, canceled, stored, rc, &diag);
+    sdfd_log("info", j->status.kind == SDFD_JOB_OPS ? "ops_finished" : "bake_finished",
+             "job %s (%s): %s after %.3f s", j->status.id, kind,
              sdfd_job_state_name(j->status.state), j->status.seconds);
     return NULL;
 }
@@ -401,47 +512,28 @@ static int check_queries(const sdfd_volumes *v, const sdf_mesh *mesh,
     return 0;
 }
 
-int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
-                      const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
-                      size_t err_cap)
+/* Admit the prepared job `j` (its request, names and kind set), which holds `volume` bytes
+ * of result and `working` more while it runs: the byte limit, the job limit, then its
+ * record and its thread. 0 (id set) or an error with err; the caller frees j on failure. */
+static int enqueue(sdfd_volumes *v, job *j, size_t volume, size_t working, char id[24],
+                   char *err, size_t err_cap)
 {
-    job *j = calloc(1, sizeof *j), *pruned = NULL;
-    int rc = j ? 0 : SDF_ENOMEM;
-    sdf_bake_options *o = j ? &j->req.options : NULL;
-    sdf_volume_info planned = {0};
-    size_t working = 0; /* the bake's working memory besides the volume (sdf.h) */
-    if (!rc) {
-        j->req = *req;
-        j->mesh = mesh;
-        j->owner = v;
-        o->filter = j->req.filtered ? &j->req.filter : NULL;
-        if (j->req.filtered)
-            j->req.filter.smooth.mesh = j->req.smoothing_mesh;
-        o->progress = on_progress;
-        o->user = j;
-        o->query.threads = v->threads;
-        /* The library's own checks and defaults say what the bake will make. */
-        sdf_diag diag = {0};
-        if ((rc = sdf_volume_plan(mesh, o, &planned, &diag)) ||
-            (rc = sdf_volume_bake_scratch(mesh, o, &working, &diag)))
-            snprintf(err, err_cap, "%s", diag.message);
-        else
-            rc = check_queries(v, mesh, &planned, &j->req, err, err_cap);
-        snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
-        snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
-    }
-    /* Held until the bake ends: then the volume alone, if it is kept. */
-    size_t volume = rc ? 0 : volume_bytes(&planned), need = volume + working;
+    job *pruned = NULL;
+    size_t need = volume + working; /* held until the job ends: then the volume alone */
+    const char *what = j->status.kind == SDFD_JOB_OPS ? "the field operations need"
+                                                      : "the bake needs";
+    int rc = 0;
     pthread_mutex_lock(&v->lock);
-    if (!rc && v->closing)
+    if (v->closing)
         rc = SDFD_EUNAVAILABLE, snprintf(err, err_cap, "the server is shutting down");
     if (!rc && v->bytes + v->reserved + need > v->max_bytes)
         rc = SDF_ELIMIT, snprintf(err, err_cap,
-                                  "the bake needs %zu bytes (%zu for the volume, %zu to work in); "
+                                  "%s %zu bytes (%zu for the volume, %zu to work in); "
                                   "%zu of --max-volume-bytes %zu are held or promised",
-                                  need, volume, working, v->bytes + v->reserved, v->max_bytes);
+                                  what, need, volume, working, v->bytes + v->reserved,
+                                  v->max_bytes);
     if (!rc && v->job_count >= v->max_jobs && !(pruned = unlink_oldest_finished(v)))
-        rc = SDFD_EBUSY, snprintf(err, err_cap, "%zu bake jobs are unfinished; retry later",
+        rc = SDFD_EBUSY, snprintf(err, err_cap, "%zu jobs are unfinished; retry later",
                                  v->job_count);
     if (!rc) {
         snprintf(j->status.id, sizeof j->status.id, "%08x-%lu", v->id_prefix,
@@ -449,11 +541,12 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         j->status.state = SDFD_JOB_QUEUED;
         j->started = sdfd_now();
         j->reserved = need;
+        j->phase_scale = 1.0;
         /* Recorded before its thread can end it (the record says queued, then its end). */
         if (v->hooks.started)
             j->token = v->hooks.started(v->hooks.user, &j->status);
         if (pthread_create(&j->thread, NULL, run_job, j)) {
-            rc = SDFD_EUNAVAILABLE, snprintf(err, err_cap, "cannot start a bake thread");
+            rc = SDFD_EUNAVAILABLE, snprintf(err, err_cap, "cannot start a job thread");
             if (v->hooks.ended) {
                 j->status.state = SDFD_JOB_FAILED;
                 v->hooks.ended(v->hooks.user, &j->status, j->token);
@@ -470,11 +563,109 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
     pthread_mutex_unlock(&v->lock);
     if (pruned)
         free_job(v, pruned, 1);
+    return rc;
+}
+
+/* A bake with ops must make what they take: a zero-order float32 grid. */
+static int check_bake_ops(const sdf_volume_info *planned, char *err, size_t err_cap)
+{
+    if (planned->order == 0 && planned->encoding == SDF_ENCODING_FLOAT32)
+        return 0;
+    snprintf(err, err_cap, "'ops' take a zero-order float32 grid; this bake makes order %d %s "
+             "(bake with order 0 and encoding float32)", planned->order,
+             sdf_encoding_name(planned->encoding));
+    return SDF_EINVAL;
+}
+
+int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
+                      const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
+                      size_t err_cap)
+{
+    job *j = calloc(1, sizeof *j);
+    int rc = j ? 0 : SDF_ENOMEM;
+    sdf_bake_options *o = j ? &j->req.options : NULL;
+    sdf_volume_info planned = {0};
+    size_t working = 0; /* the bake's working memory besides the volume (sdf.h) */
+    if (!rc) {
+        j->req = *req;
+        j->mesh = mesh;
+        j->owner = v;
+        j->status.kind = SDFD_JOB_BAKE;
+        j->status.has_ops = req->ops.count > 0;
+        o->filter = j->req.filtered ? &j->req.filter : NULL;
+        if (j->req.filtered)
+            j->req.filter.smooth.mesh = j->req.smoothing_mesh;
+        o->progress = on_progress;
+        o->user = j;
+        o->query.threads = v->threads;
+        /* The library's own checks and defaults say what the bake will make. */
+        sdf_diag diag = {0};
+        if ((rc = sdf_volume_plan(mesh, o, &planned, &diag)) ||
+            (rc = sdf_volume_bake_scratch(mesh, o, &working, &diag)))
+            snprintf(err, err_cap, "%s", diag.message);
+        else if (!(rc = check_queries(v, mesh, &planned, &j->req, err, err_cap)) &&
+                 req->ops.count)
+            rc = check_bake_ops(&planned, err, err_cap);
+        snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
+        snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
+    }
+    size_t volume = rc ? 0 : volume_bytes(&planned);
+    if (!rc && req->ops.count) { /* the ops run after the bake's working memory is freed */
+        size_t ops = sdfd_ops_bytes(planned.dims[0] * planned.dims[1] * planned.dims[2],
+                                    &req->ops);
+        working = working > ops ? working : ops;
+    }
+    if (!rc)
+        rc = enqueue(v, j, volume, working, id, err, err_cap);
     if (rc) {
         if (rc == SDF_ENOMEM)
             snprintf(err, err_cap, "out of memory");
         sdf_mesh_release(mesh);
         sdf_mesh_release(req->smoothing_mesh);
+        free(j);
+    }
+    return rc;
+}
+
+/* The library's reason for refusing `in` (first order, packed), asked with no operations:
+ * it checks the options and the volume before the count. 0 when it takes it. */
+static int check_source(const sdf_volume *in, const sdfd_ops_request *req, char *err,
+                        size_t err_cap)
+{
+    sdf_volume_info info;
+    sdf_volume_get_info(in, &info);
+    if (info.order == 0 && info.encoding == SDF_ENCODING_FLOAT32)
+        return 0;
+    sdf_volume *out = NULL;
+    sdf_diag diag = {0};
+    int rc = sdf_volume_apply_ops(in, req->ops, 0, &req->options, &out, NULL, &diag);
+    sdf_volume_destroy(out);
+    snprintf(err, err_cap, "%s", diag.message);
+    return rc ? rc : SDF_EINVAL;
+}
+
+int sdfd_volumes_ops(sdfd_volumes *v, sdfd_stored_volume *source, const char *volume_name,
+                     const sdfd_ops_request *req, char id[24], char *err, size_t err_cap)
+{
+    job *j = calloc(1, sizeof *j);
+    int rc = j ? check_source(source->volume, req, err, err_cap) : SDF_ENOMEM;
+    if (!rc) {
+        j->req.ops = *req;
+        j->source = source;
+        j->owner = v;
+        j->status.kind = SDFD_JOB_OPS;
+        j->status.has_ops = 1;
+        snprintf(j->status.mesh, sizeof j->status.mesh, "%s", source->mesh);
+        snprintf(j->status.source, sizeof j->status.source, "%s", source->name);
+        snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
+        size_t bytes = sdf_volume_data_bytes(source->volume), nodes = bytes / 4;
+        size_t total = sdfd_ops_bytes(nodes, req);
+        rc = enqueue(v, j, bytes, total - bytes, id, err, err_cap);
+    }
+    if (rc) {
+        if (rc == SDF_ENOMEM)
+            snprintf(err, err_cap, "out of memory");
+        sdfd_volume_release(source);
         free(j);
     }
     return rc;

@@ -6,8 +6,13 @@
  *                   [--lo x,y,z --hi x,y,z] [--margin m] [--threads T]
  *   sdf-volume eval VOLUME.exr POINTS.npy OUT.npy [--interpolation trilinear|nearest]
  *                   [--gradient]
+ *   sdf-volume ops VOLUME.exr OUT --op NAME=R [--op NAME=R ...] [--format exr|npy|raw]
+ *                   [--solver sweep|sussman] [--iterations N] [--band B] [--strict]
+ *                   [--threads T]
  * bake prints the volume's metadata (JSON) on stdout; eval writes float32 (N,) values, or
- * (N, 4) value and gradient. */
+ * (N, 4) value and gradient; ops applies the field operations in order
+ * (sdf_volume_apply_ops, with sdfd's defaults: sweep) and prints {"caveats": BITS,
+ * "warning": "..."}. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -124,12 +129,83 @@ static int eval(int argc, char **argv)
     return 0;
 }
 
+/* --op NAME=R into *op. */
+static void parse_op(const char *text, sdf_field_op *op)
+{
+    char name[32];
+    const char *eq = strchr(text, '=');
+    if (!eq || (size_t)(eq - text) >= sizeof name)
+        die(text, "--op expects NAME=R");
+    memcpy(name, text, (size_t)(eq - text));
+    name[eq - text] = '\0';
+    char *end;
+    op->r = (float)strtod(eq + 1, &end); /* as sdfd reads a JSON number */
+    if (sdf_field_op_from_name(name, &op->kind) || end == eq + 1 || *end)
+        die(text, "--op expects NAME=R with NAME redistance, offset, round, fillet or smooth");
+}
+
+static int ops(int argc, char **argv)
+{
+    if (argc < 4)
+        die("ops", "needs VOLUME.exr and OUT");
+    sdf_field_op list[SDF_FIELD_MAX_OPS];
+    size_t count = 0;
+    sdf_field_options o = {.solver = SDF_FIELD_SWEEP};
+    sdf_volume_file type = SDF_VOLUME_EXR;
+    for (int i = 4; i < argc; i++) {
+        const char *f = argv[i];
+        if (!strcmp(f, "--strict")) {
+            o.strict = 1;
+            continue;
+        }
+        const char *v = i + 1 < argc ? argv[++i] : NULL;
+        if (!v)
+            die(f, "needs a value");
+        if (!strcmp(f, "--op")) {
+            if (count == SDF_FIELD_MAX_OPS)
+                die(f, "too many operations");
+            parse_op(v, &list[count++]);
+        } else if (!strcmp(f, "--format")) {
+            if (sdf_volume_file_from_name(v, &type))
+                die(f, "exr, npy or raw");
+        } else if (!strcmp(f, "--solver")) {
+            if (sdf_field_solver_from_name(v, &o.solver))
+                die(f, "sweep or sussman");
+        } else if (!strcmp(f, "--iterations")) {
+            o.iterations = atoi(v);
+        } else if (!strcmp(f, "--band")) {
+            o.band = atof(v);
+        } else if (!strcmp(f, "--threads")) {
+            o.threads = atoi(v);
+        } else {
+            die(f, "unknown option");
+        }
+    }
+    sdf_volume *in = NULL, *out = NULL;
+    sdf_diag diag;
+    unsigned caveats = 0;
+    if (sdf_volume_load_exr_file(argv[2], &in, &diag))
+        die(argv[2], diag.message);
+    if (sdf_volume_apply_ops(in, list, count, &o, &out, &caveats, &diag))
+        die("ops", diag.message);
+    printf("{\"caveats\": %u, \"warning\": \"%s\"}\n", caveats, caveats ? diag.message : "");
+    sdf_diag save;
+    if (sdf_volume_save_file(out, type, argv[3], &save))
+        die(argv[3], save.message);
+    sdf_volume_destroy(in);
+    sdf_volume_destroy(out);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     if (argc >= 2 && !strcmp(argv[1], "bake"))
         return bake(argc, argv);
     if (argc >= 2 && !strcmp(argv[1], "eval"))
         return eval(argc, argv);
-    fprintf(stderr, "usage: sdf-volume bake MESH|demo OUT [options] | eval VOLUME.exr POINTS.npy OUT.npy\n");
+    if (argc >= 2 && !strcmp(argv[1], "ops"))
+        return ops(argc, argv);
+    fprintf(stderr, "usage: sdf-volume bake MESH|demo OUT [options] | eval VOLUME.exr POINTS.npy "
+            "OUT.npy | ops VOLUME.exr OUT --op NAME=R [options]\n");
     return 2;
 }
