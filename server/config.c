@@ -43,7 +43,7 @@ static const setting settings[] = {
     {"--max-volumes", "SDFD_MAX_VOLUMES", "N", "most baked volumes kept at once (default 64)", SIZE, AT(max_volumes), 1, 1u << 20},
     {"--max-volume-bytes", "SDFD_MAX_VOLUME_BYTES", "N", "bytes of all baked volumes and bakes in progress (default 4294967296)", SIZE, AT(max_volume_bytes), 0, 1ull << 40},
     {"--max-bake-queries", "SDFD_MAX_BAKE_QUERIES", "N", "distance queries one bake may cost (default 1073741824)", SIZE, AT(max_bake_queries), 0, 1ull << 40},
-    {"--max-bakes", "SDFD_MAX_BAKES", "N", "bakes running at once; more wait queued (default 1)", UINT, AT(max_bakes), 1, 64},
+    {"--max-bakes", "SDFD_MAX_BAKES", "N", "bake and ops jobs running at once; more wait queued (default 1)", UINT, AT(max_bakes), 1, 64},
     {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1, 1u << 16},
     {"--data-dir", "SDFD_DATA_DIR", "DIR", "keep meshes, volumes and bake jobs in DIR (shared by replicas; docs/api.md)", STRING, AT(data_dir), 0, 0},
     {"--max-resident-bytes", "SDFD_MAX_RESIDENT_BYTES", "N", "with --data-dir: drop the least recently used meshes and volumes from memory past N bytes (default 0 = keep all)", SIZE, AT(max_resident_bytes), 0, 1ull << 44},
