@@ -4,8 +4,8 @@
  *                   [--order 0|1] [--encoding float32|packed32] [--H h] [--delta d]
  *                   [--normalize plane|gradient]
  *                   [--lo x,y,z --hi x,y,z] [--margin m] [--threads T]
- *   sdf-volume eval VOLUME.exr POINTS.npy OUT.npy [--interpolation trilinear|nearest]
- *                   [--gradient]
+ *   sdf-volume eval VOLUME.exr POINTS.npy OUT.npy [--gradient]
+ *                   [--interpolation trilinear|nearest|hermite|default]   (default trilinear)
  *   sdf-volume ops VOLUME.exr OUT --op NAME=R [--op NAME=R ...] [--format exr|npy|raw]
  *                   [--solver sweep|sussman] [--iterations N] [--band B] [--strict]
  *                   [--threads T]
@@ -109,7 +109,7 @@ static int eval(int argc, char **argv)
             gradient = 1;
         else if (!strcmp(argv[i], "--interpolation") && i + 1 < argc) {
             if (sdf_volume_filter_from_name(argv[++i], &filter))
-                die(argv[i], "trilinear or nearest");
+                die(argv[i], "trilinear, nearest, hermite or default");
         }
         else
             die(argv[i], "unknown option");

@@ -116,5 +116,31 @@ done
 [ "$ok" -eq 0 ] && { cmp -s "$tmp/gcc-eval.npy" "$tmp/clang-eval.npy" || ok=1; }
 verdict "volume eval gradient" "$ok"
 
+# The field operations (lib/field) on the order-0 EXR, by each solver.
+for solver in sussman sweep; do
+    ok=0
+    for b in gcc clang; do
+        eval "dir=\$${b}_dir"
+        "$dir/tests/bench/sdf-volume" ops "$tmp/volume.exr" "$tmp/$b-ops.npy" --format npy \
+            --solver "$solver" --op smooth=0.05 --op offset=-0.02 >"$tmp/$b.log" 2>&1 ||
+            { cat "$tmp/$b.log" >&2; ok=1; }
+    done
+    [ "$ok" -eq 0 ] && { cmp -s "$tmp/gcc-ops.npy" "$tmp/clang-ops.npy" || ok=1; }
+    verdict "volume ops $solver" "$ok"
+done
+
+# A first-order EXR looked up by its default reconstruction (tricubic Hermite).
+volume "order 1 exr" --format exr --resolution 24 --order 1
+cp "$tmp/gcc.vol" "$tmp/volume1.exr"
+ok=0
+for b in gcc clang; do
+    eval "dir=\$${b}_dir"
+    "$dir/tests/bench/sdf-volume" eval "$tmp/volume1.exr" "$tmp/points.npy" \
+        "$tmp/$b-eval1.npy" --gradient --interpolation hermite >"$tmp/$b.log" 2>&1 ||
+        { cat "$tmp/$b.log" >&2; ok=1; }
+done
+[ "$ok" -eq 0 ] && { cmp -s "$tmp/gcc-eval1.npy" "$tmp/clang-eval1.npy" || ok=1; }
+verdict "volume eval order 1 hermite" "$ok"
+
 echo "compilers: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]
