@@ -144,15 +144,15 @@ static int unknown(const struct table *t, const char *name, char *err, size_t ca
 {
     int elsewhere = known_anywhere(name);
     const char *near = elsewhere ? NULL : nearest(t, name);
-    int at = snprintf(err, cap, elsewhere ? "argument '%.40s' is not this route's"
-                                          : "unknown argument '%.40s'", name);
-    if (near)
-        snprintf(err + at, cap - (size_t)at, " (did you mean '%s'?)", near);
-    else if (!t)
-        snprintf(err + at, cap - (size_t)at, ": this route takes no URL arguments");
-    for (size_t i = 0; !near && t && name_at(t, i) && (size_t)at < cap; i++)
-        at += snprintf(err + at, cap - (size_t)at, "%s %s", i ? "," : ": this route takes",
-                       name_at(t, i));
+    size_t at = (size_t)snprintf(err, cap, elsewhere ? "argument '%.40s' is not this route's"
+                                                     : "unknown argument '%.40s'", name);
+    if (at < cap && near)
+        snprintf(err + at, cap - at, " (did you mean '%s'?)", near);
+    else if (at < cap && !t)
+        snprintf(err + at, cap - at, ": this route takes no URL arguments");
+    for (size_t i = 0; !near && t && name_at(t, i) && at < cap; i++)
+        at += (size_t)snprintf(err + at, cap - at, "%s %s", i ? "," : ": this route takes",
+                               name_at(t, i));
     return SDF_EINVAL;
 }
 
