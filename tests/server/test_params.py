@@ -9,6 +9,7 @@ same values in a JSON body's "filter"; a JSON body takes URL arguments for what 
 refuses one given in both, and either form refuses the filter's parameters without a
 filtered mode and the keys of the other query route."""
 import http.client
+import io
 import json
 import os
 import sys
@@ -63,7 +64,6 @@ def url_of(filter_json):
 
 
 def npy_bytes(points):
-    import io
     buf = io.BytesIO()
     np.save(buf, points)
     return buf.getvalue()
