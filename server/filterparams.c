@@ -31,6 +31,12 @@ static const struct field {
 };
 #define FIELDS (sizeof fields / sizeof fields[0])
 
+/* The smoothing volume's URL arguments (a JSON body nests them in "smooth"). */
+enum { SPHERE, BOX, MESH, DEPTH, SCALE, SMOOTH_NAMES };
+static const char *const smooth_names[SMOOTH_NAMES] = {"smooth_sphere", "smooth_box",
+                                                       "smooth_mesh", "smooth_depth",
+                                                       "smooth_scale"};
+
 #define MAX_SEED 9007199254740992.0 /* 2^53: every integer up to it is exact in JSON */
 
 static int bad(char *err, size_t cap, const char *fmt, const char *name)
@@ -220,9 +226,9 @@ static int list_numbers(const char *v, double *x, int n)
 static int string_smooth(const char *(*lookup)(void *ctx, const char *name), void *ctx,
                          sdf_filter_options *f, char *volume_mesh, char *err, size_t cap)
 {
-    const char *sphere = lookup(ctx, "smooth_sphere"), *box = lookup(ctx, "smooth_box"),
-               *mesh = lookup(ctx, "smooth_mesh"), *depth = lookup(ctx, "smooth_depth"),
-               *scale = lookup(ctx, "smooth_scale");
+    const char *sphere = lookup(ctx, smooth_names[SPHERE]), *box = lookup(ctx, smooth_names[BOX]),
+               *mesh = lookup(ctx, smooth_names[MESH]), *depth = lookup(ctx, smooth_names[DEPTH]),
+               *scale = lookup(ctx, smooth_names[SCALE]);
     int shapes = !!sphere + !!box + !!mesh;
     if (!shapes && !depth && !scale)
         return 0;
@@ -279,4 +285,19 @@ int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name),
             return rc;
     }
     return string_smooth(lookup, ctx, out, volume_mesh, err, cap);
+}
+
+const char *sdfd_filter_url_name(size_t i)
+{
+    if (i < FIELDS)
+        return fields[i].name;
+    return i < FIELDS + SMOOTH_NAMES ? smooth_names[i - FIELDS] : NULL;
+}
+
+int sdfd_filter_is_url_name(const char *name)
+{
+    for (size_t i = 0; sdfd_filter_url_name(i); i++)
+        if (!strcmp(sdfd_filter_url_name(i), name))
+            return 1;
+    return 0;
 }

@@ -32,9 +32,15 @@ int sdfd_filter_from_json(const char *text, size_t len, sdf_filter_options *out,
                           char volume_mesh[SDFD_VOLUME_NAME_MAX + 1], char *err, size_t cap);
 
 /* From named string values, e.g. URL arguments: lookup(ctx, name) returns the value or NULL.
- * 0, or SDF_EINVAL with a message. */
+ * Only the names listed above are looked up: refusing others, and names given twice, is the
+ * caller's (sdfd_url_args_check, urlargs.h). 0, or SDF_EINVAL with a message. */
 int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name), void *ctx,
                              sdf_filter_options *out, char volume_mesh[SDFD_VOLUME_NAME_MAX + 1],
                              char *err, size_t cap);
+
+/* The URL argument names sdfd_filter_from_strings reads: the i-th from 0, then NULL. */
+const char *sdfd_filter_url_name(size_t i);
+/* Whether `name` is one of them. */
+int sdfd_filter_is_url_name(const char *name);
 
 #endif

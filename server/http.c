@@ -7,10 +7,10 @@
  * elsewhere: a query becomes a batcher job and a mesh upload a loader thread, and the
  * connection is suspended (sdfd_http_wait) until that work resumes it.
  *
- * Each request walks the same steps: `admit` (route, method, auth, Content-Length, all
- * checked from the headers before any body byte is read), `receive` (append the body, never
- * past its declared length), `dispatch` (start the work, or answer at once), and after a
- * resume, `reply_*`. The completion callback logs, counts and frees. */
+ * Each request walks the same steps: `admit` (route, method, auth, URL arguments,
+ * Content-Length, all checked from the headers before any body byte is read), `receive`
+ * (append the body, never past its declared length), `dispatch` (start the work, or answer
+ * at once), and after a resume, `reply_*`. The completion callback logs, counts and frees. */
 #include "http.h"
 
 #include <cjson/cJSON.h>
@@ -31,6 +31,7 @@
 #include "page.h"
 #include "log.h"
 #include "net.h"
+#include "urlargs.h"
 
 struct sdfd_http {
     sdfd_server *srv;
@@ -161,6 +162,9 @@ static enum MHD_Result admit(request *req, const char *url)
     if (!authorized(req))
         return sdfd_http_error(req, SDFD_EUNAUTHORIZED,
                                "this request needs 'Authorization: Bearer <token>'");
+    enum MHD_Result refused;
+    if (sdfd_http_check_args(req, &refused))
+        return refused;
     const char *unavailable = sdfd_unavailable(srv);
     if (unavailable && req->route != SDFD_ROUTE_HEALTH && req->route != SDFD_ROUTE_READY &&
         req->route != SDFD_ROUTE_METRICS)
@@ -197,12 +201,6 @@ static void query_done(sdfd_job *job)
     sdfd_http_resume(job->user);
 }
 
-/* URL argument `name` of a connection (for sdfd_filter_from_strings). */
-static const char *url_argument(void *conn, const char *name)
-{
-    return MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, name);
-}
-
 static enum MHD_Result reply_query(request *req)
 {
     if (req->query.refused) { /* after a load */
@@ -213,6 +211,22 @@ static enum MHD_Result reply_query(request *req)
         return sdfd_http_error(req, req->query.job.status, "query failed: %s",
                                req->query.job.message);
     return sdfd_http_results(req);
+}
+
+/* The filter's parameters go with the filtered modes only: with another they would be
+ * ignored, so they are refused. 0, or -1 with the refusal queued (its result in *refused). */
+static int filter_misplaced(request *req, const sdfd_query_params *params, const char *mode,
+                            enum MHD_Result *refused)
+{
+    const char *arg = sdfd_url_first_filter_arg(&req->args);
+    if (params->filter)
+        *refused = sdfd_http_error(req, SDF_EINVAL, "\"filter\" goes with mode filtered or "
+                                   "filtered-gradient, not '%s'", mode ? mode : "signed");
+    else if (arg)
+        *refused = sdfd_http_refuse(req, SDF_EINVAL, arg, "'%s' is a filter parameter: it goes "
+                                    "with mode=filtered or filtered-gradient, not '%s'", arg,
+                                    mode ? mode : "signed");
+    return params->filter || arg ? -1 : 0;
 }
 
 /* The HTTP spelling of a query (body, URL arguments, Accept) into the handler's terms. */
@@ -227,10 +241,8 @@ static enum MHD_Result start_query(request *req)
         return refused;
     char err[300], mode_buf[32], sign_buf[32];
     int rc;
-    const char *mode =
-        sdfd_http_param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
-    const char *sign =
-        sdfd_http_param(req, params.sign, params.sign_len, "sign", sign_buf, sizeof sign_buf);
+    const char *mode = sdfd_http_param(params.mode, params.mode_len, mode_buf, sizeof mode_buf);
+    const char *sign = sdfd_http_param(params.sign, params.sign_len, sign_buf, sizeof sign_buf);
     sdf_proto_mode m = SDF_MODE_SIGNED;
     sdf_sign_method s = SDF_SIGN_AUTO;
     if (mode && sdf_proto_mode_from_name(mode, &m))
@@ -242,6 +254,8 @@ static enum MHD_Result start_query(request *req)
         return sdfd_http_error(req, SDF_EINVAL,
                                "unknown sign '%s' (auto, pseudonormal, winding, raycast, none)",
                                sign);
+    if (!sdf_proto_mode_filtered(m) && filter_misplaced(req, &params, mode, &refused))
+        return refused;
     sdfd_query *q = &req->query;
     *q = (sdfd_query){.mesh_name = req->name, .mesh_name_len = strlen(req->name),
                       .job = {.mode = m, .sign = s, .points = req->points_buf, .count = count,
@@ -251,7 +265,7 @@ static enum MHD_Result start_query(request *req)
         sdf_filter_options *filter = &q->job.filter;
         rc = params.filter ? sdfd_filter_from_json(params.filter, params.filter_len, filter,
                                                    volume_name, err, sizeof err)
-                           : sdfd_filter_from_strings(url_argument, req->conn, filter,
+                           : sdfd_filter_from_strings(sdfd_url_lookup, &req->args, filter,
                                                       volume_name, err, sizeof err);
         if (rc)
             return sdfd_http_error(req, rc, "%s", err);
@@ -296,7 +310,7 @@ static void load_upload(request *req)
 static enum MHD_Result start_upload(request *req)
 {
     /* The loader thread must not call MHD: take what it needs from the request now. */
-    const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
+    const char *format = sdfd_url_value(&req->args, "format");
     if (format)
         snprintf(req->format, sizeof req->format, "%s", format);
     return sdfd_http_start_thread(req, load_upload, reply_upload);

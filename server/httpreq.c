@@ -84,6 +84,17 @@ enum MHD_Result sdfd_http_json(request *req, int status, cJSON *json)
     return sdfd_http_buffer(req, status, "application/json", text, strlen(text), NULL);
 }
 
+static enum MHD_Result error_body(request *req, int code, const char *argument,
+                                  const char *message)
+{
+    cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
+    cJSON_AddStringToObject(err, "code", sdfd_errname(code));
+    cJSON_AddStringToObject(err, "message", message);
+    if (argument && argument[0])
+        cJSON_AddStringToObject(err, "argument", argument);
+    return sdfd_http_json(req, sdfd_http_status(code), root);
+}
+
 enum MHD_Result sdfd_http_error(request *req, int code, const char *fmt, ...)
 {
     char message[512];
@@ -91,10 +102,18 @@ enum MHD_Result sdfd_http_error(request *req, int code, const char *fmt, ...)
     va_start(ap, fmt);
     vsnprintf(message, sizeof message, fmt, ap);
     va_end(ap);
-    cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
-    cJSON_AddStringToObject(err, "code", sdfd_errname(code));
-    cJSON_AddStringToObject(err, "message", message);
-    return sdfd_http_json(req, sdfd_http_status(code), root);
+    return error_body(req, code, NULL, message);
+}
+
+enum MHD_Result sdfd_http_refuse(request *req, int code, const char *argument, const char *fmt,
+                                 ...)
+{
+    char message[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(message, sizeof message, fmt, ap);
+    va_end(ap);
+    return error_body(req, code, argument, message);
 }
 
 /* The filled req->reply in the reply form, with the point count in X-SDF-Count. */
@@ -110,17 +129,36 @@ enum MHD_Result sdfd_http_results(request *req)
     return sdfd_http_buffer(req, 200, sdfd_form_type(req->reply_form), body, len, count);
 }
 
+/* ---- URL arguments ----------------------------------------------------------------------- */
+
+static enum MHD_Result collect(void *cls, enum MHD_ValueKind kind, const char *key,
+                               const char *value)
+{
+    (void)kind;
+    sdfd_url_args_add(cls, key, value);
+    return MHD_YES;
+}
+
+int sdfd_http_check_args(request *req, enum MHD_Result *refused)
+{
+    req->args = (sdfd_url_args){.n = 0};
+    MHD_get_connection_values(req->conn, MHD_GET_ARGUMENT_KIND, collect, &req->args);
+    char err[300];
+    const char *argument;
+    if (!sdfd_url_args_check(&req->args, req->route, req->method, err, sizeof err, &argument))
+        return 0;
+    *refused = sdfd_http_refuse(req, SDF_EINVAL, argument, "%s", err);
+    return -1;
+}
+
 /* ---- query bodies ------------------------------------------------------------------------ */
 
-/* A parameter from the body (JSON) or else the URL query string. */
-const char *sdfd_http_param(request *req, const char *body_value, size_t n, const char *key,
-                            char *buf, size_t cap)
+const char *sdfd_http_param(const char *value, size_t n, char *buf, size_t cap)
 {
-    if (body_value) {
-        snprintf(buf, cap, "%.*s", (int)(n < cap ? n : cap - 1), body_value);
-        return buf;
-    }
-    return MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, key);
+    if (!value)
+        return NULL;
+    snprintf(buf, cap, "%.*s", (int)(n < cap ? n : cap - 1), value);
+    return buf;
 }
 
 int sdfd_http_reply_form(request *req, sdfd_form request_form)
@@ -129,6 +167,49 @@ int sdfd_http_reply_form(request *req, sdfd_form request_form)
                                                      MHD_HTTP_HEADER_ACCEPT);
     int f = sdfd_form_from_type(accept);
     return f >= 0 ? f : (int)request_form;
+}
+
+/* The URL's `key` into *v when the body has none; given in both, it is refused. */
+static int url_param(request *req, const char *key, const char **v, size_t *n,
+                     enum MHD_Result *refused)
+{
+    const char *u = sdfd_url_value(&req->args, key);
+    if (!u)
+        return 0;
+    if (*v) {
+        *refused = sdfd_http_refuse(req, SDF_EINVAL, key, "'%s' is given twice: in the JSON "
+                                    "body and in the URL", key);
+        return -1;
+    }
+    *v = u, *n = strlen(u);
+    return 0;
+}
+
+/* A body's parameters and the URL's together (the URL's names were checked at admission). */
+static int merge_params(request *req, sdfd_query_params *p, enum MHD_Result *refused)
+{
+    int volume = req->route == SDFD_ROUTE_VOLUME_QUERY;
+    const char *stray = volume ? (p->sign ? "sign" : p->filter ? "filter" : NULL)
+                               : (p->interpolation ? "interpolation" : NULL);
+    if (stray) {
+        *refused = sdfd_http_error(req, SDF_EINVAL, "a %s query takes no \"%s\" (it takes %s)",
+                                   volume ? "volume" : "mesh", stray,
+                                   volume ? "\"mode\" and \"interpolation\""
+                                          : "\"mode\", \"sign\" and \"filter\"");
+        return -1;
+    }
+    const char *filter_arg = sdfd_url_first_filter_arg(&req->args);
+    if (p->filter && filter_arg) {
+        *refused = sdfd_http_refuse(req, SDF_EINVAL, filter_arg, "the filter is given twice: a "
+                                    "\"filter\" in the JSON body and '%s' in the URL",
+                                    filter_arg);
+        return -1;
+    }
+    if (url_param(req, "mode", &p->mode, &p->mode_len, refused) ||
+        url_param(req, "sign", &p->sign, &p->sign_len, refused) ||
+        url_param(req, "interpolation", &p->interpolation, &p->interpolation_len, refused))
+        return -1;
+    return 0;
 }
 
 /* Parse a query body of any form into req->points_buf. Returns 0, or -1 with the error
@@ -154,7 +235,7 @@ int sdfd_http_read_points(request *req, sdfd_form *form, sdfd_query_params *para
         *refused = sdfd_http_error(req, rc, "%s", err);
         return -1;
     }
-    return 0;
+    return merge_params(req, params, refused);
 }
 
 /* ---- work done elsewhere ------------------------------------------------------------------ */

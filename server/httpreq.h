@@ -12,6 +12,7 @@
 #include "body.h"
 #include "queries.h"
 #include "server.h"
+#include "urlargs.h"
 
 typedef struct sdfd_http_request sdfd_http_request;
 typedef void (*sdfd_http_work)(sdfd_http_request *req);
@@ -30,6 +31,7 @@ struct sdfd_http_request {
     sdfd_route route;
     char route_text[96];
     char name[SDFD_MAX_NAME + 1]; /* mesh or volume name, or job id, from the URL */
+    sdfd_url_args args;           /* the URL's arguments, checked at admission (urlargs.h) */
     double start;
     int answered;                 /* a response is queued */
     int status;
@@ -82,17 +84,29 @@ enum MHD_Result sdfd_http_json(sdfd_http_request *req, int status, cJSON *json);
 /* {"error": {"code": "ENOTFOUND", "message": "..."}} with the code's HTTP status. */
 enum MHD_Result sdfd_http_error(sdfd_http_request *req, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
+/* The same, naming the URL argument it is about in "argument" (none when it is NULL or ""). */
+enum MHD_Result sdfd_http_refuse(sdfd_http_request *req, int code, const char *argument,
+                                 const char *fmt, ...) __attribute__((format(printf, 4, 5)));
 /* The filled req->reply in the reply form, with the point count in X-SDF-Count. */
 enum MHD_Result sdfd_http_results(sdfd_http_request *req);
 
+/* ---- URL arguments ---- */
+
+/* Collect the URL's arguments into req->args (repeats and all) and check them against the
+ * route's table (urlargs.h). 0, or -1 with the refusal queued and its MHD result in
+ * *refused. Admission calls it for every request, before the route acts. */
+int sdfd_http_check_args(sdfd_http_request *req, enum MHD_Result *refused);
+
 /* ---- query bodies ---- */
 
-/* A parameter from the body (JSON) or else the URL query string. */
-const char *sdfd_http_param(sdfd_http_request *req, const char *body_value, size_t n,
-                            const char *key, char *buf, size_t cap);
+/* A query parameter's text (from sdfd_http_read_points) copied into buf, or NULL. */
+const char *sdfd_http_param(const char *value, size_t n, char *buf, size_t cap);
 /* The form to answer in: Accept's, else the request's. */
 int sdfd_http_reply_form(sdfd_http_request *req, sdfd_form request_form);
-/* Parse a query body of any form into req->points_buf. Returns 0, or -1 with the error
+/* Parse a query body of any form into req->points_buf, and its parameters into *params:
+ * a JSON body's keys, else the URL's arguments. A parameter given in both, a JSON key of the
+ * other query route (a mesh query's "interpolation", a volume query's "sign" or "filter"), or
+ * a "filter" with the filter's URL arguments, is refused. Returns 0, or -1 with the error
  * queued and its MHD result in *refused. */
 int sdfd_http_read_points(sdfd_http_request *req, sdfd_form *form, sdfd_query_params *params,
                           size_t *count, enum MHD_Result *refused);

@@ -31,17 +31,6 @@ typedef struct slice_work {
 
 /* ---- the answer --------------------------------------------------------------------------- */
 
-/* An error body naming the argument it is about, when there is one. */
-static enum MHD_Result refuse(request *req, int code, const char *argument, const char *message)
-{
-    cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
-    cJSON_AddStringToObject(err, "code", sdfd_errname(code));
-    cJSON_AddStringToObject(err, "message", message);
-    if (argument && argument[0])
-        cJSON_AddStringToObject(err, "argument", argument);
-    return sdfd_http_json(req, sdfd_http_status(code), root);
-}
-
 static void vector_header(sdfd_http_header *h, const char *name, const double *v)
 {
     h->name = name;
@@ -52,7 +41,7 @@ static enum MHD_Result reply_slice(request *req)
 {
     slice_work *w = req->route_state;
     if (req->work_rc)
-        return refuse(req, req->work_rc, w->argument, req->diag.message);
+        return sdfd_http_refuse(req, req->work_rc, w->argument, "%s", req->diag.message);
     const sdfd_slice_plane *p = &w->plane;
     const sdfd_slice_scale *s = &w->scale;
     sdfd_http_header h[6] = {{"X-SDF-Slice-Size", ""}, {"X-SDF-Slice-Range", ""},
@@ -273,35 +262,19 @@ static void run_slice(request *req)
     sdfd_volume_release(s);
 }
 
-/* ---- the arguments ------------------------------------------------------------------------ */
-
-typedef struct arg_list {
-    sdfd_slice_arg args[SDFD_SLICE_MAX_ARGS + 1];
-    size_t n;
-} arg_list;
-
-static enum MHD_Result collect(void *cls, enum MHD_ValueKind kind, const char *key,
-                               const char *value)
-{
-    (void)kind;
-    arg_list *l = cls;
-    l->args[l->n++] = (sdfd_slice_arg){key, value};
-    return l->n <= SDFD_SLICE_MAX_ARGS ? MHD_YES : MHD_NO;
-}
+/* ---- the arguments (req->args, which admission collected and checked) ---------------------- */
 
 enum MHD_Result sdfd_http_slice(request *req)
 {
-    arg_list list = {.n = 0};
-    MHD_get_connection_values(req->conn, MHD_GET_ARGUMENT_KIND, collect, &list);
     slice_work *w = calloc(1, sizeof *w);
     if (!w)
         return sdfd_http_error(req, SDF_ENOMEM, "out of memory");
     req->route_state = w; /* freed when the request completes */
     w->argument = "";
     char err[300];
-    int rc = sdfd_slice_parse(list.args, list.n, req->route == SDFD_ROUTE_VOLUME_SLICE,
-                              &w->params, err, sizeof err, &w->argument);
+    int rc = sdfd_slice_parse(&req->args, req->route == SDFD_ROUTE_VOLUME_SLICE, &w->params, err,
+                              sizeof err, &w->argument);
     if (rc)
-        return refuse(req, rc, w->argument, err);
+        return sdfd_http_refuse(req, rc, w->argument, "%s", err);
     return sdfd_http_start_thread(req, run_slice, reply_slice);
 }

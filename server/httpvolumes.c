@@ -345,7 +345,7 @@ static enum MHD_Result reply_volume_data(request *req)
 
 enum MHD_Result sdfd_http_volume_data(request *req)
 {
-    const char *format = MHD_lookup_connection_value(req->conn, MHD_GET_ARGUMENT_KIND, "format");
+    const char *format = sdfd_url_value(&req->args, "format");
     if (sdf_volume_file_from_name(format ? format : "exr", &req->file_type))
         return sdfd_http_error(req, SDF_EINVAL, "unknown format '%s' (exr, npy, raw)", format);
     char msg[512];
@@ -383,10 +383,9 @@ enum MHD_Result sdfd_http_volume_query(request *req)
     if (sdfd_http_read_points(req, &form, &params, &count, &refused))
         return refused;
     char err[300], mode_buf[32], interp_buf[32];
-    const char *mode =
-        sdfd_http_param(req, params.mode, params.mode_len, "mode", mode_buf, sizeof mode_buf);
-    const char *interp = sdfd_http_param(req, params.interpolation, params.interpolation_len,
-                                         "interpolation", interp_buf, sizeof interp_buf);
+    const char *mode = sdfd_http_param(params.mode, params.mode_len, mode_buf, sizeof mode_buf);
+    const char *interp = sdfd_http_param(params.interpolation, params.interpolation_len,
+                                         interp_buf, sizeof interp_buf);
     int gradient = 0, rc;
     if (mode && strcmp(mode, "value") && !(gradient = !strcmp(mode, "gradient")))
         return sdfd_http_error(req, SDF_EINVAL, "unknown volume mode '%s' (value, gradient)", mode);

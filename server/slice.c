@@ -8,22 +8,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The filter's URL arguments (filterparams.h), taken with mode=filtered only. */
-static const char *const filter_names[] = {
-    "kernel", "cap", "a", "b", "samples", "min_samples", "medial", "grid", "unsigned",
-    "allow_wide_bump", "sample_gradient", "seed", "smooth_sphere", "smooth_box", "smooth_mesh",
-    "smooth_depth", "smooth_scale"};
-#define N_FILTER (sizeof filter_names / sizeof filter_names[0])
-
-static const char *const slice_names[] = {"axis", "at", "normal", "origin", "bounds", "size",
-                                          "mode", "sign", "interpolation", "step", "format"};
-#define N_SLICE (sizeof slice_names / sizeof slice_names[0])
-
 static const char *const mode_names[] = {"signed", "distance", "filtered", "gradient", "error"};
 
 typedef struct parse {
-    const sdfd_slice_arg *args;
-    size_t n;
+    const sdfd_url_args *args;
     char *err;
     size_t cap;
     const char **argument;
@@ -42,40 +30,7 @@ __attribute__((format(printf, 3, 4))) static int refuse(parse *p, const char *na
 
 static const char *value_of(const parse *p, const char *name)
 {
-    for (size_t i = 0; i < p->n; i++)
-        if (!strcmp(p->args[i].name, name))
-            return p->args[i].value;
-    return NULL;
-}
-
-static int in_list(const char *name, const char *const *list, size_t n)
-{
-    for (size_t i = 0; i < n; i++)
-        if (!strcmp(name, list[i]))
-            return 1;
-    return 0;
-}
-
-/* Every argument known, given once, with a value. */
-static int check_names(parse *p)
-{
-    if (p->n > SDFD_SLICE_MAX_ARGS)
-        return refuse(p, "", "more than %d URL arguments", SDFD_SLICE_MAX_ARGS);
-    for (size_t i = 0; i < p->n; i++) {
-        const char *name = p->args[i].name;
-        if (!in_list(name, slice_names, N_SLICE) && !in_list(name, filter_names, N_FILTER))
-            return refuse(p, name,
-                          "unknown argument '%.40s' (axis, at, normal, origin, bounds, size, "
-                          "mode, sign, interpolation, step, format, and the filter's with "
-                          "mode=filtered)",
-                          name);
-        for (size_t j = 0; j < i; j++)
-            if (!strcmp(p->args[j].name, name))
-                return refuse(p, name, "argument '%.40s' is given twice", name);
-        if (!p->args[i].value || !p->args[i].value[0])
-            return refuse(p, name, "argument '%.40s' needs a value", name);
-    }
-    return 0;
+    return sdfd_url_value(p->args, name);
 }
 
 /* "x,y,..." -> exactly n finite numbers within the library's coordinate range. */
@@ -144,15 +99,11 @@ static int parse_mode(parse *p, sdfd_slice_params *out)
         return refuse(p, "mode", "mode filtered is a mesh's (a volume is sliced as baked)");
     if (!out->volume && out->mode == SDFD_SLICE_ERROR)
         return refuse(p, "mode", "mode error is a volume's: |volume - exact| on its mesh");
-    out->sign = SDF_SIGN_AUTO;
-    if (sign && out->volume)
-        return refuse(p, "sign", "sign is a mesh's (a volume's sign was chosen at its bake)");
+    out->sign = SDF_SIGN_AUTO; /* sign is a mesh slice's, interpolation a volume's (urlargs.c) */
     if (sign && sdf_sign_from_name(sign, &out->sign))
         return refuse(p, "sign", "unknown sign '%.40s' (auto, pseudonormal, winding, raycast, "
                       "none)", sign);
     out->interpolation = SDF_VOLUME_TRILINEAR;
-    if (interp && !out->volume)
-        return refuse(p, "interpolation", "interpolation is a volume's");
     if (interp && sdf_volume_filter_from_name(interp, &out->interpolation))
         return refuse(p, "interpolation", "unknown interpolation '%.40s' (trilinear, nearest)",
                       interp);
@@ -161,13 +112,8 @@ static int parse_mode(parse *p, sdfd_slice_params *out)
 
 static const char *one_arg(void *ctx, const char *name)
 {
-    const sdfd_slice_arg *a = ctx;
+    const sdfd_url_arg *a = ctx;
     return !strcmp(a->name, name) ? a->value : NULL;
-}
-
-static const char *any_arg(void *ctx, const char *name)
-{
-    return value_of(ctx, name);
 }
 
 /* The filter's arguments through filterparams.c: each alone first, so that a refusal names
@@ -176,9 +122,9 @@ static const char *any_arg(void *ctx, const char *name)
 static int parse_filter(parse *p, sdfd_slice_params *out)
 {
     const char *smooth = NULL;
-    for (size_t i = 0; i < p->n; i++) {
-        const sdfd_slice_arg *a = &p->args[i];
-        if (!in_list(a->name, filter_names, N_FILTER))
+    for (size_t i = 0; i < p->args->n; i++) {
+        const sdfd_url_arg *a = &p->args->arg[i];
+        if (!sdfd_filter_is_url_name(a->name))
             continue;
         if (out->mode != SDFD_SLICE_FILTERED)
             return refuse(p, a->name, "argument '%.40s' is the filter's: it goes with "
@@ -193,19 +139,20 @@ static int parse_filter(parse *p, sdfd_slice_params *out)
             return refuse(p, a->name, "%s", err);
     }
     char err[256];
-    if (sdfd_filter_from_strings(any_arg, p, &out->filter, out->smoothing_mesh, err, sizeof err))
+    if (sdfd_filter_from_strings(sdfd_url_lookup, (void *)p->args, &out->filter,
+                                 out->smoothing_mesh, err, sizeof err))
         return refuse(p, smooth ? smooth : "", "%s", err);
     return 0;
 }
 
-int sdfd_slice_parse(const sdfd_slice_arg *args, size_t n, int volume, sdfd_slice_params *out,
-                     char *err, size_t cap, const char **argument)
+int sdfd_slice_parse(const sdfd_url_args *args, int volume, sdfd_slice_params *out, char *err,
+                     size_t cap, const char **argument)
 {
-    parse p = {args, n, err, cap, argument};
+    parse p = {args, err, cap, argument};
     *out = (sdfd_slice_params){.volume = volume, .size = SDFD_SLICE_DEFAULT_SIZE};
-    *argument = "";
-    int rc;
-    if ((rc = check_names(&p)) || (rc = parse_plane(&p, out)) || (rc = parse_mode(&p, out)) ||
+    int rc = sdfd_url_args_check(args, volume ? SDFD_ROUTE_VOLUME_SLICE : SDFD_ROUTE_SLICE, "GET",
+                                 err, cap, argument);
+    if (rc || (rc = parse_plane(&p, out)) || (rc = parse_mode(&p, out)) ||
         (rc = parse_filter(&p, out)))
         return rc;
     const char *bounds = value_of(&p, "bounds"), *size = value_of(&p, "size"),

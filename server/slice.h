@@ -1,10 +1,11 @@
 /* slice.h - a slice image's parameters and its plane (docs/api.md, "Slices").
  *
  * GET .../slice.png takes its parameters as URL arguments. They are parsed here from a plain
- * list of (name, value) pairs, so that every rule (unknown or repeated arguments, ranges,
- * which arguments go with which mode) is checked in one place without MHD, and each refusal
- * names the argument it is about. The plane is then laid out as a lattice of pixel centres
- * over the bounds: square pixels, `size` of them along the longer side. */
+ * list of (name, value) pairs, so that every rule (unknown or repeated arguments, by the
+ * route's table in urlargs.c, ranges, which arguments go with which mode) is checked without
+ * MHD, and each refusal names the argument it is about. The plane is then laid out as a
+ * lattice of pixel centres over the bounds: square pixels, `size` of them along the longer
+ * side. */
 #ifndef SDFD_SLICE_H
 #define SDFD_SLICE_H
 
@@ -12,10 +13,10 @@
 
 #include "filterparams.h"
 #include "sdf/sdf.h"
+#include "urlargs.h"
 
 #define SDFD_SLICE_DEFAULT_SIZE 512
 #define SDFD_SLICE_MAX_SIZE 2048
-#define SDFD_SLICE_MAX_ARGS 64
 
 typedef enum sdfd_slice_mode {
     SDFD_SLICE_SIGNED,   /* signed distance (a volume's value) */
@@ -24,11 +25,6 @@ typedef enum sdfd_slice_mode {
     SDFD_SLICE_GRADIENT, /* the gradient's magnitude */
     SDFD_SLICE_ERROR     /* |volume - exact signed distance| (volumes baked from a loaded mesh) */
 } sdfd_slice_mode;
-
-/* One URL argument; value NULL for "?name" without '='. */
-typedef struct sdfd_slice_arg {
-    const char *name, *value;
-} sdfd_slice_arg;
 
 typedef struct sdfd_slice_params {
     int volume;                  /* a volume's slice, else a mesh's */
@@ -49,10 +45,10 @@ typedef struct sdfd_slice_params {
     char smoothing_mesh[SDFD_VOLUME_NAME_MAX + 1];
 } sdfd_slice_params;
 
-/* Parse `n` arguments (n <= SDFD_SLICE_MAX_ARGS, else refused) of a mesh's or a volume's
- * slice. 0, or SDF_EINVAL with a message in `err` and the argument's name in *argument. */
-int sdfd_slice_parse(const sdfd_slice_arg *args, size_t n, int volume, sdfd_slice_params *out,
-                     char *err, size_t cap, const char **argument);
+/* Parse the URL arguments of a mesh's or a volume's slice. 0, or SDF_EINVAL with a message
+ * in `err` and the argument's name in *argument. */
+int sdfd_slice_parse(const sdfd_url_args *args, int volume, sdfd_slice_params *out, char *err,
+                     size_t cap, const char **argument);
 
 /* The image's lattice: pixel (i, j) (j counts rows down from the top) is centred at
  * first + i * right + j * down. */

@@ -185,6 +185,9 @@ def texts():
         "cap=0.1&smooth_sphere=0,0,0,1&smooth_depth=0.1&smooth_scale=0.2",
         "cap=0.1&smooth_box=0,0,0,1,1,1&unsigned=false&min_samples=8&medial=0.01",
         "cap=0.1&smooth_mesh=kn%6Ft+x&sign=winding&interpolation=nearest&format=npy",
+        "axis=x&at=0.1&size=64&bounds=-1,-1,-1,1,1,1&mode=filtered&samples=4&step=0.1&format=npy",
+        "normal=1,1,0&origin=0,0,0&mode=error&interpolation=nearest&size=32",
+        "sample=8&samples=8&samples=9&mode&fromat=npy&=x",
     ]
     for i, u in enumerate(urls):
         put("url", "args%d" % i, u)

@@ -1,7 +1,8 @@
 /* url.c - fuzzes the parsers of sdfd's URL arguments: the input is a query string
  * ("mode=filtered&cap=0.1&smooth_sphere=0,0,0,1"), split and unescaped as libmicrohttpd does
- * ('+' is a space, %XX a byte, the first of repeated keys wins, a key without '=' has no
- * value), then read as sdfd reads it: the filter's parameters (server/filterparams.c,
+ * ('+' is a space, %XX a byte, repeated keys all kept, a key without '=' has no value), then
+ * read as sdfd reads it: the check of every route's table (server/urlargs.c), a slice's
+ * parameters of both kinds (server/slice.c), the filter's parameters (server/filterparams.c,
  * sdfd_filter_from_strings, then the library's checks on the demo mesh) and the names of a
  * query's mode, sign and interpolation and an upload's or a download's format. A bake takes
  * no URL arguments (its body is JSON: json_bake). */
@@ -10,13 +11,8 @@
 #include "filterparams.h"
 #include "fuzz.h"
 #include "proto.h"
-
-#define MAX_ARGS 64
-
-typedef struct args {
-    char *key[MAX_ARGS], *value[MAX_ARGS];
-    int n;
-} args;
+#include "slice.h"
+#include "urlargs.h"
 
 static int hex(int c) { return isdigit(c) ? c - '0' : tolower(c) - 'a' + 10; }
 
@@ -37,10 +33,10 @@ static void unescape(char *s)
     *w = 0;
 }
 
-static void split(char *query, args *a)
+static void split(char *query, sdfd_url_args *a)
 {
-    a->n = 0;
-    for (char *p = query; p && a->n < MAX_ARGS;) {
+    *a = (sdfd_url_args){.n = 0};
+    for (char *p = query; p;) {
         char *next = strchr(p, '&');
         if (next)
             *next++ = 0;
@@ -50,19 +46,51 @@ static void split(char *query, args *a)
         unescape(p);
         if (eq)
             unescape(eq);
-        a->key[a->n] = p, a->value[a->n] = eq;
-        a->n++;
+        sdfd_url_args_add(a, p, eq);
         p = next;
     }
 }
 
-static const char *lookup(void *ctx, const char *name)
+/* Whether `name` is one of the arguments' names. */
+static int holds(const sdfd_url_args *a, const char *name)
 {
-    const args *a = ctx;
-    for (int i = 0; i < a->n; i++)
-        if (!strcmp(a->key[i], name))
-            return a->value[i];
-    return NULL;
+    for (size_t i = 0; i < a->n; i++)
+        if (!strcmp(a->arg[i].name, name))
+            return 1;
+    return 0;
+}
+
+/* Every route and method sdfd answers, checked against its table: a refusal has a message
+ * and names an argument the query string holds (or "" when the count is to blame). */
+static void check_routes(const sdfd_url_args *a)
+{
+    static const char *const methods[] = {"GET", "HEAD", "PUT", "POST", "DELETE"};
+    for (int route = 0; route < SDFD_ROUTE_COUNT; route++)
+        for (size_t m = 0; m < sizeof methods / sizeof methods[0]; m++) {
+            char err[300];
+            const char *argument = NULL;
+            if (!sdfd_url_args_check(a, (sdfd_route)route, methods[m], err, sizeof err,
+                                     &argument)) {
+                FUZZ_CHECK(argument && !argument[0]);
+                continue;
+            }
+            FUZZ_CHECK(err[0] && memchr(err, 0, sizeof err) && argument);
+            FUZZ_CHECK(holds(a, argument) || (!argument[0] && a->given > SDFD_URL_MAX_ARGS));
+        }
+}
+
+static void parse_slices(const sdfd_url_args *a)
+{
+    for (int volume = 0; volume < 2; volume++) {
+        sdfd_slice_params params;
+        char err[300];
+        const char *argument = NULL;
+        if (sdfd_slice_parse(a, volume, &params, err, sizeof err, &argument))
+            FUZZ_CHECK(err[0] && memchr(err, 0, sizeof err) && argument &&
+                       (holds(a, argument) || !argument[0]));
+        else
+            FUZZ_CHECK(params.size >= 1 && params.size <= SDFD_SLICE_MAX_SIZE);
+    }
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -70,28 +98,30 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     char *query = fuzz_text(data, size);
     if (!query)
         return 0;
-    args a;
+    sdfd_url_args a;
     split(query, &a);
+    check_routes(&a);
+    parse_slices(&a);
     sdf_proto_mode mode;
     sdf_sign_method sign;
     sdf_volume_filter interpolation;
     sdf_format format;
     sdf_volume_file file;
     const char *v;
-    if ((v = lookup(&a, "mode")))
+    if ((v = sdfd_url_value(&a, "mode")))
         (void)sdf_proto_mode_from_name(v, &mode);
-    if ((v = lookup(&a, "sign")))
+    if ((v = sdfd_url_value(&a, "sign")))
         (void)sdf_sign_from_name(v, &sign);
-    if ((v = lookup(&a, "interpolation")))
+    if ((v = sdfd_url_value(&a, "interpolation")))
         (void)sdf_volume_filter_from_name(v, &interpolation);
-    if ((v = lookup(&a, "format"))) {
+    if ((v = sdfd_url_value(&a, "format"))) {
         (void)sdf_format_from_name(v, &format);
         (void)sdf_volume_file_from_name(v, &file);
     }
     sdf_filter_options f;
     char volume_mesh[SDFD_VOLUME_NAME_MAX + 1], err[300];
     sdf_mesh *mesh = fuzz_demo_mesh();
-    if (sdfd_filter_from_strings(lookup, &a, &f, volume_mesh, err, sizeof err)) {
+    if (sdfd_filter_from_strings(sdfd_url_lookup, &a, &f, volume_mesh, err, sizeof err)) {
         FUZZ_CHECK(memchr(err, 0, sizeof err));
     } else if (mesh) {
         FUZZ_CHECK(memchr(volume_mesh, 0, sizeof volume_mesh));
