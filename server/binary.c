@@ -345,7 +345,7 @@ static void *poll_loop(void *arg)
             connection *c = owners[i];
             short re = fds[i].revents;
             if (!c->handshaken) {
-                if (re && (re & (POLLERR | POLLNVAL) || sdfd_bin_handshake(b, c) < 0))
+                if (re && (re & (POLLERR | POLLNVAL) || sdfd_bin_handshake(c) < 0))
                     close_socket(b, c);
                 else if (now - c->opened > timeout)
                     close_socket(b, c); /* a handshake that stopped halfway */

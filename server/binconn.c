@@ -113,9 +113,8 @@ ssize_t sdfd_bin_send(connection *c, const void *buf, size_t n)
     return tls_result(gnutls_record_send(c->tls, buf, n));
 }
 
-int sdfd_bin_handshake(sdfd_binary *b, connection *c)
+int sdfd_bin_handshake(connection *c)
 {
-    (void)b;
     int rc = gnutls_handshake(c->tls);
     if (rc == GNUTLS_E_SUCCESS) {
         c->handshaken = 1;

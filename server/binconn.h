@@ -82,7 +82,7 @@ ssize_t sdfd_bin_recv(connection *c, void *buf, size_t n);
 ssize_t sdfd_bin_send(connection *c, const void *buf, size_t n);
 /* Take the TLS handshake as far as the socket allows: 1 done, 0 not yet, -1 failed (the
  * connection is to be closed; logged). */
-int sdfd_bin_handshake(sdfd_binary *b, connection *c);
+int sdfd_bin_handshake(connection *c);
 /* Is the handshake, or the last read, waiting to write (TLS can need either way)? */
 int sdfd_bin_wants_write(const connection *c);
 /* Bytes TLS has decrypted and not yet handed over: readable without the socket being so. */
