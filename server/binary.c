@@ -11,7 +11,15 @@
  * ERROR frame and the connection closes after it is sent; a frame with no room under
  * --max-buffered-bytes gets an ERROR and is read and dropped, and the connection goes on.
  * A connection that goes away with queries in flight is freed when the last of them
- * completes. */
+ * completes.
+ *
+ * With --bin-tls every connection is a GnuTLS session on the same non-blocking socket
+ * (binconn.c's I/O): the handshake is taken a step at a time as poll says the socket is
+ * ready for what GnuTLS waits on, and a connection whose handshake has not ended --timeout
+ * after it was accepted is closed, so a client that stops halfway holds a slot no longer
+ * than an idle one. Records GnuTLS has decrypted but not yet handed over do not show in
+ * poll: such a connection is read without waiting. The limits above apply unchanged to
+ * the decrypted bytes. */
 #define _GNU_SOURCE /* accept4 */
 #include "binary.h"
 
@@ -120,7 +128,7 @@ static void refuse_for_room(sdfd_binary *b, connection *c)
     if (c->in_len < SDF_PROTO_HEADER_SIZE ||
         sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL)) {
         unsigned char sink[4096];
-        for (int reads = 0; reads < 16 && recv(c->fd, sink, sizeof sink, 0) > 0; reads++)
+        for (int reads = 0; reads < 16 && sdfd_bin_recv(c, sink, sizeof sink) > 0; reads++)
             ;
         sdfd_bin_send_error(c, 0, SDFD_EBUSY, why);
         c->closing = 1;
@@ -144,7 +152,7 @@ static int read_input(sdfd_binary *b, connection *c)
         return 0;
     }
     size_t room = c->skip ? (c->skip < c->in_cap ? c->skip : c->in_cap) : c->in_cap - c->in_len;
-    ssize_t n = recv(c->fd, c->in + c->in_len, room, 0);
+    ssize_t n = sdfd_bin_recv(c, c->in + c->in_len, room);
     if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR))
         return -1;
     if (n > 0) {
@@ -167,7 +175,7 @@ static int write_output(connection *c)
         pthread_mutex_unlock(&c->lock);
         if (!f)
             return 0;
-        ssize_t n = send(c->fd, f->data + f->sent, f->len - f->sent, MSG_NOSIGNAL);
+        ssize_t n = sdfd_bin_send(c, f->data + f->sent, f->len - f->sent);
         if (n < 0)
             return errno == EAGAIN || errno == EINTR ? 0 : -1;
         c->last_activity = sdfd_now();
@@ -187,6 +195,7 @@ static int write_output(connection *c)
 
 static void close_socket(sdfd_binary *b, connection *c)
 {
+    sdfd_bin_end_tls(b, c);
     if (c->fd >= 0) {
         close(c->fd);
         c->fd = -1;
@@ -199,8 +208,9 @@ static void close_socket(sdfd_binary *b, connection *c)
     c->in_cap = c->in_len = 0;
 }
 
-static void free_connection(connection *c)
+static void free_connection(sdfd_binary *b, connection *c)
 {
+    sdfd_bin_end_tls(b, c);
     for (out_frame *f = c->out_head, *next; f; f = next) {
         next = f->next;
         free(f->data);
@@ -252,7 +262,13 @@ static void accept_connections(sdfd_binary *b)
         }
         c->fd = fd;
         c->peer = peer;
-        c->last_activity = sdfd_now();
+        c->last_activity = c->opened = sdfd_now();
+        c->handshaken = !b->srv->cfg.bin_tls;
+        if (!c->handshaken && sdfd_tls_session_begin(b->srv->tls, fd, &c->tls, &c->cert)) {
+            close(fd);
+            free(c);
+            continue;
+        }
         pthread_mutex_init(&c->lock, NULL);
         c->next = b->conns;
         b->conns = c;
@@ -270,11 +286,26 @@ static void reap(sdfd_binary *b)
         pthread_mutex_unlock(&c->lock);
         if (c->dead && idle) {
             *link = c->next;
-            free_connection(c);
+            free_connection(b, c);
         } else {
             link = &c->next;
         }
     }
+}
+
+/* What the poll loop waits on for connection c. */
+static short connection_events(connection *c)
+{
+    if (!c->handshaken) /* the handshake: what GnuTLS waits on */
+        return sdfd_bin_wants_write(c) ? POLLOUT : POLLIN;
+    pthread_mutex_lock(&c->lock);
+    int room = c->in_flight < MAX_IN_FLIGHT && c->out_bytes < MAX_QUEUED_OUT;
+    short events = (c->out_head ? POLLOUT : 0) | (!c->closing && room ? POLLIN : 0);
+    pthread_mutex_unlock(&c->lock);
+    /* A TLS read that stopped on a write (TLS 1.3 can answer a key update) needs POLLOUT. */
+    if (events & POLLIN && sdfd_bin_wants_write(c))
+        events |= POLLOUT;
+    return events;
 }
 
 static void *poll_loop(void *arg)
@@ -291,19 +322,17 @@ static void *poll_loop(void *arg)
             owners = realloc(owners, cap * sizeof *owners);
         }
         size_t n = 0;
+        int buffered = 0; /* a connection has TLS records decrypted and unread */
         fds[n++] = (struct pollfd){b->wake_fd, POLLIN, 0};
         fds[n++] = (struct pollfd){atomic_load(&b->quiesced) ? -1 : b->listen_fd, POLLIN, 0};
         for (connection *c = b->conns; c; c = c->next) {
             if (c->dead)
                 continue;
-            pthread_mutex_lock(&c->lock);
-            int room = c->in_flight < MAX_IN_FLIGHT && c->out_bytes < MAX_QUEUED_OUT;
-            short events = (c->out_head ? POLLOUT : 0) | (!c->closing && room ? POLLIN : 0);
-            pthread_mutex_unlock(&c->lock);
             owners[n] = c;
-            fds[n++] = (struct pollfd){c->fd, events, 0};
+            fds[n++] = (struct pollfd){c->fd, connection_events(c), 0};
+            buffered |= (fds[n - 1].events & POLLIN) && sdfd_bin_pending(c) > 0;
         }
-        poll(fds, n, 1000);
+        poll(fds, n, buffered ? 0 : 1000);
         if (fds[0].revents & POLLIN) {
             uint64_t v;
             ssize_t unused = read(b->wake_fd, &v, sizeof v);
@@ -315,6 +344,17 @@ static void *poll_loop(void *arg)
         for (size_t i = 2; i < n; i++) {
             connection *c = owners[i];
             short re = fds[i].revents;
+            if (!c->handshaken) {
+                if (re && (re & (POLLERR | POLLNVAL) || sdfd_bin_handshake(c) < 0))
+                    close_socket(b, c);
+                else if (now - c->opened > timeout)
+                    close_socket(b, c); /* a handshake that stopped halfway */
+                continue;
+            }
+            if ((fds[i].events & POLLIN) && sdfd_bin_pending(c) > 0)
+                re |= POLLIN;
+            if (sdfd_bin_wants_write(c) && (re & POLLOUT))
+                re |= POLLIN; /* a TLS read that waited on a write */
             int fail = (re & (POLLERR | POLLNVAL)) != 0;
             if (!fail && (re & (POLLIN | POLLHUP)) && !c->closing)
                 fail = read_input(b, c) != 0;
@@ -391,9 +431,10 @@ void sdfd_binary_stop(sdfd_binary *b)
     for (connection *c = b->conns, *next; c; c = next) {
         next = c->next;
         flush_connection(b, c);
+        sdfd_bin_end_tls(b, c); /* its close_notify goes out before the socket closes */
         if (c->fd >= 0)
             close(c->fd);
-        free_connection(c);
+        free_connection(b, c);
     }
     close(b->listen_fd);
     close(b->wake_fd);

@@ -1,8 +1,11 @@
 /* binconn.c - what the binary front end's connections share across threads (binconn.h):
  * queueing a reply frame, from any thread, and waking the poll loop to send it; counting and
- * logging a request; and a request's end. */
+ * logging a request; and a request's end. And their byte I/O on the poll thread: plain
+ * recv/send, or GnuTLS records (--bin-tls) on the same non-blocking socket, so the loop
+ * treats both alike. */
 #include "binconn.h"
 
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <unistd.h>
@@ -76,4 +79,72 @@ void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what)
             : type == SDF_PROTO_LIST_MESHES  ? "LIST_MESHES"
             : type == SDF_PROTO_AUTH         ? "AUTH"
                                              : "UNKNOWN";
+}
+
+/* GnuTLS's result as recv/send's: a would-block is EAGAIN; the peer's close_notify, or a
+ * stream that simply ends, is the end of the stream; anything else fails the connection. */
+static ssize_t tls_result(ssize_t rc)
+{
+    if (rc >= 0)
+        return rc;
+    if (rc == GNUTLS_E_AGAIN || rc == GNUTLS_E_INTERRUPTED) {
+        errno = EAGAIN;
+        return -1;
+    }
+    if (rc == GNUTLS_E_PREMATURE_TERMINATION)
+        return 0;
+    errno = EPROTO;
+    return -1;
+}
+
+ssize_t sdfd_bin_recv(connection *c, void *buf, size_t n)
+{
+    if (!c->tls)
+        return recv(c->fd, buf, n, 0);
+    ssize_t rc = gnutls_record_recv(c->tls, buf, n);
+    c->read_wants_write = rc == GNUTLS_E_AGAIN && gnutls_record_get_direction(c->tls) == 1;
+    return tls_result(rc);
+}
+
+ssize_t sdfd_bin_send(connection *c, const void *buf, size_t n)
+{
+    if (!c->tls)
+        return send(c->fd, buf, n, MSG_NOSIGNAL);
+    return tls_result(gnutls_record_send(c->tls, buf, n));
+}
+
+int sdfd_bin_handshake(connection *c)
+{
+    int rc = gnutls_handshake(c->tls);
+    if (rc == GNUTLS_E_SUCCESS) {
+        c->handshaken = 1;
+        return 1;
+    }
+    if (!gnutls_error_is_fatal(rc))
+        return 0; /* EAGAIN, or a warning alert: go on when the socket is ready */
+    sdfd_log("warn", "tls_handshake", "binary connection: %s", gnutls_strerror(rc));
+    return -1;
+}
+
+int sdfd_bin_wants_write(const connection *c)
+{
+    if (!c->tls)
+        return 0;
+    return c->handshaken ? c->read_wants_write : gnutls_record_get_direction(c->tls) == 1;
+}
+
+size_t sdfd_bin_pending(const connection *c)
+{
+    return c->tls && c->handshaken ? gnutls_record_check_pending(c->tls) : 0;
+}
+
+void sdfd_bin_end_tls(sdfd_binary *b, connection *c)
+{
+    if (!c->tls)
+        return;
+    if (c->handshaken && c->fd >= 0)
+        gnutls_bye(c->tls, GNUTLS_SHUT_WR); /* non-blocking: one try; the close follows */
+    sdfd_tls_session_end(b->srv->tls, c->tls, c->cert);
+    c->tls = NULL;
+    c->cert = NULL;
 }

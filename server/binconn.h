@@ -1,4 +1,5 @@
-/* binconn.h - the binary front end's connections and their reply queues (binconn.c), used by
+/* binconn.h - the binary front end's connections, their reply queues and their byte I/O,
+ * plain or TLS (binconn.c), used by
  * binary.c, which owns the sockets (it polls them, splits their bytes into frames and hands
  * each frame to binrequests.c), and by binrequests.c, which answers a frame or starts the
  * work that will. Replies go out through a connection's queue (sdfd_bin_enqueue), from any
@@ -10,6 +11,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <sys/socket.h>
+#include <sys/types.h>
+
+#include <gnutls/gnutls.h>
 
 #include "proto.h"
 #include "server.h"
@@ -28,6 +32,11 @@ typedef struct connection connection;
 
 struct connection {
     int fd;
+    gnutls_session_t tls;       /* --bin-tls: the session over fd, else NULL */
+    sdfd_tls_cert *cert;        /* ... and the certificate it holds (tls.h) */
+    int handshaken;             /* TLS: the handshake is done; plain: always 1 */
+    double opened;              /* accepted at: the handshake must end within --timeout */
+    int read_wants_write;       /* TLS: the last read stopped on a write, not a read */
     struct sockaddr_storage peer; /* for the per-address connection limit */
     unsigned char *in;
     size_t in_len, in_cap;
@@ -64,6 +73,22 @@ void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int st
                       size_t points, double start, size_t bytes_in, size_t bytes_out);
 /* A request of connection c has been answered (or refused after it was counted). */
 void sdfd_bin_request_finished(sdfd_binary *b, connection *c);
+
+/* A connection's bytes, through TLS or not. Like recv and send: the count, 0 at the end of
+ * the stream (recv), or -1 with errno (EAGAIN: nothing can move now; poll for
+ * sdfd_bin_wants_write ? POLLOUT : POLLIN). A send that was refused for EAGAIN must be
+ * repeated with the same bytes (GnuTLS holds the record it had begun). */
+ssize_t sdfd_bin_recv(connection *c, void *buf, size_t n);
+ssize_t sdfd_bin_send(connection *c, const void *buf, size_t n);
+/* Take the TLS handshake as far as the socket allows: 1 done, 0 not yet, -1 failed (the
+ * connection is to be closed; logged). */
+int sdfd_bin_handshake(connection *c);
+/* Is the handshake, or the last read, waiting to write (TLS can need either way)? */
+int sdfd_bin_wants_write(const connection *c);
+/* Bytes TLS has decrypted and not yet handed over: readable without the socket being so. */
+size_t sdfd_bin_pending(const connection *c);
+/* Shut down and free the TLS session (if any); the socket stays open. */
+void sdfd_bin_end_tls(sdfd_binary *b, connection *c);
 
 /* A frame type's route and name, as its requests are counted and logged. */
 void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what);

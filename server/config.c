@@ -47,6 +47,9 @@ static const setting settings[] = {
     {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1, 1u << 16},
     {"--data-dir", "SDFD_DATA_DIR", "DIR", "keep meshes, volumes and bake jobs in DIR (shared by replicas; docs/api.md)", STRING, AT(data_dir), 0, 0},
     {"--max-resident-bytes", "SDFD_MAX_RESIDENT_BYTES", "N", "with --data-dir: drop the least recently used meshes and volumes from memory past N bytes (default 0 = keep all)", SIZE, AT(max_resident_bytes), 0, 1ull << 44},
+    {"--tls-cert", "SDFD_TLS_CERT", "FILE", "serve HTTPS (TLS 1.2+) with this PEM certificate chain; reread on SIGHUP", STRING, AT(tls_cert), 0, 0},
+    {"--tls-key", "SDFD_TLS_KEY", "FILE", "the certificate's PEM private key (with --tls-cert)", STRING, AT(tls_key), 0, 0},
+    {"--bin-tls", "SDFD_BIN_TLS", "", "the binary protocol over TLS too, with the same certificate", BOOL, AT(bin_tls), 0, 1},
     {"--drain-seconds", "SDFD_DRAIN_SECONDS", "SECONDS", "on SIGTERM, let in-flight requests finish this long (default 30)", UINT, AT(drain_seconds), 0, 3600},
 };
 
@@ -201,6 +204,14 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
         }
         if (set_value(cfg, s, value, s->flag))
             return -1;
+    }
+    if (!cfg->tls_cert != !cfg->tls_key) {
+        fprintf(stderr, "sdfd: --tls-cert and --tls-key go together: give both or neither\n");
+        return -1;
+    }
+    if (cfg->bin_tls && !cfg->tls_cert) {
+        fprintf(stderr, "sdfd: --bin-tls needs --tls-cert and --tls-key\n");
+        return -1;
     }
     /* The budget must hold the largest request it admits, or that request would be told to
      * retry for ever: a whole body, or a binary frame of --max-points points. */

@@ -40,6 +40,9 @@ typedef struct sdfd_config {
     size_t max_jobs;              /* bake jobs remembered */
     const char *data_dir;         /* the store, or NULL: memory only */
     size_t max_resident_bytes;    /* with a store: meshes and volumes kept in memory; 0 = all */
+    const char *tls_cert;         /* PEM certificate (chain): HTTPS on http_addr; NULL = HTTP */
+    const char *tls_key;          /* its PEM private key; given with tls_cert or not at all */
+    int bin_tls;                  /* the binary protocol over TLS too, same certificate */
 } sdfd_config;
 
 /* Fill `cfg` from argv and the environment. Returns 0; 1 if --help was printed (exit 0);

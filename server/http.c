@@ -16,6 +16,7 @@
 #include <cjson/cJSON.h>
 #include <microhttpd.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -547,6 +548,19 @@ static size_t unescape_url(void *cls, struct MHD_Connection *connection, char *s
     return (size_t)(out - s);
 }
 
+/* A connection opens or closes: with TLS, a certificate replaced by a reload is freed only
+ * once no connection that may have been handshaken with it is open (tls.c). */
+static void on_connection(void *cls, struct MHD_Connection *connection, void **socket_context,
+                          enum MHD_ConnectionNotificationCode code)
+{
+    (void)connection;
+    sdfd_http *http = cls;
+    if (code == MHD_CONNECTION_NOTIFY_STARTED)
+        *socket_context = sdfd_tls_connection_opened(http->srv->tls);
+    else if (*socket_context)
+        sdfd_tls_connection_closed(http->srv->tls, *socket_context);
+}
+
 int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
 {
     int port;
@@ -558,6 +572,18 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
     http->listen_fd = fd;
     unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_EPOLL | MHD_ALLOW_SUSPEND_RESUME |
                      MHD_USE_ERROR_LOG;
+    /* HTTPS: MHD asks sdfd_tls_retrieve for the certificate at each handshake, so a reload
+     * (SIGHUP) reaches new connections without restarting the daemon. */
+    struct MHD_OptionItem tls_options[] = {
+        {MHD_OPTION_HTTPS_CERT_CALLBACK, 0, (void *)sdfd_tls_retrieve},
+        {MHD_OPTION_HTTPS_PRIORITIES, 0, (void *)SDFD_TLS_PRIORITIES},
+        {MHD_OPTION_NOTIFY_CONNECTION, (intptr_t)on_connection, http},
+        {MHD_OPTION_END, 0, NULL},
+    };
+    if (srv->tls)
+        flags |= MHD_USE_TLS;
+    else
+        tls_options[0].option = MHD_OPTION_END;
     http->daemon = MHD_start_daemon(
         flags, 0, NULL, NULL, on_request, http,
         MHD_OPTION_EXTERNAL_LOGGER, on_mhd_log, http, /* first, so every message goes through it */
@@ -568,9 +594,13 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
         MHD_OPTION_CONNECTION_TIMEOUT, srv->cfg.timeout_seconds,
         MHD_OPTION_NOTIFY_COMPLETED, on_completed, http,
         MHD_OPTION_UNESCAPE_CALLBACK, unescape_url, NULL,
+        MHD_OPTION_ARRAY, tls_options,
         MHD_OPTION_END);
     if (!http->daemon) {
-        sdfd_log("error", "listen", "libmicrohttpd failed to start on %s", srv->cfg.http_addr);
+        sdfd_log("error", "listen", "libmicrohttpd failed to start on %s%s", srv->cfg.http_addr,
+                 srv->tls && MHD_is_feature_supported(MHD_FEATURE_HTTPS_CERT_CALLBACK) != MHD_YES
+                     ? ": this libmicrohttpd has no HTTPS certificate callback (GnuTLS 3)"
+                     : "");
         close(fd);
         free(http);
         return -1;

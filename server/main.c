@@ -1,7 +1,7 @@
 /* main.c - sdfd: load the meshes, start the batcher and both front ends, and on SIGTERM or
  * SIGINT shut down gracefully: /readyz turns 503, no new connections are accepted, requests
  * in flight are answered (for up to --drain-seconds), then everything stops and the process
- * exits 0.
+ * exits 0. SIGHUP rereads --tls-cert and --tls-key (tls.c); open connections go on.
  *
  * Signals are blocked in every thread and taken synchronously by the main thread with
  * sigwait, so no handler runs inside library code. */
@@ -104,6 +104,19 @@ static void drain(sdfd_server *srv)
                  srv->cfg.drain_seconds);
 }
 
+/* SIGHUP: new handshakes use the files' new contents; connections already open keep theirs.
+ * A file that does not load leaves the certificate in use as it was. */
+static void reload_tls(sdfd_server *srv)
+{
+    char err[512];
+    if (!srv->tls)
+        sdfd_log("info", "tls_reload", "SIGHUP ignored: sdfd serves no TLS");
+    else if (sdfd_tls_reload(srv->tls, err, sizeof err))
+        sdfd_log("error", "tls_reload", "%s; the certificate in use stays", err);
+    else
+        sdfd_log("info", "tls_reload", "new connections use %s", srv->cfg.tls_cert);
+}
+
 int main(int argc, char **argv)
 {
     static sdfd_server srv;
@@ -114,6 +127,7 @@ int main(int argc, char **argv)
     sigemptyset(&signals);
     sigaddset(&signals, SIGTERM);
     sigaddset(&signals, SIGINT);
+    sigaddset(&signals, SIGHUP);
     pthread_sigmask(SIG_BLOCK, &signals, NULL); /* inherited by every thread */
     signal(SIGPIPE, SIG_IGN);
 
@@ -124,6 +138,13 @@ int main(int argc, char **argv)
                                       srv.cfg.max_bake_queries, srv.cfg.threads);
     sdfd_store *store = NULL;
     char err[512];
+    /* Both files are checked before anything listens: a bad one is a start-up error, not a
+     * failed handshake for every client later. */
+    if (srv.cfg.tls_cert && sdfd_tls_open(srv.cfg.tls_cert, srv.cfg.tls_key, &srv.tls, err,
+                                          sizeof err)) {
+        sdfd_log("error", "start", "%s", err);
+        return 2;
+    }
     if (srv.cfg.data_dir && sdfd_store_open(srv.cfg.data_dir, &store, err, sizeof err)) {
         sdfd_log("error", "start", "--data-dir: %s", err);
         return 1;
@@ -146,6 +167,7 @@ int main(int argc, char **argv)
         sdfd_http_stop(http);
         sdfd_batcher_destroy(srv.batcher);
         sdfd_volumes_destroy(srv.volumes);
+        sdfd_tls_destroy(srv.tls);
         return 1;
     }
     sdfd_cache_start(srv.cache); /* the flags' meshes first: they win over the store's */
@@ -153,7 +175,8 @@ int main(int argc, char **argv)
     sdfd_log("info", "ready", "serving %zu meshes", sdfd_registry_count(srv.registry));
 
     int sig;
-    sigwait(&signals, &sig);
+    while (!sigwait(&signals, &sig) && sig == SIGHUP)
+        reload_tls(&srv);
     sdfd_log("info", "shutdown", "%s: draining", sig == SIGTERM ? "SIGTERM" : "SIGINT");
     atomic_store(&srv.draining, 1);
     sdfd_volumes_close(srv.volumes); /* bakes stop at their next slab */
@@ -172,6 +195,7 @@ int main(int argc, char **argv)
     sdfd_cache_destroy(srv.cache);
     sdfd_registry_destroy(srv.registry);
     sdfd_metrics_destroy(srv.metrics);
+    sdfd_tls_destroy(srv.tls); /* after both front ends: their sessions have ended */
     sdfd_log("info", "stopped", "bye");
     return 0;
 }

@@ -11,6 +11,7 @@
 #include "config.h"
 #include "metrics.h"
 #include "registry.h"
+#include "tls.h"
 #include "volumes.h"
 
 #define SDFD_VERSION "0.1.0"
@@ -22,6 +23,7 @@ typedef struct sdfd_server {
     sdfd_batcher *batcher;
     sdfd_volumes *volumes;   /* baked volumes and bake jobs */
     sdfd_cache *cache;       /* lookups, uploads and deletes of both, through the store if any */
+    sdfd_tls *tls;           /* --tls-cert and --tls-key, or NULL: no TLS */
     atomic_int ready;        /* meshes loaded: /readyz 200 */
     atomic_int draining;     /* SIGTERM seen: /readyz 503, new work refused */
     atomic_long in_flight;   /* requests received and not yet answered (both protocols) */

@@ -11,6 +11,7 @@
  * server answers a frame over it by closing). Every message of this protocol only reads, so
  * a request whose connection died before its reply is sent once more on the next one. */
 import net from 'node:net';
+import tls from 'node:tls';
 import { SdfError } from './errors.js';
 import {
   SIGNS, WORDS, checkFilter, leBytes, leWords, modeCode, signCode, smoothVolume, splitWords,
@@ -217,6 +218,7 @@ export class BinaryClient {
   #window;
   #resend;
   #connectTimeout;
+  #tls; /* null, or node:tls's connect options (ca, minVersion) for --bin-tls */
   #socket = null;
   #open = false; /* the handshake (AUTH, HELLO) is answered: requests may be written */
   #writable = true;
@@ -231,7 +233,8 @@ export class BinaryClient {
 
   /**
    * @param {{host?: string, port?: number, token?: string, clientName?: string,
-   *   maxInFlight?: number, resend?: boolean, connectTimeout?: number}} [options]
+   *   maxInFlight?: number, resend?: boolean, connectTimeout?: number, tls?: boolean,
+   *   ca?: string | Uint8Array}} [options]
    */
   constructor(options = {}) {
     this.#host = options.host ?? '127.0.0.1';
@@ -241,6 +244,11 @@ export class BinaryClient {
     this.#window = options.maxInFlight ?? 64;
     this.#resend = options.resend ?? true;
     this.#connectTimeout = options.connectTimeout ?? 10000;
+    if (options.ca !== undefined && !options.tls)
+      throw new TypeError('ca is for tls: true');
+    /* A server started with --bin-tls: the frames inside TLS 1.2+, its certificate verified
+     * against `ca` (PEM text; node's CAs without it) and the host name. */
+    this.#tls = options.tls ? { ca: options.ca, minVersion: 'TLSv1.2' } : null;
     if (!(this.#window >= 1))
       throw new RangeError('maxInFlight must be at least 1');
   }
@@ -405,7 +413,11 @@ export class BinaryClient {
   /* ---- the connection ---- */
 
   #connect() {
-    const s = net.connect({ host: this.#host, port: this.#port });
+    const where = { host: this.#host, port: this.#port };
+    /* SNI carries names only; an address is checked against the certificate's IP SANs. */
+    const s = this.#tls
+      ? tls.connect({ ...where, ...this.#tls, servername: net.isIP(this.#host) ? undefined : this.#host })
+      : net.connect(where);
     this.#socket = s;
     this.#open = false;
     this.#writable = true;
@@ -417,7 +429,7 @@ export class BinaryClient {
       s.destroy(Object.assign(new Error(`no connection to ${this.#host}:${this.#port} within `
         + `${this.#connectTimeout} ms`), { code: 'ETIMEDOUT' }));
     });
-    s.on('connect', () => {
+    s.on(this.#tls ? 'secureConnect' : 'connect', () => {
       s.setTimeout(0);
       if (s === this.#socket)
         this.#handshake(s);

@@ -1,8 +1,21 @@
 // node.d.ts - types of sdfd-client's node entry (src/node.js): the browser entry's, plus
-// BinaryClient for proto/PROTOCOL.md. Needs no @types/node: nothing here names node's types.
+// BinaryClient for proto/PROTOCOL.md, and a Client that takes a CA for https://. Needs no
+// @types/node: nothing here names node's types.
 import type { Interpolation, Mode, Points, QueryResult, RequestOptions, Sign, FilterParams } from './index.js';
+import { Client as BrowserClient, type ClientOptions } from './index.js';
 
 export * from './index.js';
+
+export interface NodeClientOptions extends ClientOptions {
+  /** PEM CA certificate(s) an https:// server's certificate must verify against (node's own
+   * CAs without it). Not with `fetch`. */
+  ca?: string | Uint8Array;
+}
+
+/** The browser entry's Client, plus `ca` (requests then go through node:https). */
+export declare class Client extends BrowserClient {
+  constructor(url?: string, options?: NodeClientOptions);
+}
 
 export interface BinaryClientOptions {
   /** Default "127.0.0.1". */
@@ -20,6 +33,10 @@ export interface BinaryClientOptions {
   resend?: boolean;
   /** Milliseconds to wait for a connection (default 10000). */
   connectTimeout?: number;
+  /** A server started with --bin-tls: TLS 1.2+, the certificate verified (default false). */
+  tls?: boolean;
+  /** With tls: PEM CA certificate(s) to verify against (node's own CAs without it). */
+  ca?: string | Uint8Array;
 }
 
 export interface Hello {

@@ -37,3 +37,12 @@ browser.BinaryClient;
 const c2: browser.Client = new browser.Client();
 
 export { http, binary, errors, c2 };
+
+async function tls(): Promise<number> {
+  const c = new Client('https://127.0.0.1:8080', { ca: '-----BEGIN CERTIFICATE-----\n' });
+  const b = new BinaryClient({ port: 9090, tls: true, ca: new Uint8Array(1) });
+  const h = await b.hello();
+  return (await c.health()).status.length + h.version;
+}
+
+export { tls };

@@ -3,6 +3,7 @@ pipelined queries (query_many) whose replies may come back in any order."""
 from __future__ import annotations
 
 import socket
+import ssl
 import struct
 from typing import Any, ClassVar, Dict, Iterable, List, Mapping, Optional, Tuple, Union
 
@@ -24,12 +25,27 @@ class BinaryClient:
     sock: socket.socket
 
     def __init__(self, host: str = "127.0.0.1", port: int = 9090, timeout: Optional[float] = 120,
-                 token: Optional[str] = None) -> None:
+                 token: Optional[str] = None, tls: bool = False,
+                 cafile: Optional[str] = None) -> None:
         """Connect to sdfd's binary listener; `timeout` in seconds bounds each socket
         operation. With `token`, the connection authenticates first (AUTH), as a server
-        started with --token and --auth-queries requires before queries."""
-        self.sock = socket.create_connection((host, port), timeout=timeout)
-        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        started with --token and --auth-queries requires before queries. With `tls` (a
+        server started with --bin-tls), the frames travel in TLS 1.2 or later, the server's
+        certificate verified against `cafile` (PEM), or the system's CAs when None, and
+        required to name `host`."""
+        if cafile is not None and not tls:
+            raise ValueError("cafile is for tls=True")
+        sock = socket.create_connection((host, port), timeout=timeout)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        if tls:
+            ctx = ssl.create_default_context(cafile=cafile)
+            ctx.minimum_version = ssl.TLSVersion.TLSv1_2
+            try:
+                sock = ctx.wrap_socket(sock, server_hostname=host)
+            except BaseException:
+                sock.close()
+                raise
+        self.sock = sock
         self._next_id = 1
         if token is not None:
             self.auth(token)

@@ -11,6 +11,7 @@ import io
 import json
 import os
 import select
+import ssl
 import time
 import urllib.parse
 from typing import Any, Dict, List, Literal, Mapping, Optional, Tuple, TypeVar, Union, cast, \
@@ -23,6 +24,14 @@ from ._wire import (MODES, WORDS, Form, Interpolation, Mode, Result, SdfError, S
                     _points, _split_words, _url_filter)
 
 _Path = TypeVar("_Path", str, "os.PathLike[str]")
+
+
+def _tls_context(cafile: Optional[str]) -> ssl.SSLContext:
+    """A client context that verifies the server against `cafile` (or the system's CAs)
+    and its host name, TLS 1.2 or later, as sdfd accepts."""
+    ctx = ssl.create_default_context(cafile=cafile)
+    ctx.minimum_version = ssl.TLSVersion.TLSv1_2
+    return ctx
 
 
 def _object(data: Union[str, bytes]) -> Dict[str, Any]:
@@ -41,15 +50,20 @@ class Client:
     timeout: float
 
     def __init__(self, url: str = "http://127.0.0.1:8080", token: Optional[str] = None,
-                 timeout: float = 120) -> None:
-        """Talk to the sdfd at `url` ("http://HOST:PORT"); `token` is sent as a Bearer token
-        (the server's --token); `timeout` in seconds bounds each socket operation. Nothing
-        connects until the first request."""
+                 timeout: float = 120, cafile: Optional[str] = None) -> None:
+        """Talk to the sdfd at `url` ("http://HOST:PORT", or "https://HOST:PORT" for a
+        server started with --tls-cert); `token` is sent as a Bearer token (the server's
+        --token); `timeout` in seconds bounds each socket operation. With https, the
+        server's certificate is verified against `cafile` (PEM), or the system's CAs when
+        None, and must name HOST. Nothing connects until the first request."""
         u = urllib.parse.urlsplit(url)
-        if not u.hostname:
-            raise ValueError(f"url {url!r} has no host (expected http://HOST:PORT)")
-        self.host, self.port = u.hostname, u.port or 80
+        if u.scheme not in ("http", "https") or not u.hostname:
+            raise ValueError(f"url {url!r}: expected http://HOST:PORT or https://HOST:PORT")
+        if cafile is not None and u.scheme != "https":
+            raise ValueError("cafile is for https:// URLs")
+        self.host, self.port = u.hostname, u.port or (443 if u.scheme == "https" else 80)
         self.token, self.timeout = token, timeout
+        self._tls = _tls_context(cafile) if u.scheme == "https" else None
         self._conn: Optional[http.client.HTTPConnection] = None
 
     def close(self) -> None:
@@ -66,7 +80,12 @@ class Client:
             if select.select([self._conn.sock], [], [], 0)[0]:
                 self.close()
         if self._conn is None:
-            self._conn = http.client.HTTPConnection(self.host, self.port, timeout=self.timeout)
+            if self._tls is not None:
+                self._conn = http.client.HTTPSConnection(self.host, self.port,
+                                                         timeout=self.timeout, context=self._tls)
+            else:
+                self._conn = http.client.HTTPConnection(self.host, self.port,
+                                                        timeout=self.timeout)
         return self._conn
 
     def _request(self, method: str, path: str, body: Optional[Union[str, bytes]] = None,
