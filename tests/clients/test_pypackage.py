@@ -180,13 +180,16 @@ class InstalledPackage(unittest.TestCase):
             f.write("import sdfclient\n"
                     "c = sdfclient.Client('http://127.0.0.1:1')\n"
                     "n: int = c.metrics()\n"
-                    "r = c.query('demo', [[0, 0, 0]], mode='sideways')\n")
+                    "r = c.query('demo', [[0, 0, 0]], mode='sideways')\n"
+                    "v = c.query_volume('v', [[0, 0, 0]], interpolation='cubic')\n")
         text = run([self.python, "-m", "mypy", "--strict", *cache, bad], self.elsewhere, expect=1)
         self.assertIn('bad.py:3: error: Incompatible types in assignment (expression has type '
                       '"str", variable has type "int")', text)
         self.assertRegex(text, r'bad.py:4: error: Argument "mode" to "query" of "Client" has '
                                r'incompatible type "Literal\[.sideways.\]"')
-        self.assertIn("Found 2 errors", text)
+        self.assertRegex(text, r'bad.py:5: error: Argument "interpolation" to "query_volume" of '
+                               r'"Client" has incompatible type "Literal\[.cubic.\]"')
+        self.assertIn("Found 3 errors", text)
 
 
 if __name__ == "__main__":
