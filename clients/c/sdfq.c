@@ -42,7 +42,8 @@ static const command commands[] = {
      "usage: sdfq query-volume VOLUME [POINTS.npy|POINTS.csv|-] [options]\n"
      "Evaluate a baked volume at points over the binary protocol.\n"
      "  --gradient          value and gradient (4 columns) instead of the value\n"
-     "  --interpolation I   trilinear (default) or nearest\n"
+     "  --interpolation I   default (hermite on first-order volumes, trilinear on\n"
+     "                      zero-order ones), trilinear, nearest or hermite\n"
      "  -o OUT, --output-format F, --batch N   as in sdfq query\n"},
     {"meshes", sdfq_cmd_meshes, "",
      "usage: sdfq meshes\n"

@@ -267,13 +267,24 @@ class Sdfq(unittest.TestCase):
         self.assertIn("cv\t24x24x24\torder 1", self.sdfq("volumes").stdout.decode())
         pts = self.points[:700]
         np.save(self.path("v.npy"), pts)
-        r = self.sdfq("query-volume", "cv", self.path("v.npy"), "--gradient", "-o",
-                      self.path("vout.npy"))
-        self.assertOk(r)
-        _, data = self.http._request("POST",
-                                     "/v1/volumes/cv/query?mode=gradient&interpolation=trilinear",
-                                     pts.tobytes(), {"Content-Type": "application/octet-stream"})
-        self.assertEqual(np.load(self.path("vout.npy")).tobytes(), data)
+        # each --interpolation, and none (the server's default: hermite on this first-order
+        # volume), answers the bits of the HTTP query with that interpolation
+        answers = {}
+        for interp in (None, "default", "trilinear", "nearest", "hermite"):
+            args = ("--interpolation", interp) if interp else ()
+            r = self.sdfq("query-volume", "cv", self.path("v.npy"), "--gradient", "-o",
+                          self.path("vout.npy"), *args)
+            self.assertOk(r)
+            q = f"&interpolation={interp}" if interp else ""
+            _, data = self.http._request("POST", f"/v1/volumes/cv/query?mode=gradient{q}",
+                                         pts.tobytes(),
+                                         {"Content-Type": "application/octet-stream"})
+            answers[interp] = np.load(self.path("vout.npy")).tobytes()
+            self.assertEqual(answers[interp], data, f"--interpolation {interp}")
+        self.assertEqual(answers[None], answers["hermite"])
+        self.assertNotEqual(answers["hermite"], answers["trilinear"])
+        self.assertFails(self.sdfq("query-volume", "cv", self.path("v.npy"), "--interpolation",
+                                   "cubic"), 1, "cubic", "hermite")
         for fmt in ("exr", "npy", "raw"):
             out = self.path(f"cv.{fmt}")
             self.assertOk(self.sdfq("download", "cv", "-o", out))
@@ -283,6 +294,8 @@ class Sdfq(unittest.TestCase):
         self.assertOk(job)
         self.assertTrue(job.stdout.decode().strip(), "the job id")
         self.http.wait(job.stdout.decode().strip())
+        r = self.sdfq("query-volume", "cv2", self.path("v.npy"), "--interpolation", "hermite")
+        self.assertFails(r, 2, "422", "needs a first-order volume")
         self.assertOk(self.sdfq("delete", "--volume", "cv", "cv2"))
         self.assertEqual(self.http.volumes(), [])
         self.assertOk(self.sdfq("delete", "cow"))
