@@ -212,8 +212,8 @@ class Sdfq(unittest.TestCase):
         self.assertFails(r, 3, str(port))
 
     def test_usage_and_help(self):
-        for cmd in ("query", "query-volume", "meshes", "upload", "bake", "download", "delete",
-                    "volumes", "slice"):
+        for cmd in ("query", "query-volume", "meshes", "upload", "bake", "ops", "download",
+                    "delete", "volumes", "slice"):
             r = self.sdfq(cmd, "--help")
             self.assertOk(r)
             self.assertIn(f"usage: sdfq {cmd}", r.stdout.decode())
@@ -224,6 +224,14 @@ class Sdfq(unittest.TestCase):
         self.assertFails(self.sdfq("frobnicate"), 1, "frobnicate")
         self.assertFails(self.sdfq("download", "v"), 1, "-o")
         self.assertFails(self.sdfq("meshes", "--bin", "nocolon"), 1, "HOST:PORT")
+        # field operations: NAME=number, checked before anything is sent
+        self.assertFails(self.sdfq("ops", "v"), 1, "at least one operation")
+        for op in ("round", "round=", "=0.1", "round=abc", "round=0.1x", "round=inf"):
+            self.assertFails(self.sdfq("ops", "v", op), 1, "NAME=R", op)
+            self.assertFails(self.sdfq("bake", "fandisk", "--op", "round=0.05", "--op", op), 1,
+                             "NAME=R", op)
+        self.assertFails(self.sdfq("ops", "v", "round=0.1", "--iterations", "-1"), 1,
+                         "--iterations")
 
     # ---- the other subcommands ----
 
