@@ -4,6 +4,7 @@ CSV outputs, npy and CSV inputs, many pipelined requests); its npy output byte-e
 HTTP npy answer; the token over both protocols; bad input files, unknown names and an
 unreachable server, each with its documented exit code and a one-line message."""
 import io
+import json
 import os
 import socket
 import subprocess
@@ -308,6 +309,39 @@ class Sdfq(unittest.TestCase):
         self.assertEqual(self.http.volumes(), [])
         self.assertOk(self.sdfq("delete", "cow"))
         self.assertNotIn("cow", self.sdfq("meshes").stdout.decode())
+
+    def test_ops_and_bake_op(self):
+        r = self.sdfq("bake", "fandisk", "--volume", "fsrc", "--resolution", "20", "--wait")
+        self.assertOk(r)
+        r = self.sdfq("ops", "fsrc", "round=0.05", "fillet=0.03", "--volume", "fout",
+                      "--solver", "sussman", "--iterations", "5", "--wait")
+        self.assertOk(r)
+        job = json.loads(r.stdout)
+        self.assertEqual((job["state"], job["kind"], job["source"], job["volume"]),
+                         ("done", "ops", "fsrc", "fout"))
+        self.assertIsInstance(job["caveats"], list)
+        self.assertIn("ops fout: done 100%", r.stderr.decode(), "plain lines off a terminal")
+        self.assertEqual(self.http.volume("fout")["dims"], self.http.volume("fsrc")["dims"])
+        # the same chain started without --wait: the job id, then the job's record
+        r = self.sdfq("ops", "fsrc", "round=0.05", "fillet=0.03", "--volume", "fout2",
+                      "--solver", "sussman", "--iterations", "5")
+        self.assertOk(r)
+        done = self.http.wait(r.stdout.decode().strip())
+        self.assertEqual((done["kind"], done["volume"]), ("ops", "fout2"))
+        self.assertEqual(self.http.download("fout2", "raw"), self.http.download("fout", "raw"))
+        # bake --op, repeated: the operations in order, on the baked grid
+        r = self.sdfq("bake", "fandisk", "--volume", "fbaked", "--resolution", "20",
+                      "--op", "round=0.05", "--op=fillet=0.03", "--solver", "sussman",
+                      "--iterations", "5", "--wait")
+        self.assertOk(r)
+        self.assertIsInstance(json.loads(r.stdout)["caveats"], list)
+        self.assertEqual(self.http.download("fbaked", "raw"), self.http.download("fout", "raw"),
+                         "a bake with --op is the bake then the ops")
+        self.assertFails(self.sdfq("ops", "fsrc", "sharpen=0.1"), 2, "422", "sharpen")
+        self.assertFails(self.sdfq("ops", "nope", "round=0.05"), 2, "404")
+        self.assertFails(self.sdfq("bake", "fandisk", "--order", "1", "--op", "round=0.05"), 2,
+                         "422")
+        self.assertOk(self.sdfq("delete", "--volume", "fsrc", "fout", "fout2", "fbaked"))
 
     def test_token(self):
         with Server("--token", "s3cret", "--auth-queries") as srv:

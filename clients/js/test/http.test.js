@@ -236,6 +236,29 @@ describe('HTTP client', { timeout: 120000 }, () => {
     await c.deleteVolume('v1');
   });
 
+  test('field operations: volumeOps and a bake with ops end done on the source grid', async () => {
+    await c.waitJob(await c.bake('fandisk', { volume: 'src', resolution: [20, 18, 16] }));
+    const job = await c.volumeOps('src', [{ round: 0.05 }, ['fillet', 0.03]],
+      { volume: 'rounded', solver: 'sussman', iterations: 5 });
+    assert.deepEqual([job.kind, job.source, job.volume], ['ops', 'src', 'rounded']);
+    assert.ok(['queued', 'running', 'done'].includes(job.state), job.state);
+    const done = await c.waitJob(job);
+    assert.equal(done.state, 'done');
+    assert.ok(Array.isArray(done.caveats), 'caveats is a list');
+    assert.deepEqual((await c.volume('rounded')).dims, (await c.volume('src')).dims);
+    const baked = await c.waitJob(await c.bake('fandisk',
+      { volume: 'baked-ops', resolution: [20, 18, 16], ops: [['offset', -0.02]], solver: 'sweep' }));
+    assert.equal(baked.state, 'done');
+    assert.ok(Array.isArray(baked.caveats), 'a bake with ops lists caveats');
+    assert.deepEqual((await c.volume('baked-ops')).dims, [20, 18, 16]);
+    await rejectsWith(c.volumeOps('src', [{ sharpen: 0.1 }]), 422, 'EINVAL');
+    await rejectsWith(c.volumeOps('nope', [{ round: 0.05 }]), 404, 'ENOTFOUND');
+    await assert.rejects(c.volumeOps('src', [['round']]), TypeError);
+    await assert.rejects(c.volumeOps('src', { round: 0.05 }), TypeError);
+    for (const v of ['src', 'rounded', 'baked-ops'])
+      await c.deleteVolume(v);
+  });
+
   test('a canceled bake ends the wait with ECANCELED; a finished job can be forgotten', async () => {
     const job = await c.bake('fandisk', { volume: 'big', resolution: 96, order: 1 });
     const status = await c.cancelJob(job.id);
