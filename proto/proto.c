@@ -310,6 +310,21 @@ size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const 
 
 /* ---- VOLUME_QUERY ------------------------------------------------------------------------ */
 
+/* The interpolation byte's values, in wire order (PROTOCOL.md): 0 and 1 came first and keep
+ * their meaning, so the byte is not sdf_volume_filter's own numbering. */
+static const sdf_volume_filter wire_filters[] = {SDF_VOLUME_TRILINEAR, SDF_VOLUME_NEAREST,
+                                                 SDF_VOLUME_HERMITE, SDF_VOLUME_DEFAULT};
+#define WIRE_FILTERS (sizeof wire_filters / sizeof wire_filters[0])
+
+/* The wire byte of an interpolation, or -1 for a value the protocol has no byte for. */
+static int wire_filter(sdf_volume_filter f)
+{
+    for (size_t i = 0; i < WIRE_FILTERS; i++)
+        if (wire_filters[i] == f)
+            return (int)i;
+    return -1;
+}
+
 size_t sdf_proto_volume_query_size(const sdf_proto_volume_query *q)
 {
     if (q->name_len == 0 || q->name_len > SDF_PROTO_MAX_NAME)
@@ -325,10 +340,11 @@ int sdf_proto_decode_volume_query(const void *payload, size_t size, uint32_t max
         return fail(reason, SDF_EPROTO, "VOLUME_QUERY payload is shorter than its 8-byte prefix");
     if (p[0] > 1)
         return fail(reason, SDF_EINVAL, "unknown volume mode (0 value, 1 value and gradient)");
-    if (p[1] > 1)
-        return fail(reason, SDF_EINVAL, "unknown interpolation (0 trilinear, 1 nearest)");
+    if (p[1] >= WIRE_FILTERS)
+        return fail(reason, SDF_EINVAL,
+                    "unknown interpolation (0 trilinear, 1 nearest, 2 hermite, 3 default)");
     q->gradient = p[0];
-    q->interpolation = p[1] ? SDF_VOLUME_NEAREST : SDF_VOLUME_TRILINEAR;
+    q->interpolation = wire_filters[p[1]];
     q->name_len = get16(p + 2);
     q->count = get32(p + 4);
     if (q->name_len == 0 || q->name_len > SDF_PROTO_MAX_NAME)
@@ -347,11 +363,12 @@ size_t sdf_proto_encode_volume_query(void *dst, size_t cap, uint32_t request_id,
                                      const sdf_proto_volume_query *q)
 {
     size_t payload = sdf_proto_volume_query_size(q);
-    if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap)
+    int interpolation = wire_filter(q->interpolation);
+    if (!payload || payload > UINT32_MAX || SDF_PROTO_HEADER_SIZE + payload > cap ||
+        interpolation < 0)
         return 0;
     unsigned char *p = put_query_prefix(dst, SDF_PROTO_VOLUME_QUERY, request_id, payload,
-                                        q->gradient ? 1 : 0,
-                                        q->interpolation == SDF_VOLUME_NEAREST ? 1 : 0, q->name,
+                                        q->gradient ? 1 : 0, (uint8_t)interpolation, q->name,
                                         q->name_len, q->count);
     memcpy(p + 8 + pad4(q->name_len), q->points, 12 * (size_t)q->count);
     return SDF_PROTO_HEADER_SIZE + payload;

@@ -96,7 +96,8 @@ size_t sdf_proto_encode_query(void *dst, size_t cap, uint32_t request_id, const 
  * signed layout (W = 1: the value) or, with `gradient`, the gradient layout (W = 4). */
 typedef struct sdf_proto_volume_query {
     int gradient;                    /* 0: value; 1: value and gradient */
-    sdf_volume_filter interpolation; /* SDF_VOLUME_TRILINEAR (0) or SDF_VOLUME_NEAREST (1) */
+    sdf_volume_filter interpolation; /* on the wire: TRILINEAR 0, NEAREST 1, HERMITE 2,
+                                        DEFAULT 3 (the volume's order decides, sdf.h) */
     const char *name;
     size_t name_len;
     uint32_t count;
@@ -107,6 +108,8 @@ typedef struct sdf_proto_volume_query {
 size_t sdf_proto_volume_query_size(const sdf_proto_volume_query *q);
 int sdf_proto_decode_volume_query(const void *payload, size_t size, uint32_t max_points,
                                   sdf_proto_volume_query *q, const char **reason);
+/* The whole frame's size, or 0 if it does not fit in `cap`, the name is empty / too long or
+ * the interpolation is not one of the four. */
 size_t sdf_proto_encode_volume_query(void *dst, size_t cap, uint32_t request_id,
                                      const sdf_proto_volume_query *q);
 

@@ -45,6 +45,14 @@ static int take_option(sdfq_args *a, int argc, char **argv, int *i)
         fprintf(stderr, "sdfq %s: option %s needs a value\n", a->cmd, arg);
         return 1;
     }
+    if (o->takes_value == 2) {
+        if (o->count == SDFQ_MAX_REPEAT) {
+            fprintf(stderr, "sdfq %s: option %s given more than %d times\n", a->cmd, o->name,
+                    SDFQ_MAX_REPEAT);
+            return 1;
+        }
+        o->values[o->count++] = o->value;
+    }
     return 0;
 }
 
@@ -52,7 +60,7 @@ int sdfq_parse(sdfq_args *a, const char *cmd, sdfq_opt *opts, int nopts, int arg
 {
     *a = (sdfq_args){.cmd = cmd, .opts = opts, .nopts = nopts};
     for (int i = 0; i < nopts; i++)
-        opts[i].value = NULL;
+        opts[i].value = NULL, opts[i].count = 0;
     int options = 1;
     for (int i = 0; i < argc; i++) {
         const char *arg = argv[i];
@@ -69,6 +77,14 @@ int sdfq_parse(sdfq_args *a, const char *cmd, sdfq_opt *opts, int nopts, int arg
         }
     }
     return 0;
+}
+
+const sdfq_opt *sdfq_opt_find(const sdfq_args *a, const char *name)
+{
+    for (int i = 0; i < a->nopts; i++)
+        if (!strcmp(a->opts[i].name, name))
+            return &a->opts[i];
+    return NULL;
 }
 
 const char *sdfq_opt_value(const sdfq_args *a, const char *name)

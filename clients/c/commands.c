@@ -62,7 +62,7 @@ typedef struct query_job {
     int volume;            /* VOLUME_QUERY instead of QUERY */
     sdfc_mode mode;        /* QUERY's mode; a volume's: SIGNED or GRADIENT */
     sdfc_sign sign;
-    int nearest;
+    sdfc_interpolation interpolation; /* a volume's */
     sdfc_filter filter;
     size_t batch;
 } query_job;
@@ -72,8 +72,8 @@ static int send_one(sdfc_client *c, const query_job *j, const float *p, uint32_t
 {
     size_t size = sdfc_result_size(j->mode, n);
     if (j->volume)
-        return sdfc_send_volume_query(c, j->name, j->mode == SDFC_GRADIENT, j->nearest, p, n, out,
-                                      size, id);
+        return sdfc_send_volume_query(c, j->name, j->mode == SDFC_GRADIENT, j->interpolation, p,
+                                      n, out, size, id);
     return sdfc_send_query(c, j->name, j->mode, j->sign, &j->filter, p, n, out, size, id);
 }
 
@@ -220,17 +220,16 @@ int sdfq_cmd_query(const sdfq_server *srv, const sdfq_args *a)
 
 int sdfq_cmd_query_volume(const sdfq_server *srv, const sdfq_args *a)
 {
-    query_job j = {.volume = 1};
+    query_job j = {.volume = 1, .interpolation = SDFC_INTERP_DEFAULT};
     int rc = check_common(a, &j);
     if (rc)
         return rc;
     const char *interp = sdfq_opt_value(a, "interpolation");
-    if (interp && strcmp(interp, "trilinear") && strcmp(interp, "nearest")) {
-        fprintf(stderr, "sdfq query-volume: --interpolation is trilinear or nearest, not '%s'\n",
-                interp);
+    if (interp && sdfc_interpolation_from_name(interp, &j.interpolation)) {
+        fprintf(stderr, "sdfq query-volume: --interpolation is default, trilinear, nearest or "
+                "hermite, not '%s'\n", interp);
         return SDFQ_USAGE;
     }
-    j.nearest = interp && !strcmp(interp, "nearest");
     j.mode = sdfq_opt_value(a, "gradient") ? SDFC_GRADIENT : SDFC_SIGNED;
     return run_and_write(srv, a, &j);
 }

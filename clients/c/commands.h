@@ -17,6 +17,7 @@ int sdfq_cmd_download(const sdfq_server *srv, const sdfq_args *a);
 int sdfq_cmd_delete(const sdfq_server *srv, const sdfq_args *a);
 int sdfq_cmd_volumes(const sdfq_server *srv, const sdfq_args *a);
 int sdfq_cmd_bake(const sdfq_server *srv, const sdfq_args *a); /* bake.c */
+int sdfq_cmd_ops(const sdfq_server *srv, const sdfq_args *a);  /* bake.c */
 int sdfq_cmd_slice(const sdfq_server *srv, const sdfq_args *a); /* slice.c */
 
 #endif

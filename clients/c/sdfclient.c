@@ -132,6 +132,20 @@ int sdfc_mode_from_name(const char *name, sdfc_mode *out)
     return 0;
 }
 
+/* sdfc_interpolation's names, in wire order. */
+static const char *const interpolation_names[] = {"trilinear", "nearest", "hermite", "default"};
+
+int sdfc_interpolation_from_name(const char *name, sdfc_interpolation *out)
+{
+    for (int i = 0; name && out && i < 4; i++) {
+        if (!strcmp(name, interpolation_names[i])) {
+            *out = (sdfc_interpolation)i;
+            return 0;
+        }
+    }
+    return SDFC_EINVAL;
+}
+
 int sdfc_sign_from_name(const char *name, sdfc_sign *out)
 {
     static const char *const names[] = {"auto", "pseudonormal", "winding", "raycast", "none"};
@@ -798,17 +812,23 @@ int sdfc_send_query(sdfc_client *c, const char *mesh, sdfc_mode mode, sdfc_sign 
                        count, result, sdfc_result_size(mode, count), request_id);
 }
 
-int sdfc_send_volume_query(sdfc_client *c, const char *volume, int gradient, int nearest,
-                           const float *points, uint32_t count, void *result,
-                           size_t result_size, uint32_t *request_id)
+int sdfc_send_volume_query(sdfc_client *c, const char *volume, int gradient,
+                           sdfc_interpolation interpolation, const float *points,
+                           uint32_t count, void *result, size_t result_size,
+                           uint32_t *request_id)
 {
+    /* the codec's terms for the wire codes (sdfc_interpolation's values) */
+    static const sdf_volume_filter filters[] = {SDF_VOLUME_TRILINEAR, SDF_VOLUME_NEAREST,
+                                                SDF_VOLUME_HERMITE, SDF_VOLUME_DEFAULT};
     sdfc_mode mode = gradient ? SDFC_GRADIENT : SDFC_SIGNED;
+    if ((unsigned)interpolation >= sizeof filters / sizeof filters[0])
+        return SDFC_EINVAL;
     int rc = check_query(c, volume, points, count, result, result_size,
                          sdfc_result_size(mode, count), request_id);
     if (rc)
         return rc;
     sdf_proto_volume_query q = {.gradient = !!gradient,
-                                .interpolation = nearest ? SDF_VOLUME_NEAREST : SDF_VOLUME_TRILINEAR,
+                                .interpolation = filters[interpolation],
                                 .name = volume, .name_len = strlen(volume), .count = 0,
                                 .points = no_points};
     unsigned char frame[PREFIX_MAX];

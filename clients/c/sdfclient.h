@@ -35,7 +35,7 @@ extern "C" {
 #endif
 
 #define SDFC_VERSION_MAJOR 0
-#define SDFC_VERSION_MINOR 1
+#define SDFC_VERSION_MINOR 2
 
 enum {
     SDFC_OK = 0,
@@ -170,12 +170,28 @@ int sdfc_send_query(sdfc_client *c, const char *mesh, sdfc_mode mode, sdfc_sign 
                     const sdfc_filter *filter, const float *points, uint32_t count,
                     void *result, size_t result_size, uint32_t *request_id);
 
+/* A volume query's reconstruction between the nodes (docs/volumes.md, "Evaluation"). The
+ * values are the wire codes, which is why 0 is trilinear (the first code the protocol had):
+ * a caller with no preference passes SDFC_INTERP_DEFAULT, as sdfq does. */
+typedef enum sdfc_interpolation {
+    SDFC_INTERP_TRILINEAR = 0,
+    SDFC_INTERP_NEAREST = 1,
+    SDFC_INTERP_HERMITE = 2, /* first-order volumes only: a zero-order one is refused
+                                (SDFC_ESERVER, 422 EINVAL) */
+    SDFC_INTERP_DEFAULT = 3, /* hermite on first-order volumes, trilinear on zero-order */
+} sdfc_interpolation;
+
+/* "trilinear", "nearest", "hermite", "default": 0 or SDFC_EINVAL. */
+int sdfc_interpolation_from_name(const char *name, sdfc_interpolation *out);
+
 /* Send a VOLUME_QUERY on baked volume `volume`: `gradient` 0 answers 1 word per point (the
- * value), 1 answers 4 (value, gradient x y z); `nearest` 0 trilinear, 1 nearest. `result`
- * needs 4 * (gradient ? 4 : 1) * count bytes; otherwise as sdfc_send_query. */
-int sdfc_send_volume_query(sdfc_client *c, const char *volume, int gradient, int nearest,
-                           const float *points, uint32_t count, void *result,
-                           size_t result_size, uint32_t *request_id);
+ * value), 1 answers 4 (value, gradient x y z), read between the nodes by `interpolation`
+ * (an unknown value is SDFC_EINVAL, nothing sent). `result` needs 4 * (gradient ? 4 : 1) *
+ * count bytes; otherwise as sdfc_send_query. */
+int sdfc_send_volume_query(sdfc_client *c, const char *volume, int gradient,
+                           sdfc_interpolation interpolation, const float *points,
+                           uint32_t count, void *result, size_t result_size,
+                           uint32_t *request_id);
 
 /* Wait for the reply to `request_id` (receiving others that come first into their
  * buffers). 0: its result is in its buffer; SDFC_ESERVER: the server refused this request

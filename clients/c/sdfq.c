@@ -1,7 +1,8 @@
 /* sdfq.c - the command line of sdfd for people and shell scripts (docs/sdfq.md): finds the
  * subcommand, parses its options (args.c), works out the server's HTTP URL and binary
- * address from options and environment, and runs it (commands.c, bake.c). Queries use the
- * binary protocol through libsdfclient; the rest use the HTTP API through libcurl. */
+ * address from options and environment, and runs it (commands.c; bake.c, which also has
+ * ops; slice.c). Queries use the binary protocol through libsdfclient; the rest use the
+ * HTTP API through libcurl. */
 #include <curl/curl.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -42,7 +43,8 @@ static const command commands[] = {
      "usage: sdfq query-volume VOLUME [POINTS.npy|POINTS.csv|-] [options]\n"
      "Evaluate a baked volume at points over the binary protocol.\n"
      "  --gradient          value and gradient (4 columns) instead of the value\n"
-     "  --interpolation I   trilinear (default) or nearest\n"
+     "  --interpolation I   default (hermite on first-order volumes, trilinear on\n"
+     "                      zero-order ones), trilinear, nearest or hermite\n"
      "  -o OUT, --output-format F, --batch N   as in sdfq query\n"},
     {"meshes", sdfq_cmd_meshes, "",
      "usage: sdfq meshes\n"
@@ -52,15 +54,31 @@ static const command commands[] = {
      "usage: sdfq upload NAME FILE [--format obj|ply|stl|off]\n"
      "Load a mesh file as NAME (replacing one of that name); prints the server's report.\n"},
     {"bake", sdfq_cmd_bake,
-     "volume: resolution: order: margin: encoding: sign: normalize: wait",
-     "usage: sdfq bake MESH [--volume NAME] [--resolution N] [--order 0|1] [--wait]\n"
+     "volume: resolution: order: margin: encoding: sign: normalize: wait op+ solver: "
+     "iterations: band: strict",
+     "usage: sdfq bake MESH [--volume NAME] [--resolution N] [--order 0|1] [--op OP]... [--wait]\n"
      "Bake MESH into a distance volume (docs/volumes.md). Without --wait prints the job id;\n"
      "with it, shows progress on stderr (a bar on a terminal, a line a tenth otherwise) and\n"
      "prints the finished job's JSON.\n"
      "  --volume NAME       store it as NAME (default: the mesh's name)\n"
      "  --resolution N      nodes per axis, 2..4096 (server default 64)\n"
      "  --order 0|1         zero or first order (server default 0)\n"
-     "  --margin F --encoding float32|packed32 --sign S --normalize plane|gradient\n"},
+     "  --margin F --encoding float32|packed32 --sign S --normalize plane|gradient\n"
+     "  --op OP             a field operation on the baked grid before it is stored, as in\n"
+     "                      sdfq ops (repeat it for a chain, applied in order); with\n"
+     "                      --solver, --iterations, --band, --strict as there\n"},
+    {"ops", sdfq_cmd_ops, "volume: solver: iterations: band: strict wait",
+     "usage: sdfq ops VOLUME OP... [--volume OUT] [--solver sussman|sweep] [--wait]\n"
+     "Field operations on VOLUME (docs/api.md, Field operations), applied in order, each\n"
+     "round=R (convex edges), fillet=R (concave ones), smooth=R (both), offset=R (the\n"
+     "surface moves outward by R, inward for R < 0) or redistance=R (exact up to R; 0: the\n"
+     "whole grid). Without --wait prints the job id; with it, shows progress as sdfq bake\n"
+     "does and prints the finished job's JSON (its caveats; a warning also on stderr).\n"
+     "  --volume OUT        store the result as OUT (default: replace VOLUME)\n"
+     "  --solver S          sweep (server default) or sussman\n"
+     "  --iterations N      per re-distancing, 0..1000000 (server default 0: derived)\n"
+     "  --band B            the distance up to which the result is exact (0: 4 cells)\n"
+     "  --strict            a caveat fails the job\n"},
     {"download", sdfq_cmd_download, "o: format:",
      "usage: sdfq download VOLUME -o FILE [--format exr|npy|raw]\n"
      "Save a volume (-o - writes it to stdout). The format defaults from FILE's extension\n"
@@ -96,14 +114,15 @@ static void usage(FILE *f)
     fputs(GLOBAL_HELP, f);
 }
 
-/* Turn "a: b c:" plus the global options into an option table. */
+/* Turn "a: b c: d+" plus the global options into an option table (':' takes a value, '+' a
+ * value that may be given again). */
 static int make_options(const char *spec, sdfq_opt *opts, char *storage, size_t cap)
 {
     snprintf(storage, cap, "%s %s", spec, global_options);
     int n = 0;
     for (char *save, *tok = strtok_r(storage, " ", &save); tok; tok = strtok_r(NULL, " ", &save)) {
         size_t len = strlen(tok);
-        int value = tok[len - 1] == ':';
+        int value = tok[len - 1] == ':' ? 1 : tok[len - 1] == '+' ? 2 : 0;
         if (value)
             tok[len - 1] = 0;
         opts[n++] = (sdfq_opt){.name = tok, .takes_value = value};

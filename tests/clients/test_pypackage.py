@@ -153,6 +153,48 @@ class InstalledPackage(unittest.TestCase):
         with urllib.request.urlopen(req, timeout=60) as r:
             self.assertAlmostEqual(json.load(r)["distance"][0], float(values[5, 40]), places=5)
 
+    def test_volume_ops(self):
+        """volume_ops and bake's ops= through the installed package: the jobs end done with
+        their caveats listed and the results stored on the source's grid; a bad operation is
+        the server's 422 as SdfError."""
+        out = os.path.join(self.tmp.name, "ops.json")
+        self.venv_python(
+            "import json, sdfclient\n"
+            f"c = sdfclient.Client({self.server.url!r})\n"
+            "c.wait(c.bake('demo', volume='ops-src', resolution=[30, 26, 22]))\n"
+            "job = c.volume_ops('ops-src', [('round', 0.2), {'fillet': 0.1}], volume='ops-out',\n"
+            "                   solver='sussman', iterations=5)\n"
+            "done = c.wait(job)\n"
+            "baked = c.wait(c.bake('demo', volume='ops-baked', resolution=[30, 26, 22],\n"
+            "                      ops=[('offset', -0.1)]))\n"
+            "try:\n"
+            "    c.volume_ops('ops-src', [{'sharpen': 0.1}])\n"
+            "    refused = None\n"
+            "except sdfclient.SdfError as e:\n"
+            "    refused = [e.status, e.code, e.message]\n"
+            "try:\n"
+            "    c.volume_ops('ops-src', ['round'])\n"
+            "    local = None\n"
+            "except ValueError as e:\n"
+            "    local = str(e)\n"
+            "json.dump({'job': job, 'done': done, 'baked': baked, 'refused': refused,\n"
+            "           'local': local, 'src': c.volume('ops-src'), 'out': c.volume('ops-out'),\n"
+            f"           'b': c.volume('ops-baked')}}, open({out!r}, 'w'))\n")
+        with open(out) as f:
+            got = json.load(f)
+        self.assertEqual((got["job"]["kind"], got["job"]["source"], got["job"]["volume"]),
+                         ("ops", "ops-src", "ops-out"))
+        self.assertEqual(got["done"]["state"], "done")
+        self.assertIsInstance(got["done"]["caveats"], list)
+        self.assertEqual((got["baked"]["state"], got["baked"]["kind"]), ("done", "bake"))
+        self.assertIsInstance(got["baked"]["caveats"], list)
+        self.assertEqual(got["out"]["dims"], got["src"]["dims"])
+        self.assertEqual(got["out"]["dims"], [30, 26, 22])
+        self.assertEqual(got["b"]["dims"], [30, 26, 22])
+        self.assertEqual(got["refused"][:2], [422, "EINVAL"])
+        self.assertIn("sharpen", got["refused"][2])
+        self.assertIn("(name, r)", got["local"])
+
     def test_readme_examples_run(self):
         blocks = readme_examples()
         self.assertEqual(len(blocks), 2)
@@ -180,13 +222,16 @@ class InstalledPackage(unittest.TestCase):
             f.write("import sdfclient\n"
                     "c = sdfclient.Client('http://127.0.0.1:1')\n"
                     "n: int = c.metrics()\n"
-                    "r = c.query('demo', [[0, 0, 0]], mode='sideways')\n")
+                    "r = c.query('demo', [[0, 0, 0]], mode='sideways')\n"
+                    "v = c.query_volume('v', [[0, 0, 0]], interpolation='cubic')\n")
         text = run([self.python, "-m", "mypy", "--strict", *cache, bad], self.elsewhere, expect=1)
         self.assertIn('bad.py:3: error: Incompatible types in assignment (expression has type '
                       '"str", variable has type "int")', text)
         self.assertRegex(text, r'bad.py:4: error: Argument "mode" to "query" of "Client" has '
                                r'incompatible type "Literal\[.sideways.\]"')
-        self.assertIn("Found 2 errors", text)
+        self.assertRegex(text, r'bad.py:5: error: Argument "interpolation" to "query_volume" of '
+                               r'"Client" has incompatible type "Literal\[.cubic.\]"')
+        self.assertIn("Found 3 errors", text)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,9 @@
  * local refusals (small buffer, too many points, bad names) send nothing.
  * Fake server (a listening socket in this process): the bytes the client sends, with the
  * points passed straight from the caller's array, are exactly the codec's
- * sdf_proto_encode_query frame (the differential test of that fast path); malformed replies
+ * sdf_proto_encode_query frame (the differential test of that fast path), and each
+ * interpolation name's VOLUME_QUERY the codec's frame for the library's filter of that name;
+ * malformed replies
  * are EPROTO and sticky; silence is ETIMEDOUT; a connection-level ERROR is kept. */
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -244,7 +246,8 @@ static void test_fake_server(void)
     uint32_t id, id2;
     CHECK(sdfc_send_query(c, "fandisk", SDFC_FILTERED, SDFC_SIGN_WINDING, &f, p, 1000, out,
                           sizeof out, &id) == 0, "send filtered");
-    CHECK(sdfc_send_volume_query(c, "knot", 1, 1, p, 999, out, sizeof out, &id2) == 0, "send vq");
+    CHECK(sdfc_send_volume_query(c, "knot", 1, SDFC_INTERP_NEAREST, p, 999, out, sizeof out,
+                                 &id2) == 0, "send vq");
     sdf_proto_query q = {.mode = SDF_MODE_FILTERED, .sign = SDF_SIGN_WINDING, .name = "fandisk",
                          .name_len = 7, .count = 1000, .points = p, .volume_name = "vol",
                          .volume_name_len = 3};
@@ -257,6 +260,34 @@ static void test_fake_server(void)
                                  .name = "knot", .name_len = 4, .count = 999, .points = p};
     n = sdf_proto_encode_volume_query(want, sizeof want, id2, &vq);
     CHECK(n > 0 && read_n(peer, got, n) == 0 && !memcmp(got, want, n), "VOLUME_QUERY frame bytes");
+    /* each interpolation by name is the codec's frame for the library's filter of that name */
+    static const struct {
+        const char *name;
+        sdf_volume_filter filter;
+    } interps[] = {{"trilinear", SDF_VOLUME_TRILINEAR}, {"nearest", SDF_VOLUME_NEAREST},
+                   {"hermite", SDF_VOLUME_HERMITE}, {"default", SDF_VOLUME_DEFAULT}};
+    static float vout[4][5]; /* never answered: the connection breaks first */
+    for (size_t i = 0; i < sizeof interps / sizeof interps[0]; i++) {
+        sdfc_interpolation it;
+        uint32_t id3;
+        CHECK(sdfc_interpolation_from_name(interps[i].name, &it) == 0, "%s", interps[i].name);
+        CHECK(sdfc_send_volume_query(c, "knot", 0, it, p, 5, vout[i], sizeof vout[i], &id3) == 0,
+              "send %s", interps[i].name);
+        vq = (sdf_proto_volume_query){.interpolation = interps[i].filter, .name = "knot",
+                                      .name_len = 4, .count = 5, .points = p};
+        n = sdf_proto_encode_volume_query(want, sizeof want, id3, &vq);
+        CHECK(n > 0 && read_n(peer, got, n) == 0 && !memcmp(got, want, n), "%s frame bytes",
+              interps[i].name);
+    }
+    sdfc_interpolation it;
+    CHECK(sdfc_interpolation_from_name("cubic", &it) == SDFC_EINVAL &&
+              sdfc_interpolation_from_name(NULL, &it) == SDFC_EINVAL,
+          "unknown interpolation names");
+    size_t before = sdfc_in_flight(c);
+    uint32_t unsent;
+    CHECK(sdfc_send_volume_query(c, "knot", 0, (sdfc_interpolation)4, p, 5, vout[0],
+                                 sizeof vout[0], &unsent) == SDFC_EINVAL && sdfc_in_flight(c) == before,
+          "an unknown interpolation is refused before sending");
 
     /* an ERROR for the second, then a RESULT for the first whose count is wrong */
     n = sdf_proto_encode_error(want, sizeof want, id2, 404, "ENOTFOUND", "no volume named 'knot'");

@@ -4,6 +4,7 @@ CSV outputs, npy and CSV inputs, many pipelined requests); its npy output byte-e
 HTTP npy answer; the token over both protocols; bad input files, unknown names and an
 unreachable server, each with its documented exit code and a one-line message."""
 import io
+import json
 import os
 import socket
 import subprocess
@@ -212,8 +213,8 @@ class Sdfq(unittest.TestCase):
         self.assertFails(r, 3, str(port))
 
     def test_usage_and_help(self):
-        for cmd in ("query", "query-volume", "meshes", "upload", "bake", "download", "delete",
-                    "volumes", "slice"):
+        for cmd in ("query", "query-volume", "meshes", "upload", "bake", "ops", "download",
+                    "delete", "volumes", "slice"):
             r = self.sdfq(cmd, "--help")
             self.assertOk(r)
             self.assertIn(f"usage: sdfq {cmd}", r.stdout.decode())
@@ -224,6 +225,14 @@ class Sdfq(unittest.TestCase):
         self.assertFails(self.sdfq("frobnicate"), 1, "frobnicate")
         self.assertFails(self.sdfq("download", "v"), 1, "-o")
         self.assertFails(self.sdfq("meshes", "--bin", "nocolon"), 1, "HOST:PORT")
+        # field operations: NAME=number, checked before anything is sent
+        self.assertFails(self.sdfq("ops", "v"), 1, "at least one operation")
+        for op in ("round", "round=", "=0.1", "round=abc", "round=0.1x", "round=inf"):
+            self.assertFails(self.sdfq("ops", "v", op), 1, "NAME=R", op)
+            self.assertFails(self.sdfq("bake", "fandisk", "--op", "round=0.05", "--op", op), 1,
+                             "NAME=R", op)
+        self.assertFails(self.sdfq("ops", "v", "round=0.1", "--iterations", "-1"), 1,
+                         "--iterations")
 
     # ---- the other subcommands ----
 
@@ -267,13 +276,24 @@ class Sdfq(unittest.TestCase):
         self.assertIn("cv\t24x24x24\torder 1", self.sdfq("volumes").stdout.decode())
         pts = self.points[:700]
         np.save(self.path("v.npy"), pts)
-        r = self.sdfq("query-volume", "cv", self.path("v.npy"), "--gradient", "-o",
-                      self.path("vout.npy"))
-        self.assertOk(r)
-        _, data = self.http._request("POST",
-                                     "/v1/volumes/cv/query?mode=gradient&interpolation=trilinear",
-                                     pts.tobytes(), {"Content-Type": "application/octet-stream"})
-        self.assertEqual(np.load(self.path("vout.npy")).tobytes(), data)
+        # each --interpolation, and none (the server's default: hermite on this first-order
+        # volume), answers the bits of the HTTP query with that interpolation
+        answers = {}
+        for interp in (None, "default", "trilinear", "nearest", "hermite"):
+            args = ("--interpolation", interp) if interp else ()
+            r = self.sdfq("query-volume", "cv", self.path("v.npy"), "--gradient", "-o",
+                          self.path("vout.npy"), *args)
+            self.assertOk(r)
+            q = f"&interpolation={interp}" if interp else ""
+            _, data = self.http._request("POST", f"/v1/volumes/cv/query?mode=gradient{q}",
+                                         pts.tobytes(),
+                                         {"Content-Type": "application/octet-stream"})
+            answers[interp] = np.load(self.path("vout.npy")).tobytes()
+            self.assertEqual(answers[interp], data, f"--interpolation {interp}")
+        self.assertEqual(answers[None], answers["hermite"])
+        self.assertNotEqual(answers["hermite"], answers["trilinear"])
+        self.assertFails(self.sdfq("query-volume", "cv", self.path("v.npy"), "--interpolation",
+                                   "cubic"), 1, "cubic", "hermite")
         for fmt in ("exr", "npy", "raw"):
             out = self.path(f"cv.{fmt}")
             self.assertOk(self.sdfq("download", "cv", "-o", out))
@@ -283,10 +303,45 @@ class Sdfq(unittest.TestCase):
         self.assertOk(job)
         self.assertTrue(job.stdout.decode().strip(), "the job id")
         self.http.wait(job.stdout.decode().strip())
+        r = self.sdfq("query-volume", "cv2", self.path("v.npy"), "--interpolation", "hermite")
+        self.assertFails(r, 2, "422", "needs a first-order volume")
         self.assertOk(self.sdfq("delete", "--volume", "cv", "cv2"))
         self.assertEqual(self.http.volumes(), [])
         self.assertOk(self.sdfq("delete", "cow"))
         self.assertNotIn("cow", self.sdfq("meshes").stdout.decode())
+
+    def test_ops_and_bake_op(self):
+        r = self.sdfq("bake", "fandisk", "--volume", "fsrc", "--resolution", "20", "--wait")
+        self.assertOk(r)
+        r = self.sdfq("ops", "fsrc", "round=0.05", "fillet=0.03", "--volume", "fout",
+                      "--solver", "sussman", "--iterations", "5", "--wait")
+        self.assertOk(r)
+        job = json.loads(r.stdout)
+        self.assertEqual((job["state"], job["kind"], job["source"], job["volume"]),
+                         ("done", "ops", "fsrc", "fout"))
+        self.assertIsInstance(job["caveats"], list)
+        self.assertIn("ops fout: done 100%", r.stderr.decode(), "plain lines off a terminal")
+        self.assertEqual(self.http.volume("fout")["dims"], self.http.volume("fsrc")["dims"])
+        # the same chain started without --wait: the job id, then the job's record
+        r = self.sdfq("ops", "fsrc", "round=0.05", "fillet=0.03", "--volume", "fout2",
+                      "--solver", "sussman", "--iterations", "5")
+        self.assertOk(r)
+        done = self.http.wait(r.stdout.decode().strip())
+        self.assertEqual((done["kind"], done["volume"]), ("ops", "fout2"))
+        self.assertEqual(self.http.download("fout2", "raw"), self.http.download("fout", "raw"))
+        # bake --op, repeated: the operations in order, on the baked grid
+        r = self.sdfq("bake", "fandisk", "--volume", "fbaked", "--resolution", "20",
+                      "--op", "round=0.05", "--op=fillet=0.03", "--solver", "sussman",
+                      "--iterations", "5", "--wait")
+        self.assertOk(r)
+        self.assertIsInstance(json.loads(r.stdout)["caveats"], list)
+        self.assertEqual(self.http.download("fbaked", "raw"), self.http.download("fout", "raw"),
+                         "a bake with --op is the bake then the ops")
+        self.assertFails(self.sdfq("ops", "fsrc", "sharpen=0.1"), 2, "422", "sharpen")
+        self.assertFails(self.sdfq("ops", "nope", "round=0.05"), 2, "404")
+        self.assertFails(self.sdfq("bake", "fandisk", "--order", "1", "--op", "round=0.05"), 2,
+                         "422")
+        self.assertOk(self.sdfq("delete", "--volume", "fsrc", "fout", "fout2", "fbaked"))
 
     def test_token(self):
         with Server("--token", "s3cret", "--auth-queries") as srv:

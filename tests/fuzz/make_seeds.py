@@ -134,6 +134,8 @@ def frames():
     put("proto", "query_filtered_sphere", query(4, 0, filter_block(1, (0, 0, 0, 1, 0, 0))))
     put("proto", "query_filtered_mesh", query(5, 0, filter_block(3, volume_name=b"knot")))
     put("proto", "volume_query", frame(4, struct.pack("<BBHI", 1, 0, 3, 2) + name4("vol") + pts))
+    put("proto", "volume_query_hermite",
+        frame(4, struct.pack("<BBHI", 0, 2, 3, 2) + name4("vol") + pts))
     put("proto", "result_closest",
         frame(0x83, struct.pack("<BBHI", 3, 5, 0, 1) + struct.pack("<4fI", 1, 0, 0, 0, 9)))
     put("proto", "error", frame(0x7F, struct.pack("<HH", 404, 9) + b"ENOTFOUND" +

@@ -1,7 +1,8 @@
 /* proto.c - fuzzes the binary protocol's decoders (proto/proto.h): the input is one frame,
  * header and payload, decoded as the server and the clients decode it, by its type (every
  * message type: QUERY, VOLUME_QUERY, RESULT, ERROR, HELLO_OK, MESHES; the others carry
- * opaque bytes). Everything a decoder hands back must lie inside the payload. */
+ * opaque bytes). Everything a decoder hands back must lie inside the payload, and a decoded
+ * VOLUME_QUERY's codes encode back to the bytes they came from. */
 #include "fuzz.h"
 #include "proto.h"
 
@@ -43,6 +44,13 @@ static void decode(uint8_t type, const uint8_t *payload, size_t size)
         inside(payload, size, q.name, q.name_len);
         inside(payload, size, q.points, 12 * (size_t)q.count);
         FUZZ_CHECK(sdf_proto_volume_query_size(&q) == size);
+        /* what was decoded encodes back to the same what and interpolation bytes (the
+         * interpolation table is one to one; its four values: PROTOCOL.md) */
+        uint8_t prefix[SDF_PROTO_HEADER_SIZE + 8 + SDF_PROTO_MAX_NAME + 1];
+        q.count = 0;
+        FUZZ_CHECK(sdf_proto_encode_volume_query(prefix, sizeof prefix, 0, &q) > 0);
+        FUZZ_CHECK(prefix[SDF_PROTO_HEADER_SIZE] == payload[0] &&
+                   prefix[SDF_PROTO_HEADER_SIZE + 1] == payload[1] && payload[1] <= 3);
         break;
     }
     case SDF_PROTO_RESULT: {

@@ -244,15 +244,46 @@ static void test_volume_query(void)
     frame[16] = 2;
     CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL, "mode 2");
     frame[16] = 0;
-    frame[17] = 2;
+    frame[17] = 4;
+    CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL &&
+              strstr(why, "3 default"),
+          "interpolation 4");
+    frame[17] = 255;
     CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == SDF_EINVAL,
-          "interpolation 2");
+          "interpolation 255");
     frame[17] = 0;
     frame[18] = 0;
     CHECK(sdf_proto_decode_volume_query(frame + 16, h.length, 100, &back, &why) == SDF_EPROTO,
           "empty name");
     q.name_len = 256;
     CHECK(sdf_proto_encode_volume_query(frame, sizeof frame, 1, &q) == 0, "name too long");
+}
+
+/* The interpolation byte: 0 and 1 as protocol version 1 first named them, then 2 hermite and
+ * 3 default, both ways; a filter the protocol has no byte for is not encoded. */
+static void test_volume_interpolations(void)
+{
+    static const struct {
+        unsigned char byte;
+        sdf_volume_filter filter;
+    } wire[] = {{0, SDF_VOLUME_TRILINEAR}, {1, SDF_VOLUME_NEAREST}, {2, SDF_VOLUME_HERMITE},
+                {3, SDF_VOLUME_DEFAULT}};
+    float pts[3] = {0.5f, -1, 2};
+    for (size_t i = 0; i < sizeof wire / sizeof wire[0]; i++) {
+        sdf_proto_volume_query q = {.interpolation = wire[i].filter, .name = "v", .name_len = 1,
+                                    .count = 1, .points = pts}, back;
+        size_t n = sdf_proto_encode_volume_query(frame, sizeof frame, 3, &q);
+        const char *why;
+        CHECK(n == 16 + 8 + 4 + 12 && frame[17] == wire[i].byte, "filter %d is byte %u",
+              (int)wire[i].filter, frame[17]);
+        CHECK(sdf_proto_decode_volume_query(frame + 16, n - 16, 1, &back, &why) == 0 &&
+                  back.interpolation == wire[i].filter,
+              "byte %u decodes to %d", wire[i].byte, (int)back.interpolation);
+    }
+    sdf_proto_volume_query q = {.interpolation = (sdf_volume_filter)(SDF_VOLUME_HERMITE + 1),
+                                .name = "v", .name_len = 1, .count = 1, .points = pts};
+    CHECK(sdf_proto_encode_volume_query(frame, sizeof frame, 3, &q) == 0,
+          "an unknown filter is encoded");
 }
 
 /* ---- mutations ---------------------------------------------------------------------- */
@@ -455,6 +486,7 @@ int main(void)
     test_query();
     test_filtered_query();
     test_volume_query();
+    test_volume_interpolations();
     test_result();
     test_error_and_hello();
     sdf_proto_mode m;

@@ -68,6 +68,36 @@ class Volumes(unittest.TestCase):
         self.assertEqual(job["href"], f"/v1/jobs/{job['id']}")
         return self.c.wait(job, timeout=120)
 
+    def assert_binary_matches_http(self, name, points, order):
+        """VOLUME_QUERY's four interpolation codes (0 trilinear, 1 nearest, 2 hermite, 3
+        default) answer the bits of the HTTP query with the same interpolation name, and
+        hermite on a zero-order volume is the same refusal over both."""
+        for code, interpolation in enumerate(("trilinear", "nearest", "hermite", "default")):
+            payload = (struct.pack("<BBHI", 1, code, len(name), len(points)) + name.encode()
+                       + b"\0" * (-len(name) % 4) + points.tobytes())
+            url = (f"/v1/volumes/{name}/query?mode=gradient&interpolation={interpolation}")
+            if interpolation == "hermite" and order == 0:
+                with self.assertRaises(sdfclient.SdfError) as over_binary:
+                    self.bin._call(0x04, payload)
+                with self.assertRaises(sdfclient.SdfError) as over_http:
+                    self.c._request("POST", url, points.tobytes(),
+                                    {"Content-Type": "application/octet-stream"})
+                b, h = over_binary.exception, over_http.exception
+                self.assertEqual((b.status, b.code, b.message), (h.status, h.code, h.message))
+                self.assertEqual(b.status, 422)
+                continue
+            _, words = self.bin._call(0x04, payload)
+            _, data = self.c._request("POST", url, points.tobytes(),
+                                      {"Content-Type": "application/octet-stream"})
+            self.assertEqual(words[8:], data, f"{name} {interpolation}: binary code {code}")
+            via_client = self.bin.query_volume(name, points, interpolation, True)
+            self.assertEqual(np.concatenate([via_client["distance"][:, None],
+                                             via_client["gradient"]], 1).tobytes(), data,
+                             f"{name} {interpolation}: BinaryClient")
+        self.assertEqual(self.bin.query_volume(name, points)["distance"].tobytes(),
+                         self.c.query_volume(name, points, form="octet")["distance"].tobytes(),
+                         f"{name}: the clients' defaults differ")
+
     def test_bake_download_and_query_match_the_library(self):
         cases = [({"resolution": [20, 17, 14]}, ["--resolution", "20,17,14"]),
                  ({"resolution": 18, "order": 1}, ["--resolution", "18", "--order", "1"]),
@@ -114,6 +144,7 @@ class Volumes(unittest.TestCase):
                 {"Content-Type": "application/json"}), timeout=60).read())
             self.assertTrue(same_bits(np.array(got["distance"], np.float32), ref[:, 0]),
                             f"{name}: the default interpolation is not {default}")
+            self.assert_binary_matches_http(name, points, meta["order"])
             if meta["order"] == 1:
                 for form in ("json", "octet", "npy"):
                     r = self.c.query_volume(name, points, "hermite", True, form)
@@ -191,7 +222,7 @@ class Volumes(unittest.TestCase):
         # formatter used to loop forever on it, hanging the request).
         self.bake(volume="far1", resolution=8, order=1)
         far = [[3e38, 3e38, 3e38], [0, 0, 0]]
-        octet = self.c.query_volume("far1", far, form="octet")["distance"]
+        octet = self.c.query_volume("far1", far, "trilinear", form="octet")["distance"]
         self.assertTrue(np.isinf(octet[0]) and np.isfinite(octet[1]), octet)
         text = self.c._request("POST", "/v1/volumes/far1/query",
                                json.dumps({"points": far, "interpolation": "trilinear"}),
@@ -315,6 +346,13 @@ class Volumes(unittest.TestCase):
         with self.assertRaises(sdfclient.SdfError) as e:
             self.bin._call(0x04, bad_mode)
         self.assertEqual(e.exception.status, 422)
+        bad_interpolation = struct.pack("<BBHI", 0, 4, 1, 1) + b"q\0\0\0" + b"\0" * 12
+        with self.assertRaises(sdfclient.SdfError) as e:
+            self.bin._call(0x04, bad_interpolation)
+        self.assertEqual((e.exception.status, e.exception.code), (422, "EINVAL"))
+        self.assertIn("3 default", e.exception.message)
+        with self.assertRaises(ValueError):
+            self.bin.query_volume("q", [[0, 0, 0]], "cubic")
         self.assertEqual(self.bin.query_volume("q", [[0, 0, 0]])["distance"].shape, (1,))  # still open
         with self.assertRaises(sdfclient.SdfError) as e:
             self.c.download("q", "png")

@@ -14,8 +14,8 @@ import net from 'node:net';
 import tls from 'node:tls';
 import { SdfError } from './errors.js';
 import {
-  SIGNS, WORDS, checkFilter, leBytes, leWords, modeCode, signCode, smoothVolume, splitWords,
-  toPoints,
+  INTERPOLATIONS, SIGNS, WORDS, checkFilter, leBytes, leWords, modeCode, signCode, smoothVolume,
+  splitWords, toPoints,
 } from './wire.js';
 
 const HELLO = 0x01, HELLO_OK = 0x81, LIST_MESHES = 0x02, MESHES = 0x82, QUERY = 0x03;
@@ -29,7 +29,6 @@ const ERROR_MAX = 6 + 2 * 0xffff;
 const SMALL_MAX = 16 << 20;
 const KERNELS = { gaussian: 0, bump: 1 };
 const VOLUMES = { sphere: 1, box: 2, mesh: 3 };
-const INTERPOLATIONS = { trilinear: 0, nearest: 1 };
 const SIGN_NAMES = Object.fromEntries(Object.entries(SIGNS).map(([k, v]) => [v, k]));
 
 const pad4 = (n) => (n + 3) & ~3;
@@ -287,11 +286,12 @@ export class BinaryClient {
       (type, payload) => parseResult(type, payload, count, w), signal);
   }
 
-  /** VOLUME_QUERY: {count, distance} and with gradient: true {gradient} too. */
-  async queryVolume(name, points, { interpolation = 'trilinear', gradient = false, signal } = {}) {
+  /** VOLUME_QUERY: {count, distance} and with gradient: true {gradient} too; interpolation
+   * "default" (code 3), "trilinear", "nearest" or "hermite" (first-order volumes only). */
+  async queryVolume(name, points, { interpolation = 'default', gradient = false, signal } = {}) {
     const i = INTERPOLATIONS[interpolation];
     if (i === undefined || !Object.hasOwn(INTERPOLATIONS, interpolation))
-      throw new TypeError(`interpolation must be "trilinear" or "nearest", not ${JSON.stringify(interpolation)}`);
+      throw new TypeError(`interpolation must be one of ${Object.keys(INTERPOLATIONS).join(', ')}, not ${JSON.stringify(interpolation)}`);
     const p = toPoints(points);
     const frame = pointsFrame([gradient ? 1 : 0, i], nameBytes(name, 'a volume name'),
       new Uint8Array(0), p);

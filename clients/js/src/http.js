@@ -5,7 +5,7 @@
 import { SdfError } from './errors.js';
 import {
   CLOSEST_DESCR, WORDS, checkFilter, encodeNpy, leBytes, leWords, modeCode, parseNpy,
-  signCode, smoothVolume, splitWords, toPoints,
+  signCode, smoothVolume, splitWords, toOps, toPoints,
 } from './wire.js';
 
 const TYPES = { json: 'application/json', octet: 'application/octet-stream', npy: 'application/x-npy' };
@@ -222,19 +222,24 @@ export class Client {
       });
   }
 
-  /** POST /v1/volumes/{name}/query: the baked volume's value (and gradient) at the points. */
+  /** POST /v1/volumes/{name}/query: the baked volume's value (and gradient) at the points.
+   * interpolation "default" (hermite on first-order volumes, trilinear on zero-order ones;
+   * the server's default, so not sent), "trilinear", "nearest" or "hermite". */
   async queryVolume(name, points, options = {}) {
-    const { interpolation = 'trilinear', gradient = false } = options;
+    const { interpolation = 'default', gradient = false } = options;
     const mode = gradient ? 'gradient' : 'value';
+    const named = interpolation !== 'default';
     return this.#points(`/v1/volumes/${seg(name)}/query`, points, VOLUME_MODES[mode], false,
       options,
       (body) => {
         body.mode = mode;
-        body.interpolation = interpolation;
+        if (named)
+          body.interpolation = interpolation;
       },
       (args) => {
         args.set('mode', mode);
-        args.set('interpolation', interpolation);
+        if (named)
+          args.set('interpolation', interpolation);
       });
   }
 
@@ -311,11 +316,23 @@ export class Client {
 
   /** POST /v1/meshes/{name}/bake with the parameters of docs/api.md's table (volume,
    * bounds, margin, resolution, order, H, delta, normalize, field, filter, encoding,
-   * sign); the 202's job. Never re-sent on a dropped connection: jobs() tells whether it
-   * started. */
-  bake(name, params = {}, { signal } = {}) {
+   * sign, and the field operations applied before the grid is stored: ops as volumeOps's,
+   * solver, iterations, band, strict); the 202's job. Never re-sent on a dropped
+   * connection: jobs() tells whether it started. */
+  async bake(name, params = {}, { signal } = {}) {
+    const body = params.ops === undefined ? params : { ...params, ops: toOps(params.ops) };
     return this.#json('POST', `/v1/meshes/${seg(name)}/bake`,
-      { body: JSON.stringify(params), type: 'application/json', signal });
+      { body: JSON.stringify(body), type: 'application/json', signal });
+  }
+
+  /** POST /v1/volumes/{name}/ops: field operations on a stored volume, in order, each
+   * {round: 0.05} or ['round', 0.05] (redistance, offset, round, fillet, smooth); options
+   * volume (the output's name), solver ("sussman" or "sweep"), iterations, band, strict.
+   * The 202's job ("kind": "ops"; once done its caveats and warning), for waitJob. Never
+   * re-sent on a dropped connection, as bake. */
+  async volumeOps(name, ops, { signal, ...params } = {}) {
+    return this.#json('POST', `/v1/volumes/${seg(name)}/ops`,
+      { body: JSON.stringify({ ...params, ops: toOps(ops) }), type: 'application/json', signal });
   }
 
   job(id, { signal } = {}) {

@@ -4,7 +4,9 @@
 export type Mode = 'signed' | 'distance' | 'gradient' | 'closest' | 'filtered' | 'filtered-gradient';
 export type Sign = 'auto' | 'pseudonormal' | 'winding' | 'raycast' | 'none';
 export type Form = 'octet' | 'json' | 'npy';
-export type Interpolation = 'trilinear' | 'nearest';
+/** A volume query's reconstruction (docs/volumes.md, "Evaluation"): "default" is hermite on
+ * first-order volumes and trilinear on zero-order ones; hermite needs a first-order volume. */
+export type Interpolation = 'default' | 'trilinear' | 'nearest' | 'hermite';
 
 /** Points: a flat Float32Array (or any number array) of 3N coordinates, or [x, y, z] triples. */
 export type Points = Float32Array | ArrayLike<number> | ReadonlyArray<readonly [number, number, number] | ArrayLike<number>>;
@@ -117,11 +119,40 @@ export interface Job {
   seconds?: number;
   cancel_requested?: boolean;
   error?: { code: string; message: string };
+  /** "ops" for volumeOps's jobs */
+  kind?: string;
+  /** an ops job's input volume */
+  source?: string;
+  /** field operations, once done: what the paper's validity caveat found (offsets that
+   * crossed the medial axis), empty when nothing */
+  caveats?: unknown[];
+  warning?: string;
   [key: string]: unknown;
 }
 
+/** A field operation's name (docs/api.md): redistance, offset r (signed), round r (convex
+ * edges), fillet r (concave ones), smooth r (round then fillet). */
+export type OpName = 'redistance' | 'offset' | 'round' | 'fillet' | 'smooth';
+/** One field operation: { round: 0.05 } or ['round', 0.05]. */
+export type Op = { [K in OpName]: { [P in K]: number } }[OpName] | readonly [OpName, number];
+
+/** How field operations run (POST /v1/volumes/{name}/ops and a bake's body); each optional. */
+export interface OpsParams {
+  solver?: 'sussman' | 'sweep';
+  iterations?: number;
+  band?: number;
+  strict?: boolean;
+}
+
+/** volumeOps's options: the output volume's name and OpsParams. */
+export interface VolumeOpsOptions extends RequestOptions, OpsParams {
+  volume?: string;
+}
+
 /** POST /v1/meshes/{name}/bake's body (docs/api.md, Baking); every key optional. */
-export interface BakeParams {
+export interface BakeParams extends OpsParams {
+  /** field operations applied to the baked grid before it is stored */
+  ops?: readonly Op[];
   volume?: string;
   bounds?: { min: [number, number, number]; max: [number, number, number] };
   margin?: number;
@@ -199,6 +230,8 @@ export declare class Client {
   query(name: string, points: Points, options?: QueryOptions): Promise<QueryResult>;
 
   bake(name: string, params?: BakeParams, options?: RequestOptions): Promise<Job>;
+  /** POST /v1/volumes/{name}/ops: field operations, in order, as a job like a bake. */
+  volumeOps(name: string, ops: readonly Op[], options?: VolumeOpsOptions): Promise<Job>;
   job(id: number | string, options?: RequestOptions): Promise<Job>;
   jobs(options?: RequestOptions): Promise<Job[]>;
   cancelJob(id: number | string, options?: RequestOptions): Promise<Job>;
@@ -254,6 +287,8 @@ export interface Slice {
 }
 
 export declare const MODES: Readonly<Record<Mode, number>>;
+/** VOLUME_QUERY's code of each interpolation (proto/PROTOCOL.md). */
+export declare const INTERPOLATIONS: Readonly<Record<Interpolation, number>>;
 export declare const SIGNS: Readonly<Record<Sign, number>>;
 /** Words per point of each mode's answer, by mode number. */
 export declare const WORDS: readonly number[];

@@ -3,4 +3,4 @@
  * node.js adds the binary-protocol client on top. */
 export { Client } from './http.js';
 export { SdfError } from './errors.js';
-export { MODES, SIGNS, WORDS, encodeNpy, parseNpy, toPoints } from './wire.js';
+export { INTERPOLATIONS, MODES, SIGNS, WORDS, encodeNpy, parseNpy, toPoints } from './wire.js';

@@ -9,6 +9,9 @@ export const MODES = Object.freeze({
 export const SIGNS = Object.freeze({ auto: 0, pseudonormal: 1, winding: 2, raycast: 3, none: 4 });
 /** Words per point of each mode's answer (docs/api.md, proto/PROTOCOL.md). */
 export const WORDS = Object.freeze([1, 1, 4, 5, 1, 4]);
+/** A volume query's interpolations and their VOLUME_QUERY codes (proto/PROTOCOL.md);
+ * "default" is hermite on first-order volumes and trilinear on zero-order ones. */
+export const INTERPOLATIONS = Object.freeze({ trilinear: 0, nearest: 1, hermite: 2, default: 3 });
 
 /* Typed arrays use the host's byte order; the wire is little-endian. Big-endian hosts are
  * rare but the swap costs nothing where it is not needed. */
@@ -203,4 +206,18 @@ export function smoothVolume(smooth) {
   if (kinds.length !== 1)
     throw new TypeError('filter.smooth needs exactly one of "sphere", "box" or "mesh"');
   return [kinds[0], smooth[kinds[0]]];
+}
+
+/** Field operations as the API's JSON list [{round: 0.05}, ...] (docs/api.md), from objects
+ * of one key or [name, r] pairs; the server checks the names and numbers. */
+export function toOps(ops) {
+  if (!Array.isArray(ops))
+    throw new TypeError('ops must be an array of operations, e.g. [{ round: 0.05 }]');
+  return ops.map((op, i) => {
+    if (Array.isArray(op) && op.length === 2 && typeof op[0] === 'string')
+      return { [op[0]]: op[1] };
+    if (op !== null && typeof op === 'object' && !Array.isArray(op) && Object.keys(op).length === 1)
+      return { ...op };
+    throw new TypeError(`ops[${i}] is neither {name: r} nor [name, r]: ${JSON.stringify(op)}`);
+  });
 }

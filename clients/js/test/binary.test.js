@@ -139,12 +139,23 @@ describe('binary client', { timeout: 120000 }, () => {
   test('VOLUME_QUERY answers what the HTTP volume query answers', async () => {
     await http.waitJob(await http.bake('fandisk', { volume: 'vol', resolution: 10, order: 1 }));
     const p = randomPoints(300, 2, -0.6, 0.6);
-    for (const interpolation of ['trilinear', 'nearest']) {
+    for (const interpolation of ['default', 'trilinear', 'nearest', 'hermite']) {
       for (const gradient of [false, true]) {
         sameResult(await b.queryVolume('vol', p, { interpolation, gradient }),
           await http.queryVolume('vol', p, { interpolation, gradient }), `volume ${interpolation} ${gradient}`);
       }
     }
+    /* the default is hermite on this first-order volume, over both protocols */
+    sameResult(await b.queryVolume('vol', p), await b.queryVolume('vol', p, { interpolation: 'hermite' }), 'binary default');
+    sameResult(await http.queryVolume('vol', p), await b.queryVolume('vol', p), 'the defaults');
+    /* and trilinear on a zero-order one, where hermite is the same refusal as over HTTP */
+    await http.waitJob(await http.bake('fandisk', { volume: 'vol0', resolution: 10 }));
+    sameResult(await b.queryVolume('vol0', p), await http.queryVolume('vol0', p, { interpolation: 'trilinear' }), 'zero-order default');
+    const refusal = (e) => [e.status, e.code, e.message];
+    const overHttp = await http.queryVolume('vol0', p, { interpolation: 'hermite' }).catch(refusal);
+    const overBinary = await b.queryVolume('vol0', p, { interpolation: 'hermite' }).catch(refusal);
+    assert.deepEqual(overBinary, overHttp);
+    assert.equal(overBinary[0], 422);
     await assert.rejects(b.queryVolume('none', p), isSdfError(404, 'ENOTFOUND'));
     await assert.rejects(b.queryVolume('vol', p, { interpolation: 'cubic' }), TypeError);
   });

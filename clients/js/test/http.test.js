@@ -197,14 +197,20 @@ describe('HTTP client', { timeout: 120000 }, () => {
     assert.deepEqual(Array.from(exr.bytes.subarray(0, 4)), [0x76, 0x2f, 0x31, 0x01]); /* EXR magic */
 
     const p = randomPoints(300, 5, -0.6, 0.6);
-    for (const interpolation of ['trilinear', 'nearest']) {
+    const answers = {};
+    for (const interpolation of ['default', 'trilinear', 'nearest', 'hermite']) {
       for (const gradient of [false, true]) {
         const base = await c.queryVolume('v1', p, { interpolation, gradient });
         assert.equal(base.gradient !== undefined, gradient);
         for (const form of ['json', 'npy'])
           sameResult(await c.queryVolume('v1', p, { interpolation, gradient, form }), base, `volume ${interpolation} ${form}`);
+        answers[`${interpolation} ${gradient}`] = base;
       }
     }
+    /* no interpolation is the default, hermite on this first-order volume */
+    sameResult(await c.queryVolume('v1', p, { gradient: true }), answers['hermite true'], 'the default');
+    assert.ok(!sameBits(answers['hermite true'].distance, answers['trilinear true'].distance),
+      'hermite and trilinear differ');
     /* a zero-order volume: at node (3, 2, 1) the nearest lookup is that node's word */
     await c.waitJob(await c.bake('fandisk', { volume: 'v0', resolution: [12, 10, 8] }));
     const zero = await c.download('v0', { format: 'npy' });
@@ -214,6 +220,7 @@ describe('HTTP client', { timeout: 120000 }, () => {
     const node = [0, 1, 2].map((a) => m0.origin[a] + [3, 2, 1][a] * m0.spacing[a]);
     const at = await c.queryVolume('v0', node, { interpolation: 'nearest' });
     assert.equal(at.distance[0], zero.values[(1 * 10 + 2) * 12 + 3]);
+    await rejectsWith(c.queryVolume('v0', node, { interpolation: 'hermite' }), 422, 'EINVAL');
     await c.deleteVolume('v0');
 
     const copy = await c.putVolume('v2', exr.bytes);
@@ -227,6 +234,29 @@ describe('HTTP client', { timeout: 120000 }, () => {
     await rejectsWith(c.queryVolume('v2', p), 404, 'ENOTFOUND');
     await rejectsWith(c.download('v2', { format: 'raw' }), 404, 'ENOTFOUND');
     await c.deleteVolume('v1');
+  });
+
+  test('field operations: volumeOps and a bake with ops end done on the source grid', async () => {
+    await c.waitJob(await c.bake('fandisk', { volume: 'src', resolution: [20, 18, 16] }));
+    const job = await c.volumeOps('src', [{ round: 0.05 }, ['fillet', 0.03]],
+      { volume: 'rounded', solver: 'sussman', iterations: 5 });
+    assert.deepEqual([job.kind, job.source, job.volume], ['ops', 'src', 'rounded']);
+    assert.ok(['queued', 'running', 'done'].includes(job.state), job.state);
+    const done = await c.waitJob(job);
+    assert.equal(done.state, 'done');
+    assert.ok(Array.isArray(done.caveats), 'caveats is a list');
+    assert.deepEqual((await c.volume('rounded')).dims, (await c.volume('src')).dims);
+    const baked = await c.waitJob(await c.bake('fandisk',
+      { volume: 'baked-ops', resolution: [20, 18, 16], ops: [['offset', -0.02]], solver: 'sweep' }));
+    assert.equal(baked.state, 'done');
+    assert.ok(Array.isArray(baked.caveats), 'a bake with ops lists caveats');
+    assert.deepEqual((await c.volume('baked-ops')).dims, [20, 18, 16]);
+    await rejectsWith(c.volumeOps('src', [{ sharpen: 0.1 }]), 422, 'EINVAL');
+    await rejectsWith(c.volumeOps('nope', [{ round: 0.05 }]), 404, 'ENOTFOUND');
+    await assert.rejects(c.volumeOps('src', [['round']]), TypeError);
+    await assert.rejects(c.volumeOps('src', { round: 0.05 }), TypeError);
+    for (const v of ['src', 'rounded', 'baked-ops'])
+      await c.deleteVolume(v);
   });
 
   test('a canceled bake ends the wait with ECANCELED; a finished job can be forgotten', async () => {

@@ -11,11 +11,18 @@ async function http(): Promise<number> {
   const job = await c.bake('demo', { volume: 'v', resolution: [8, 8, 8], order: 1 });
   const done = await c.waitJob(job, { onProgress: (j) => j.progress });
   const d = await c.download(done.volume, { format: 'npy' });
-  const v = await c.queryVolume('v', new Float32Array(3), { gradient: true, accept: 'json' });
+  const v = await c.queryVolume('v', new Float32Array(3), { gradient: true, accept: 'json', interpolation: 'hermite' });
+  const ops = await c.volumeOps('v', [{ round: 0.05 }, ['fillet', 0.02]], { volume: 'w', solver: 'sweep', strict: true });
+  const caveats: unknown[] | undefined = (await c.waitJob(ops)).caveats;
+  await c.bake('demo', { volume: 'r', ops: [['offset', -0.1]], iterations: 10 });
+  // @ts-expect-error an operation the API does not have
+  await c.volumeOps('v', [{ sharpen: 1 }]);
+  // @ts-expect-error an interpolation the API does not have
+  await c.queryVolume('v', [0, 0, 0], { interpolation: 'cubic' });
   const created: boolean = (await c.putMesh('m', 'v 0 0 0\n', { format: 'obj' })).created;
   await c.deleteVolume('v');
   const f = await c.query('demo', [0, 0, 0], { mode: 'filtered', filter: { samples: 8, smooth: { sphere: [0, 0, 0, 1], depth: 0.1 } } });
-  return r.count + (g?.length ?? 0) + (d.values?.length ?? 0) + v.distance.length + f.count + (created ? 1 : 0) + parseNpy(d.bytes).shape.length;
+  return r.count + (g?.length ?? 0) + (d.values?.length ?? 0) + v.distance.length + f.count + (created ? 1 : 0) + parseNpy(d.bytes).shape.length + (caveats?.length ?? 0);
 }
 
 async function binary(): Promise<number> {

@@ -17,24 +17,26 @@
     job = c.bake("demo", volume="knot", resolution=64, order=1)
     c.wait(job)
     grid = c.download("knot", format="npy")      # float32 (64, 64, 64, 4)
-    r = c.query_volume("knot", points, interpolation="trilinear", gradient=True)
+    r = c.query_volume("knot", points, gradient=True)   # interpolation="default": hermite
+    c.wait(c.volume_ops("knot", [("round", 0.05)], volume="knot_round"))  # field operations
 
 Results are dicts of numpy arrays: "distance" always (the filtered value g in the filtered
 modes); "gradient" (modes gradient and filtered-gradient); "closest" and "triangle" (mode
 closest). Errors raise SdfError with the HTTP status, the error code (e.g. "ENOTFOUND") and
 the server's message.
 
-The package ships its type hints (py.typed); Mode, Sign, Form, Interpolation and Result
+The package ships its type hints (py.typed); Mode, Sign, Form, Interpolation, Op and Result
 name the types of the arguments and answers.
 """
 from ._binary import BinaryClient
 from ._http import Client
-from ._wire import FILTER_KEYS, MODES, SIGNS, Form, Interpolation, Mode, Result, SdfError, Sign
+from ._wire import (FILTER_KEYS, INTERPOLATIONS, MODES, SIGNS, Form, Interpolation, Mode, Op,
+                    Result, SdfError, Sign)
 
 __version__ = "0.1.0"
 
-__all__ = ["Client", "BinaryClient", "SdfError", "Mode", "Sign", "Form", "Interpolation",
-           "Result", "MODES", "SIGNS", "FILTER_KEYS", "__version__"]
+__all__ = ["Client", "BinaryClient", "SdfError", "Mode", "Sign", "Form", "Interpolation", "Op",
+           "Result", "MODES", "SIGNS", "INTERPOLATIONS", "FILTER_KEYS", "__version__"]
 
 # The classes are used as sdfclient.X: say so in their reprs, help() and tracebacks.
 for _cls in (Client, BinaryClient, SdfError):

@@ -10,8 +10,8 @@ from typing import Any, ClassVar, Dict, Iterable, List, Mapping, Optional, Tuple
 import numpy as np
 import numpy.typing as npt
 
-from ._wire import (KERNELS, MODES, SIGNS, VOLUMES, Interpolation, Mode, Result, SdfError, Sign,
-                    _filter, _points, _split_words, _volume)
+from ._wire import (INTERPOLATIONS, KERNELS, MODES, SIGNS, VOLUMES, Interpolation, Mode, Result,
+                    SdfError, Sign, _filter, _points, _split_words, _volume)
 
 
 class BinaryClient:
@@ -170,13 +170,16 @@ class BinaryClient:
         return self._result(p, mode)
 
     def query_volume(self, name: str, points: npt.ArrayLike,
-                     interpolation: Interpolation = "trilinear", gradient: bool = False) -> Result:
+                     interpolation: Interpolation = "default", gradient: bool = False) -> Result:
         """VOLUME_QUERY: evaluate a baked volume; {"distance"} and with gradient=True
-        {"gradient"} too."""
+        {"gradient"} too. `interpolation` as Client.query_volume's."""
         p = _points(points)
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(f"interpolation must be one of {sorted(INTERPOLATIONS)}, "
+                             f"not {interpolation!r}")
         nb = name.encode()
-        payload = struct.pack("<BBHI", 1 if gradient else 0,
-                              {"trilinear": 0, "nearest": 1}[interpolation], len(nb), len(p)) \
+        payload = struct.pack("<BBHI", 1 if gradient else 0, INTERPOLATIONS[interpolation],
+                              len(nb), len(p)) \
             + nb + b"\0" * ((-len(nb)) % 4) + p.tobytes()
         _, r = self._call(0x04, payload)
         return self._result(r, "gradient" if gradient else "signed")

@@ -14,14 +14,14 @@ import select
 import ssl
 import time
 import urllib.parse
-from typing import Any, Dict, List, Literal, Mapping, Optional, Tuple, TypeVar, Union, cast, \
-    overload
+from typing import Any, Dict, Iterable, List, Literal, Mapping, Optional, Tuple, TypeVar, Union, \
+    cast, overload
 
 import numpy as np
 import numpy.typing as npt
 
-from ._wire import (MODES, WORDS, Form, Interpolation, Mode, Result, SdfError, Sign, _filter,
-                    _points, _split_words, _url_filter)
+from ._wire import (MODES, WORDS, Form, Interpolation, Mode, Op, Result, SdfError, Sign, _filter,
+                    _ops, _points, _split_words, _url_filter)
 
 _Path = TypeVar("_Path", str, "os.PathLike[str]")
 
@@ -235,11 +235,28 @@ class Client:
         """Start baking mesh `name` into a volume; returns the job (a dict with "id").
         params: bounds={"min": [...], "max": [...]}, margin, resolution (n or [n, m, k]),
         order (0 | 1), H, delta, field ("raw" | "filtered"), filter={...},
-        encoding ("float32" | "packed32"), sign."""
+        encoding ("float32" | "packed32"), sign; and field operations applied to the baked
+        grid before it is stored: ops (as volume_ops's), solver, iterations, band, strict."""
         body = dict(params)
         if volume is not None:
             body["volume"] = volume
+        if "ops" in body:
+            body["ops"] = _ops(body["ops"])
         _, data = self._request("POST", f"/v1/meshes/{name}/bake", json.dumps(body),
+                                {"Content-Type": "application/json"})
+        return _object(data)
+
+    def volume_ops(self, name: str, ops: Iterable[Op], volume: Optional[str] = None,
+                   **params: Any) -> Dict[str, Any]:
+        """Start field operations on volume `name` (POST /v1/volumes/{name}/ops, docs/api.md):
+        `ops` in order, each {"round": 0.05} or ("round", 0.05) (redistance, offset, round,
+        fillet, smooth); the result is stored as `volume` (the server's default when None).
+        params: solver ("sussman" | "sweep"), iterations, band, strict. Returns the job, as
+        bake does ("kind": "ops"; once done, its "caveats" and "warning"): wait() for it."""
+        body: Dict[str, Any] = dict(params, ops=_ops(ops))
+        if volume is not None:
+            body["volume"] = volume
+        _, data = self._request("POST", f"/v1/volumes/{name}/ops", json.dumps(body),
                                 {"Content-Type": "application/json"})
         return _object(data)
 
@@ -326,21 +343,26 @@ class Client:
         return cast(npt.NDArray[Any], np.load(io.BytesIO(data))) if format == "npy" else data
 
     def query_volume(self, name: str, points: npt.ArrayLike,
-                     interpolation: Interpolation = "trilinear", gradient: bool = False,
+                     interpolation: Interpolation = "default", gradient: bool = False,
                      form: Form = "npy") -> Result:
         """Evaluate a baked volume at points: {"distance": (N,)} and with gradient=True also
-        {"gradient": (N, 3)}."""
+        {"gradient": (N, 3)}. `interpolation`: "default" (hermite on first-order volumes,
+        trilinear on zero-order ones; the server's default, so not sent), "trilinear",
+        "nearest" or "hermite" (first order only)."""
         p = _points(points)
         mode = "gradient" if gradient else "value"
         path = f"/v1/volumes/{name}/query"
+        args = {"mode": mode}
+        if interpolation != "default":
+            args["interpolation"] = interpolation
         if form == "json":
-            body = json.dumps({"points": p.tolist(), "mode": mode, "interpolation": interpolation})
+            body = json.dumps({"points": p.tolist(), **args})
             r = json.loads(self._request("POST", path, body, {"Content-Type": "application/json"})[1])
             out: Result = {"distance": np.asarray(r["distance"], np.float32)}
             if gradient:
                 out["gradient"] = np.asarray(r["gradient"], np.float32).reshape(-1, 3)
             return out
-        path += "?" + urllib.parse.urlencode({"mode": mode, "interpolation": interpolation})
+        path += "?" + urllib.parse.urlencode(args)
         if form == "octet":
             _, data = self._request("POST", path, p.tobytes(),
                                     {"Content-Type": "application/octet-stream"})

@@ -3,7 +3,7 @@ filter parameters on the wire, and the checks that turn a caller's points and fi
 parameters into what both protocols carry (docs/api.md, proto/PROTOCOL.md)."""
 from __future__ import annotations
 
-from typing import Any, Dict, Literal, Mapping, Optional, Tuple
+from typing import Any, Dict, Iterable, List, Literal, Mapping, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -14,8 +14,13 @@ Sign = Literal["auto", "pseudonormal", "winding", "raycast", "none"]
 """How a mesh query signs its distances (docs/api.md)."""
 Form = Literal["npy", "octet", "json"]
 """An HTTP query's body: NumPy .npy, raw little-endian float32, or JSON."""
-Interpolation = Literal["trilinear", "nearest"]
-"""How a volume query reads between a baked volume's nodes (docs/volumes.md)."""
+Interpolation = Literal["default", "trilinear", "nearest", "hermite"]
+"""How a volume query reads between a baked volume's nodes (docs/volumes.md, "Evaluation"):
+"default" is "hermite" on first-order volumes and "trilinear" on zero-order ones; "hermite"
+on a zero-order volume is refused (422)."""
+Op = Union[Mapping[str, float], Tuple[str, float]]
+"""One field operation (docs/api.md): {"round": 0.05} or ("round", 0.05); the names are
+redistance, offset, round, fillet and smooth."""
 Result = Dict[str, npt.NDArray[Any]]
 """A query's answer: "distance" (N,) float32 always; "gradient" (N, 3) float32; "closest"
 (N, 3) float32 and "triangle" (N,) uint32 in mode closest."""
@@ -24,6 +29,7 @@ MODES = {"signed": 0, "distance": 1, "gradient": 2, "closest": 3, "filtered": 4,
          "filtered-gradient": 5}
 SIGNS = {"auto": 0, "pseudonormal": 1, "winding": 2, "raycast": 3, "none": 4}
 WORDS = {0: 1, 1: 1, 2: 4, 3: 5, 4: 1, 5: 4}
+INTERPOLATIONS = {"trilinear": 0, "nearest": 1, "hermite": 2, "default": 3}
 FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "min_samples", "medial", "grid", "unsigned",
                "allow_wide_bump", "sample_gradient", "seed", "smooth")
 KERNELS = {"gaussian": 0, "bump": 1}
@@ -59,6 +65,22 @@ def _filter(filter: Optional[Mapping[str, Any]]) -> Dict[str, Any]:
     if unknown:
         raise ValueError(f"unknown filter parameters {sorted(unknown)} (known: {FILTER_KEYS})")
     return f
+
+
+def _ops(ops: Iterable[Op]) -> List[Dict[str, float]]:
+    """Field operations as the API's JSON list [{"round": 0.05}, ...], from dicts or (name, r)
+    pairs; the server checks the names and numbers."""
+    if isinstance(ops, (str, bytes, Mapping)):
+        raise ValueError("ops must be a list of operations, e.g. [{'round': 0.05}]")
+    out: List[Dict[str, float]] = []
+    for op in ops:
+        if isinstance(op, Mapping) and len(op) == 1:
+            out.append(dict(op))
+        elif isinstance(op, (tuple, list)) and len(op) == 2 and isinstance(op[0], str):
+            out.append({op[0]: op[1]})
+        else:
+            raise ValueError(f"an operation is {{name: r}} or (name, r), not {op!r}")
+    return out
 
 
 def _volume(smooth: Mapping[str, Any]) -> Tuple[str, Any]:
