@@ -134,6 +134,11 @@ static int slice_volume(request *req, slice_work *w, const sdfd_stored_volume *s
                         const float *points, size_t n, float *values)
 {
     sdfd_slice_mode m = w->params.mode;
+    sdf_volume_info in;
+    sdf_volume_get_info(s->volume, &in);
+    if (w->params.interpolation == SDF_VOLUME_HERMITE && in.order == 0)
+        return fail(req, SDF_EINVAL, "%s", "interpolation 'hermite' needs a first-order volume; "
+                    "this one is zero order");
     float *grad = m == SDFD_SLICE_GRADIENT ? malloc(3 * n * sizeof *grad) : NULL;
     if (m == SDFD_SLICE_GRADIENT && !grad)
         return fail(req, SDF_ENOMEM, "out of memory for %s", "the slice's gradients");

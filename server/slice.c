@@ -103,10 +103,10 @@ static int parse_mode(parse *p, sdfd_slice_params *out)
     if (sign && sdf_sign_from_name(sign, &out->sign))
         return refuse(p, "sign", "unknown sign '%.40s' (auto, pseudonormal, winding, raycast, "
                       "none)", sign);
-    out->interpolation = SDF_VOLUME_TRILINEAR;
+    out->interpolation = SDF_VOLUME_DEFAULT; /* as volume queries: hermite on first order */
     if (interp && sdf_volume_filter_from_name(interp, &out->interpolation))
-        return refuse(p, "interpolation", "unknown interpolation '%.40s' (trilinear, nearest)",
-                      interp);
+        return refuse(p, "interpolation", "unknown interpolation '%.40s' (default, trilinear, "
+                      "nearest, hermite)", interp);
     return 0;
 }
 

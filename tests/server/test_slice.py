@@ -318,6 +318,13 @@ class SliceImages(unittest.TestCase):
         self.assertLess(np.abs(g[near] - 1).max(), 0.1)
         png = self.slice("/v1/volumes/vball/slice.png?size=150&mode=error&interpolation=nearest")
         self.assertEqual(png.image().shape, (150, 150, 3))
+        # the default reconstruction is a volume query's: hermite on this first-order volume
+        h = self.slice("/v1/volumes/vball/slice.png?size=150&format=npy"
+                       "&interpolation=hermite").values()
+        t = self.slice("/v1/volumes/vball/slice.png?size=150&format=npy"
+                       "&interpolation=trilinear").values()
+        self.assertEqual(v.tobytes(), h.tobytes())
+        self.assertNotEqual(v.tobytes(), t.tobytes())
 
     def test_error_mode_needs_the_mesh(self):
         verts, faces = icosphere(2, 0.5)
@@ -331,6 +338,9 @@ class SliceImages(unittest.TestCase):
                 break
             time.sleep(0.02)
         self.get("/v1/volumes/vsmall/slice.png?mode=error&size=32")
+        status, err = self.refused("/v1/volumes/vsmall/slice.png?interpolation=hermite&size=32")
+        self.assertEqual((status, err["code"]), (422, "EINVAL"))
+        self.assertIn("first-order", err["message"])
         urllib.request.urlopen(urllib.request.Request(self.server.url + "/v1/meshes/small",
                                                       method="DELETE")).close()
         status, err = self.refused("/v1/volumes/vsmall/slice.png?mode=error&size=32")
