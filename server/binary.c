@@ -7,7 +7,11 @@
  * Limits: a frame's length is checked against max_payload before the input buffer grows;
  * at most 64 queries per connection are in flight and at most 64 MiB of replies wait unsent,
  * beyond which the connection is not read (TCP backpressure on a client that does not
- * read); a connection idle mid-frame for the timeout is closed; a framing error gets one
+ * read); a connection is closed when its replies have not moved for the timeout (a client
+ * that does not read), when it is idle mid-frame for the timeout, and when a frame (the
+ * first one from the connection's start, the next ones from their first byte) takes longer
+ * than the timeout plus a second per MIN_RATE bytes (a client that trickles bytes, or
+ * connects and never sends); idle between frames it stays open. A framing error gets one
  * ERROR frame and the connection closes after it is sent; a frame with no room under
  * --max-buffered-bytes gets an ERROR and is read and dropped, and the connection goes on.
  * A connection that goes away with queries in flight is freed when the last of them
@@ -38,6 +42,7 @@
 #define MAX_IN_FLIGHT 64
 #define INPUT_BASE (64 * 1024) /* a connection's input buffer between big frames */
 #define MAX_QUEUED_OUT (64u << 20) /* unsent reply bytes before we stop reading */
+#define MIN_RATE (64.0 * 1024) /* bytes a second a frame must arrive at, after the timeout */
 
 /* ---- connections ------------------------------------------------------------------------- */
 
@@ -69,6 +74,8 @@ static void consume_input(sdfd_binary *b, connection *c)
     if (off) { /* c->in is NULL before the first read */
         memmove(c->in, c->in + off, c->in_len - off);
         c->in_len -= off;
+        c->in_since = c->in_len ? sdfd_now() : 0; /* the next frame's clock */
+        c->in_got = c->in_len;
         /* A big frame's room goes back to the budget once it is used. */
         if (c->in_cap > INPUT_BASE && c->in_len <= INPUT_BASE)
             resize_input(b, c, INPUT_BASE);
@@ -149,8 +156,13 @@ static int read_input(sdfd_binary *b, connection *c)
         return -1;
     if (n > 0) {
         c->last_activity = sdfd_now();
+        if (!c->in_since)
+            c->in_since = c->last_activity, c->in_got = 0;
+        c->in_got += (size_t)n;
         if (c->skip) { /* a refused frame's bytes, dropped */
             c->skip -= (size_t)n;
+            if (!c->skip && !c->in_len)
+                c->in_since = 0;
             return 0;
         }
         c->in_len += (size_t)n;
@@ -170,14 +182,14 @@ static int write_output(connection *c)
         ssize_t n = send(c->fd, f->data + f->sent, f->len - f->sent, MSG_NOSIGNAL);
         if (n < 0)
             return errno == EAGAIN || errno == EINTR ? 0 : -1;
-        c->last_activity = sdfd_now();
+        c->last_activity = c->out_since = sdfd_now();
         f->sent += (size_t)n;
         if (f->sent < f->len)
             return 0;
         pthread_mutex_lock(&c->lock);
         c->out_head = f->next;
         if (!c->out_head)
-            c->out_tail = NULL;
+            c->out_tail = NULL, c->out_since = 0;
         c->out_bytes -= f->len;
         pthread_mutex_unlock(&c->lock);
         free(f->data);
@@ -252,12 +264,33 @@ static void accept_connections(sdfd_binary *b)
         }
         c->fd = fd;
         c->peer = peer;
-        c->last_activity = sdfd_now();
+        c->last_activity = c->in_since = sdfd_now(); /* its first frame's clock */
         pthread_mutex_init(&c->lock, NULL);
         c->next = b->conns;
         b->conns = c;
         b->conn_count++;
     }
+}
+
+/* Does the input buffer begin with a whole frame (held back by the in-flight limits)? */
+static int frame_waiting(const sdfd_binary *b, const connection *c)
+{
+    sdf_proto_header h;
+    return c->in_len >= SDF_PROTO_HEADER_SIZE &&
+           !sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL) &&
+           c->in_len - SDF_PROTO_HEADER_SIZE >= h.length;
+}
+
+/* Should the connection be cut off (the limits in the file's comment)? */
+static int stalled(const sdfd_binary *b, const connection *c, double now, int out_pending)
+{
+    double timeout = b->srv->cfg.timeout_seconds;
+    if (out_pending && c->out_since > 0 && now - c->out_since > timeout)
+        return 1; /* its replies do not move: a client that does not read them */
+    if (!c->in_since || frame_waiting(b, c))
+        return 0; /* between frames, or a whole frame waits for room: not the client's doing */
+    return now - c->last_activity > timeout ||
+           now - c->in_since > timeout + (double)c->in_got / MIN_RATE;
 }
 
 /* Drop closed connections whose jobs have all completed. */
@@ -299,6 +332,8 @@ static void *poll_loop(void *arg)
             pthread_mutex_lock(&c->lock);
             int room = c->in_flight < MAX_IN_FLIGHT && c->out_bytes < MAX_QUEUED_OUT;
             short events = (c->out_head ? POLLOUT : 0) | (!c->closing && room ? POLLIN : 0);
+            if (c->out_head && !c->out_since)
+                c->out_since = sdfd_now();
             pthread_mutex_unlock(&c->lock);
             owners[n] = c;
             fds[n++] = (struct pollfd){c->fd, events, 0};
@@ -311,7 +346,7 @@ static void *poll_loop(void *arg)
         }
         if (fds[1].revents & POLLIN)
             accept_connections(b);
-        double now = sdfd_now(), timeout = b->srv->cfg.timeout_seconds;
+        double now = sdfd_now();
         for (size_t i = 2; i < n; i++) {
             connection *c = owners[i];
             short re = fds[i].revents;
@@ -323,10 +358,9 @@ static void *poll_loop(void *arg)
             if (!fail && (re & POLLOUT))
                 fail = write_output(c) != 0;
             pthread_mutex_lock(&c->lock);
-            int drained = !c->out_head && c->in_flight == 0;
+            int drained = !c->out_head && c->in_flight == 0, pending = c->out_head != NULL;
             pthread_mutex_unlock(&c->lock);
-            int stalled = (c->in_len > 0 || c->skip) && now - c->last_activity > timeout;
-            if (fail || stalled || (c->closing && drained))
+            if (fail || stalled(b, c, now, pending) || (c->closing && drained))
                 close_socket(b, c);
         }
         reap(b);

@@ -28,6 +28,7 @@
 #include "httpreq.h"
 #include "httpslice.h"
 #include "httpvolumes.h"
+#include "httpwatch.h"
 #include "page.h"
 #include "log.h"
 #include "net.h"
@@ -35,6 +36,7 @@
 struct sdfd_http {
     sdfd_server *srv;
     struct MHD_Daemon *daemon;
+    sdfd_httpwatch *watch; /* cuts off requests that arrive too slowly */
     int listen_fd;
     int quiesced; /* listen_fd handed back by MHD_quiesce_daemon: ours to close */
 };
@@ -439,6 +441,10 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         *state = req;
         return admit(req, url);
     }
+    if (*upload_size)
+        sdfd_httpwatch_received(http->watch, conn, *upload_size);
+    else
+        sdfd_httpwatch_arrived(http->watch, conn);
     if (req->answered) {
         *upload_size = 0; /* refused from the headers: MHD discards the rest */
         return MHD_YES;
@@ -464,7 +470,9 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
 static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
                          enum MHD_RequestTerminationCode code)
 {
-    (void)cls, (void)conn, (void)code;
+    (void)code;
+    sdfd_http *http = cls;
+    sdfd_httpwatch_next(http->watch, conn);
     request *req = *state;
     if (!req)
         return;
@@ -538,6 +546,12 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
     sdfd_http *http = calloc(1, sizeof *http);
     http->srv = srv;
     http->listen_fd = fd;
+    http->watch = sdfd_httpwatch_start(srv->cfg.timeout_seconds);
+    if (!http->watch) {
+        close(fd);
+        free(http);
+        return -1;
+    }
     unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_EPOLL | MHD_ALLOW_SUSPEND_RESUME |
                      MHD_USE_ERROR_LOG;
     http->daemon = MHD_start_daemon(
@@ -549,10 +563,12 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
         MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv->cfg.max_per_ip,
         MHD_OPTION_CONNECTION_TIMEOUT, srv->cfg.timeout_seconds,
         MHD_OPTION_NOTIFY_COMPLETED, on_completed, http,
+        MHD_OPTION_NOTIFY_CONNECTION, sdfd_httpwatch_notify, http->watch,
         MHD_OPTION_UNESCAPE_CALLBACK, unescape_url, NULL,
         MHD_OPTION_END);
     if (!http->daemon) {
         sdfd_log("error", "listen", "libmicrohttpd failed to start on %s", srv->cfg.http_addr);
+        sdfd_httpwatch_stop(http->watch);
         close(fd);
         free(http);
         return -1;
@@ -581,6 +597,7 @@ void sdfd_http_stop(sdfd_http *http)
     if (!http)
         return;
     MHD_stop_daemon(http->daemon);
+    sdfd_httpwatch_stop(http->watch);
     if (http->quiesced)
         close(http->listen_fd);
     free(http);
