@@ -204,6 +204,7 @@ static void close_socket(sdfd_binary *b, connection *c)
         c->fd = -1;
         b->conn_count--;
     }
+    b->dead_count += !c->dead;
     c->dead = 1;
     free(c->in); /* nothing reads it any more; its room goes back to the budget */
     c->in = NULL;
@@ -303,6 +304,7 @@ static void reap(sdfd_binary *b)
         pthread_mutex_unlock(&c->lock);
         if (c->dead && idle) {
             *link = c->next;
+            b->dead_count--;
             free_connection(c);
         } else {
             link = &c->next;
@@ -355,15 +357,22 @@ static void *poll_loop(void *arg)
                 fail = read_input(b, c) != 0;
             else if (!fail && !c->closing)
                 consume_input(b, c); /* frames held back by the in-flight limit */
-            if (!fail && (re & POLLOUT))
-                fail = write_output(c) != 0;
+            /* One look under the lock for an idle connection: this runs for every one. */
             pthread_mutex_lock(&c->lock);
-            int drained = !c->out_head && c->in_flight == 0, pending = c->out_head != NULL;
+            int pending = c->out_head != NULL, flying = c->in_flight;
             pthread_mutex_unlock(&c->lock);
+            if (!fail && pending) { /* also a reply queued since the poll began: saves a pass */
+                fail = write_output(c) != 0;
+                pthread_mutex_lock(&c->lock);
+                pending = c->out_head != NULL;
+                pthread_mutex_unlock(&c->lock);
+            }
+            int drained = !pending && flying == 0; /* in_flight only grows on this thread */
             if (fail || stalled(b, c, now, pending) || (c->closing && drained))
                 close_socket(b, c);
         }
-        reap(b);
+        if (b->dead_count) /* a walk of every connection: only when one can go */
+            reap(b);
     }
     free(fds);
     free(owners);

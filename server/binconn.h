@@ -53,6 +53,7 @@ struct sdfd_binary {
     atomic_int stop, quiesced;
     connection *conns;
     size_t conn_count;
+    size_t dead_count;          /* closed connections not yet freed (reap) */
     uint32_t max_payload;
 };
 
