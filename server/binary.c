@@ -7,7 +7,11 @@
  * Limits: a frame's length is checked against max_payload before the input buffer grows;
  * at most 64 queries per connection are in flight and at most 64 MiB of replies wait unsent,
  * beyond which the connection is not read (TCP backpressure on a client that does not
- * read); a connection idle mid-frame for the timeout is closed; a framing error gets one
+ * read); a connection is closed when its replies have not moved for the timeout (a client
+ * that does not read), when it is idle mid-frame for the timeout, and when a frame (the
+ * first one from the connection's start, the next ones from their first byte) takes longer
+ * than the timeout plus a second per MIN_RATE bytes (a client that trickles bytes, or
+ * connects and never sends); idle between frames it stays open. A framing error gets one
  * ERROR frame and the connection closes after it is sent; a frame with no room under
  * --max-buffered-bytes gets an ERROR and is read and dropped, and the connection goes on.
  * A connection that goes away with queries in flight is freed when the last of them
@@ -46,6 +50,7 @@
 #define MAX_IN_FLIGHT 64
 #define INPUT_BASE (64 * 1024) /* a connection's input buffer between big frames */
 #define MAX_QUEUED_OUT (64u << 20) /* unsent reply bytes before we stop reading */
+#define MIN_RATE (64.0 * 1024) /* bytes a second a frame must arrive at, after the timeout */
 
 /* ---- connections ------------------------------------------------------------------------- */
 
@@ -77,6 +82,8 @@ static void consume_input(sdfd_binary *b, connection *c)
     if (off) { /* c->in is NULL before the first read */
         memmove(c->in, c->in + off, c->in_len - off);
         c->in_len -= off;
+        c->in_since = c->in_len ? sdfd_now() : 0; /* the next frame's clock */
+        c->in_got = c->in_len;
         /* A big frame's room goes back to the budget once it is used. */
         if (c->in_cap > INPUT_BASE && c->in_len <= INPUT_BASE)
             resize_input(b, c, INPUT_BASE);
@@ -157,8 +164,13 @@ static int read_input(sdfd_binary *b, connection *c)
         return -1;
     if (n > 0) {
         c->last_activity = sdfd_now();
+        if (!c->in_since)
+            c->in_since = c->last_activity, c->in_got = 0;
+        c->in_got += (size_t)n;
         if (c->skip) { /* a refused frame's bytes, dropped */
             c->skip -= (size_t)n;
+            if (!c->skip && !c->in_len)
+                c->in_since = 0;
             return 0;
         }
         c->in_len += (size_t)n;
@@ -178,14 +190,14 @@ static int write_output(connection *c)
         ssize_t n = sdfd_bin_send(c, f->data + f->sent, f->len - f->sent);
         if (n < 0)
             return errno == EAGAIN || errno == EINTR ? 0 : -1;
-        c->last_activity = sdfd_now();
+        c->last_activity = c->out_since = sdfd_now();
         f->sent += (size_t)n;
         if (f->sent < f->len)
             return 0;
         pthread_mutex_lock(&c->lock);
         c->out_head = f->next;
         if (!c->out_head)
-            c->out_tail = NULL;
+            c->out_tail = NULL, c->out_since = 0;
         c->out_bytes -= f->len;
         pthread_mutex_unlock(&c->lock);
         free(f->data);
@@ -201,6 +213,7 @@ static void close_socket(sdfd_binary *b, connection *c)
         c->fd = -1;
         b->conn_count--;
     }
+    b->dead_count += !c->dead;
     c->dead = 1;
     free(c->in); /* nothing reads it any more; its room goes back to the budget */
     c->in = NULL;
@@ -262,7 +275,7 @@ static void accept_connections(sdfd_binary *b)
         }
         c->fd = fd;
         c->peer = peer;
-        c->last_activity = c->opened = sdfd_now();
+        c->last_activity = c->opened = c->in_since = sdfd_now(); /* its first frame's clock */
         c->handshaken = !b->srv->cfg.bin_tls;
         if (!c->handshaken && sdfd_tls_session_begin(b->srv->tls, fd, &c->tls, &c->cert)) {
             close(fd);
@@ -276,6 +289,27 @@ static void accept_connections(sdfd_binary *b)
     }
 }
 
+/* Does the input buffer begin with a whole frame (held back by the in-flight limits)? */
+static int frame_waiting(const sdfd_binary *b, const connection *c)
+{
+    sdf_proto_header h;
+    return c->in_len >= SDF_PROTO_HEADER_SIZE &&
+           !sdf_proto_decode_header(c->in, c->in_len, b->max_payload, &h, NULL) &&
+           c->in_len - SDF_PROTO_HEADER_SIZE >= h.length;
+}
+
+/* Should the connection be cut off (the limits in the file's comment)? */
+static int stalled(const sdfd_binary *b, const connection *c, double now, int out_pending)
+{
+    double timeout = b->srv->cfg.timeout_seconds;
+    if (out_pending && c->out_since > 0 && now - c->out_since > timeout)
+        return 1; /* its replies do not move: a client that does not read them */
+    if (!c->in_since || frame_waiting(b, c))
+        return 0; /* between frames, or a whole frame waits for room: not the client's doing */
+    return now - c->last_activity > timeout ||
+           now - c->in_since > timeout + (double)c->in_got / MIN_RATE;
+}
+
 /* Drop closed connections whose jobs have all completed. */
 static void reap(sdfd_binary *b)
 {
@@ -286,6 +320,7 @@ static void reap(sdfd_binary *b)
         pthread_mutex_unlock(&c->lock);
         if (c->dead && idle) {
             *link = c->next;
+            b->dead_count--;
             free_connection(b, c);
         } else {
             link = &c->next;
@@ -301,6 +336,8 @@ static short connection_events(connection *c)
     pthread_mutex_lock(&c->lock);
     int room = c->in_flight < MAX_IN_FLIGHT && c->out_bytes < MAX_QUEUED_OUT;
     short events = (c->out_head ? POLLOUT : 0) | (!c->closing && room ? POLLIN : 0);
+    if (c->out_head && !c->out_since)
+        c->out_since = sdfd_now(); /* replies wait from now: stalled() times them */
     pthread_mutex_unlock(&c->lock);
     /* A TLS read that stopped on a write (TLS 1.3 can answer a key update) needs POLLOUT. */
     if (events & POLLIN && sdfd_bin_wants_write(c))
@@ -360,16 +397,22 @@ static void *poll_loop(void *arg)
                 fail = read_input(b, c) != 0;
             else if (!fail && !c->closing)
                 consume_input(b, c); /* frames held back by the in-flight limit */
-            if (!fail && (re & POLLOUT))
-                fail = write_output(c) != 0;
+            /* One look under the lock for an idle connection: this runs for every one. */
             pthread_mutex_lock(&c->lock);
-            int drained = !c->out_head && c->in_flight == 0;
+            int pending = c->out_head != NULL, flying = c->in_flight;
             pthread_mutex_unlock(&c->lock);
-            int stalled = (c->in_len > 0 || c->skip) && now - c->last_activity > timeout;
-            if (fail || stalled || (c->closing && drained))
+            if (!fail && pending) { /* also a reply queued since the poll began: saves a pass */
+                fail = write_output(c) != 0;
+                pthread_mutex_lock(&c->lock);
+                pending = c->out_head != NULL;
+                pthread_mutex_unlock(&c->lock);
+            }
+            int drained = !pending && flying == 0; /* in_flight only grows on this thread */
+            if (fail || stalled(b, c, now, pending) || (c->closing && drained))
                 close_socket(b, c);
         }
-        reap(b);
+        if (b->dead_count) /* a walk of every connection: only when one can go */
+            reap(b);
     }
     free(fds);
     free(owners);

@@ -42,6 +42,9 @@ struct connection {
     size_t in_len, in_cap;
     size_t skip;                /* bytes of a refused frame still to read and drop */
     double last_activity;
+    double in_since;            /* when the frame being read began (0: between frames) */
+    size_t in_got;              /* bytes read since in_since */
+    double out_since;           /* when the queued output last moved (0: none queued) */
     int closing;                /* send what is queued, then close */
     int dead;                   /* socket closed; waiting for in-flight jobs */
     pthread_mutex_t lock;       /* out queue and in_flight: shared with the dispatcher */
@@ -59,6 +62,7 @@ struct sdfd_binary {
     atomic_int stop, quiesced;
     connection *conns;
     size_t conn_count;
+    size_t dead_count;          /* closed connections not yet freed (reap) */
     uint32_t max_payload;
 };
 

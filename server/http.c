@@ -29,6 +29,7 @@
 #include "httpreq.h"
 #include "httpslice.h"
 #include "httpvolumes.h"
+#include "httpwatch.h"
 #include "page.h"
 #include "log.h"
 #include "net.h"
@@ -37,6 +38,7 @@
 struct sdfd_http {
     sdfd_server *srv;
     struct MHD_Daemon *daemon;
+    sdfd_httpwatch *watch; /* cuts off requests that arrive too slowly */
     int listen_fd;
     int quiesced; /* listen_fd handed back by MHD_quiesce_daemon: ours to close */
 };
@@ -458,6 +460,10 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         *state = req;
         return admit(req, url);
     }
+    if (*upload_size)
+        sdfd_httpwatch_received(http->watch, conn, *upload_size);
+    else
+        sdfd_httpwatch_arrived(http->watch, conn);
     if (req->answered) {
         *upload_size = 0; /* refused from the headers: MHD discards the rest */
         return MHD_YES;
@@ -483,7 +489,9 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
 static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
                          enum MHD_RequestTerminationCode code)
 {
-    (void)cls, (void)conn, (void)code;
+    (void)code;
+    sdfd_http *http = cls;
+    sdfd_httpwatch_next(http->watch, conn);
     request *req = *state;
     if (!req)
         return;
@@ -548,17 +556,38 @@ static size_t unescape_url(void *cls, struct MHD_Connection *connection, char *s
     return (size_t)(out - s);
 }
 
-/* A connection opens or closes: with TLS, a certificate replaced by a reload is freed only
- * once no connection that may have been handshaken with it is open (tls.c). */
+/* What sdfd keeps per connection: its entry in the slow-request watch (httpwatch.c) and,
+ * with TLS, its hold on the certificate it may have been handshaken with (tls.c). */
+typedef struct connection_context {
+    void *watch; /* first: httpwatch.c reads it through the socket context */
+    void *tls;
+} connection_context;
+
+/* A connection opens or closes: it is watched for requests that arrive too slowly, and with
+ * TLS a certificate replaced by a reload is freed only once no connection that may have been
+ * handshaken with it is open. */
 static void on_connection(void *cls, struct MHD_Connection *connection, void **socket_context,
                           enum MHD_ConnectionNotificationCode code)
 {
-    (void)connection;
     sdfd_http *http = cls;
-    if (code == MHD_CONNECTION_NOTIFY_STARTED)
-        *socket_context = sdfd_tls_connection_opened(http->srv->tls);
-    else if (*socket_context)
-        sdfd_tls_connection_closed(http->srv->tls, *socket_context);
+    connection_context *ctx = *socket_context;
+    if (code == MHD_CONNECTION_NOTIFY_STARTED) {
+        ctx = calloc(1, sizeof *ctx);
+        *socket_context = ctx;
+        if (!ctx)
+            return; /* unwatched, and no certificate is held: MHD's idle timeout applies */
+        sdfd_httpwatch_notify(http->watch, connection, &ctx->watch, code);
+        if (http->srv->tls)
+            ctx->tls = sdfd_tls_connection_opened(http->srv->tls);
+        return;
+    }
+    if (!ctx)
+        return;
+    sdfd_httpwatch_notify(http->watch, connection, &ctx->watch, code);
+    if (ctx->tls)
+        sdfd_tls_connection_closed(http->srv->tls, ctx->tls);
+    free(ctx);
+    *socket_context = NULL;
 }
 
 int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
@@ -570,6 +599,12 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
     sdfd_http *http = calloc(1, sizeof *http);
     http->srv = srv;
     http->listen_fd = fd;
+    http->watch = sdfd_httpwatch_start(srv->cfg.timeout_seconds);
+    if (!http->watch) {
+        close(fd);
+        free(http);
+        return -1;
+    }
     unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_EPOLL | MHD_ALLOW_SUSPEND_RESUME |
                      MHD_USE_ERROR_LOG;
     /* HTTPS: MHD asks sdfd_tls_retrieve for the certificate at each handshake, so a reload
@@ -577,7 +612,6 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
     struct MHD_OptionItem tls_options[] = {
         {MHD_OPTION_HTTPS_CERT_CALLBACK, 0, (void *)sdfd_tls_retrieve},
         {MHD_OPTION_HTTPS_PRIORITIES, 0, (void *)SDFD_TLS_PRIORITIES},
-        {MHD_OPTION_NOTIFY_CONNECTION, (intptr_t)on_connection, http},
         {MHD_OPTION_END, 0, NULL},
     };
     if (srv->tls)
@@ -593,6 +627,7 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
         MHD_OPTION_PER_IP_CONNECTION_LIMIT, srv->cfg.max_per_ip,
         MHD_OPTION_CONNECTION_TIMEOUT, srv->cfg.timeout_seconds,
         MHD_OPTION_NOTIFY_COMPLETED, on_completed, http,
+        MHD_OPTION_NOTIFY_CONNECTION, on_connection, http,
         MHD_OPTION_UNESCAPE_CALLBACK, unescape_url, NULL,
         MHD_OPTION_ARRAY, tls_options,
         MHD_OPTION_END);
@@ -601,6 +636,7 @@ int sdfd_http_start(sdfd_server *srv, sdfd_http **out)
                  srv->tls && MHD_is_feature_supported(MHD_FEATURE_HTTPS_CERT_CALLBACK) != MHD_YES
                      ? ": this libmicrohttpd has no HTTPS certificate callback (GnuTLS 3)"
                      : "");
+        sdfd_httpwatch_stop(http->watch);
         close(fd);
         free(http);
         return -1;
@@ -629,6 +665,7 @@ void sdfd_http_stop(sdfd_http *http)
     if (!http)
         return;
     MHD_stop_daemon(http->daemon);
+    sdfd_httpwatch_stop(http->watch);
     if (http->quiesced)
         close(http->listen_fd);
     free(http);
