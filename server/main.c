@@ -6,6 +6,7 @@
  * Signals are blocked in every thread and taken synchronously by the main thread with
  * sigwait, so no handler runs inside library code. */
 #include <dirent.h>
+#include <malloc.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -117,9 +118,21 @@ static void reload_tls(sdfd_server *srv)
         sdfd_log("info", "tls_reload", "new connections use %s", srv->cfg.tls_cert);
 }
 
+/* sdfd's buffers (request bodies, replies, batches, bakes) range from bytes to hundreds of
+ * MB. glibc raises its mmap threshold after each large buffer is freed (up to 32 MiB), so
+ * later large buffers come from the heap, fragment it, and the resident size climbs under a
+ * steady load (the soak test saw +45 % in two minutes). Fixed thresholds keep large buffers in
+ * their own mappings, returned to the system when freed. */
+static void fix_malloc_thresholds(void)
+{
+    mallopt(M_MMAP_THRESHOLD, 128 * 1024);
+    mallopt(M_TRIM_THRESHOLD, 128 * 1024);
+}
+
 int main(int argc, char **argv)
 {
     static sdfd_server srv;
+    fix_malloc_thresholds();
     int rc = sdfd_config_parse(&srv.cfg, argc, argv);
     if (rc)
         return rc > 0 ? 0 : 2;
