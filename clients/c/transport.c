@@ -141,13 +141,19 @@ static ssize_t tls_push(gnutls_transport_ptr_t ptr, const giovec_t *iov, int iov
 {
     sdfc__conn *conn = ptr;
     struct msghdr m = {.msg_iov = (struct iovec *)iov, .msg_iovlen = (size_t)iovcnt};
-    return sendmsg(conn->fd, &m, MSG_NOSIGNAL | MSG_DONTWAIT);
+    ssize_t n = sendmsg(conn->fd, &m, MSG_NOSIGNAL | MSG_DONTWAIT);
+    conn->gone |= n < 0 && (errno == EPIPE || errno == ECONNRESET);
+    return n;
 }
 
+/* A stream that ends inside a record is GnuTLS's E_PREMATURE_TERMINATION or
+ * E_UNEXPECTED_PACKET_LENGTH, depending on where; `gone` says what happened plainly. */
 static ssize_t tls_pull(gnutls_transport_ptr_t ptr, void *buf, size_t len)
 {
     sdfc__conn *conn = ptr;
-    return recv(conn->fd, buf, len, MSG_DONTWAIT);
+    ssize_t n = recv(conn->fd, buf, len, MSG_DONTWAIT);
+    conn->gone |= n == 0 || (n < 0 && errno == ECONNRESET);
+    return n;
 }
 
 static int tls_pull_timeout(gnutls_transport_ptr_t ptr, unsigned ms)
@@ -235,17 +241,17 @@ void sdfc__conn_close(sdfc__conn *conn)
 
 /* A GnuTLS failure of a record call in errno's terms (transport.h); errno itself still
  * holds what the socket said when the failure was the socket's. */
-static ssize_t tls_errno(ssize_t rc)
+static ssize_t tls_errno(const sdfc__conn *conn, ssize_t rc)
 {
     int sock = errno;
     if (rc == GNUTLS_E_AGAIN)
         errno = EAGAIN;
     else if (rc == GNUTLS_E_INTERRUPTED || !gnutls_error_is_fatal((int)rc))
         errno = EINTR; /* a warning alert and the like: try again */
-    else if (rc == GNUTLS_E_PREMATURE_TERMINATION)
+    else if (conn->gone || rc == GNUTLS_E_PREMATURE_TERMINATION)
         errno = ECONNRESET;
     else if (rc == GNUTLS_E_PUSH_ERROR || rc == GNUTLS_E_PULL_ERROR)
-        errno = sock == EPIPE || sock == ECONNRESET ? ECONNRESET : sock ? sock : EIO;
+        errno = sock ? sock : EIO;
     else
         errno = EPROTO;
     return -1;
@@ -257,7 +263,7 @@ ssize_t sdfc__conn_recv(sdfc__conn *conn, void *buf, size_t len)
         return recv(conn->fd, buf, len, MSG_DONTWAIT);
     errno = 0;
     ssize_t got = gnutls_record_recv(conn->session, buf, len);
-    return got >= 0 ? got : tls_errno(got);
+    return got >= 0 ? got : tls_errno(conn, got);
 }
 
 ssize_t sdfc__conn_send(sdfc__conn *conn, const struct iovec *iov, int iovcnt)
@@ -274,7 +280,7 @@ ssize_t sdfc__conn_send(sdfc__conn *conn, const struct iovec *iov, int iovcnt)
         return 0;
     errno = 0;
     ssize_t sent = gnutls_record_send(conn->session, iov->iov_base, iov->iov_len);
-    return sent >= 0 ? sent : tls_errno(sent);
+    return sent >= 0 ? sent : tls_errno(conn, sent);
 }
 
 int sdfc__conn_wait(sdfc__conn *conn, short events, int timeout_ms)

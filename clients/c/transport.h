@@ -23,6 +23,7 @@ SDFC__HIDDEN void sdfc__tls_free(sdfc__tls *tls);
 typedef struct sdfc__conn {
     int fd;        /* -1 when closed */
     void *session; /* gnutls_session_t, NULL for a plain connection */
+    int gone;      /* TLS: the socket met its end or a reset, whatever GnuTLS makes of it */
 } sdfc__conn;
 
 /* Connect to host:port and, with `tls`, do the handshake, verifying the server's certificate
