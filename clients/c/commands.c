@@ -18,6 +18,19 @@
 
 /* ---- the binary connection --------------------------------------------------------------- */
 
+/* What to try when TLS, or its absence, is the likely cause of `rc`. */
+static const char *tls_hint(const sdfq_server *srv, int rc)
+{
+    if (rc == SDFC_ETLS)
+        return " (is its binary port plain? then leave out --bin-tls)";
+    if (rc == SDFC_ECERT)
+        return srv->cacert ? " (--cacert names the CA that signed it?)"
+                           : " (pass the CA that signed it with --cacert)";
+    if (rc == SDFC_ECLOSED && !srv->bin_tls)
+        return " (if its binary port speaks TLS, pass --bin-tls)";
+    return "";
+}
+
 /* Report a libsdfclient failure; the exit code. */
 static int bin_fail(const sdfq_server *srv, sdfc_client *c, int rc, const char *context)
 {
@@ -27,19 +40,25 @@ static int bin_fail(const sdfq_server *srv, sdfc_client *c, int rc, const char *
                 context ? context : "");
         return SDFQ_REFUSED;
     }
+    const char *proto = srv->bin_tls ? "binary protocol over TLS" : "binary protocol";
     if (rc == SDFC_ECONNECT || rc == SDFC_EIO)
-        fprintf(stderr, "sdfq: cannot connect to %s:%d (binary protocol): %s\n", srv->bin_host,
-                srv->bin_port, errno ? strerror(errno) : sdfc_strerror(rc));
+        fprintf(stderr, "sdfq: cannot connect to %s:%d (%s): %s\n", srv->bin_host,
+                srv->bin_port, proto, errno ? strerror(errno) : sdfc_strerror(rc));
+    else if (rc == SDFC_EINVAL && srv->bin_tls)
+        fprintf(stderr, "sdfq: the CA file %s holds no PEM certificate\n",
+                srv->cacert ? srv->cacert : "(the system's)");
     else
-        fprintf(stderr, "sdfq: %s:%d (binary protocol): %s\n", srv->bin_host, srv->bin_port,
-                sdfc_strerror(rc));
+        fprintf(stderr, "sdfq: %s:%d (%s): %s%s\n", srv->bin_host, srv->bin_port, proto,
+                sdfc_strerror(rc), tls_hint(srv, rc));
     return SDFQ_CONNECT;
 }
 
 /* Connect, authenticate with the token if one is set, learn the limits. */
 static int bin_open(const sdfq_server *srv, sdfc_client **out, sdfc_hello_info *hello)
 {
-    sdfc_options o = {.reply_timeout_ms = srv->timeout_ms};
+    /* the points and result arrays outlive the connection, so it may re-send */
+    sdfc_options o = {.reply_timeout_ms = srv->timeout_ms, .tls = srv->bin_tls,
+                      .ca_file = srv->bin_tls ? srv->cacert : NULL, .resend = 1};
     errno = 0;
     int rc = sdfc_connect(srv->bin_host, srv->bin_port, &o, out);
     if (rc)

@@ -137,6 +137,8 @@ int sdfq_http(const sdfq_server *srv, const sdfq_request *req, sdfq_reply *reply
     curl_easy_setopt(curl, CURLOPT_NOSIGNAL, 1L);
     curl_easy_setopt(curl, CURLOPT_CONNECTTIMEOUT_MS, 10000L);
     curl_easy_setopt(curl, CURLOPT_TIMEOUT_MS, (long)srv->timeout_ms);
+    if (srv->cacert) /* https:// verifies the server against these CAs, not the system's */
+        curl_easy_setopt(curl, CURLOPT_CAINFO, srv->cacert);
     curl_easy_setopt(curl, CURLOPT_WRITEFUNCTION, on_data);
     curl_easy_setopt(curl, CURLOPT_WRITEDATA, &s);
     set_body(curl, req, &headers);

@@ -1,28 +1,30 @@
-/* sdfclient.c - libsdfclient (sdfclient.h): one non-blocking TCP connection to sdfd's
- * binary port, framed with proto/'s codec. Replies are read by a small state machine
- * (header, then a RESULT's 8-byte prefix and its words straight into the caller's buffer, or
- * any other frame into a bounded heap block), so a reply never needs a copy and a send that
- * finds the socket full can read replies meanwhile: a client that sends far more requests
- * than the server keeps in flight (64) then never deadlocks with it. Requests in flight live
- * in a table indexed by request id minus the oldest id, as ids are handed out in order. */
+/* sdfclient.c - libsdfclient (sdfclient.h): one non-blocking connection to sdfd's binary
+ * port (transport.c: TCP, or TLS over it), framed with proto/'s codec. Replies are read by
+ * a small state machine (header, then a RESULT's 8-byte prefix and its words straight into
+ * the caller's buffer, or any other frame into a bounded heap block), so a reply never needs
+ * a copy and a send that finds the socket full can read replies meanwhile: a client that
+ * sends far more requests than the server keeps in flight (64) then never deadlocks with it.
+ * Requests in flight live in a table indexed by request id minus the oldest id, as ids are
+ * handed out in order.
+ *
+ * Re-sending (sdfclient.h): a re-sendable request keeps a copy of its frame's header and
+ * prefix and a pointer to the caller's points. When the connection is lost, reconnect()
+ * replaces it in place (the table stays; the reader starts afresh) and sends every
+ * unanswered request again. It may run deep inside a send that was itself interrupted: the
+ * connection's generation tells that send its frame already went out whole on the new one. */
 #include "sdfclient.h"
 
 #include <errno.h>
 #include <limits.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <sys/uio.h>
 #include <time.h>
-#include <unistd.h>
-#include <fcntl.h>
 
 #include "proto.h"
+#include "transport.h"
 
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "libsdfclient passes points and results through as the protocol's little-endian words"
@@ -48,6 +50,12 @@ typedef struct pending {
     int state;
     int status;              /* once DONE: 0 or SDFC_ESERVER */
     uint8_t reply_type;      /* the frame type that answers it */
+    int resent;              /* sent again on a new connection already */
+    unsigned char *frame;    /* re-sendable requests: header and prefix (or the whole frame
+                                but points), owned; NULL: never re-sent */
+    size_t frame_len;
+    const void *points;      /* and the caller's points */
+    size_t points_len;
     unsigned char head[24];  /* a RESULT's expected header and prefix */
     unsigned char *result;   /* a query's caller buffer (expect bytes) */
     size_t expect;
@@ -68,9 +76,19 @@ typedef struct reader {
 } reader;
 
 struct sdfc_client {
-    int fd;
+    sdfc__conn conn;
+    unsigned generation;     /* connections replaced so far */
     int broken;              /* sticky error code, 0 while usable */
     int reply_timeout_ms;
+    int connect_timeout_ms;
+    char *host;              /* where to connect again, and how */
+    int port;
+    sdfc__tls *tls;
+    int resend;
+    int reconnecting;
+    char *token;             /* the last token the server took; NULL: none */
+    size_t token_len;
+    sdfc_stats stats;
     uint32_t max_points;     /* from HELLO; 0 = unknown */
     uint32_t max_payload;
     uint32_t next_id;
@@ -97,6 +115,9 @@ const char *sdfc_strerror(int err)
     case SDFC_ETIMEDOUT: return "timed out";
     case SDFC_ECLOSED: return "the server closed the connection";
     case SDFC_ENOREQUEST: return "no such request in flight";
+    case SDFC_ETLS: return "the TLS handshake or a TLS record failed";
+    case SDFC_ECERT: return "the server's certificate is not trusted (not signed by the CA "
+                            "file's CAs, expired, or for another host)";
     default: return "unknown error";
     }
 }
@@ -167,85 +188,48 @@ size_t sdfc_result_size(sdfc_mode mode, uint32_t count)
 
 /* ---- connecting -------------------------------------------------------------------------- */
 
-/* Wait for `events` on fd; 1 ready, 0 timed out, -1 error. timeout_ms < 0 waits forever. */
-static int wait_fd(int fd, short events, int timeout_ms)
-{
-    struct pollfd p = {.fd = fd, .events = events};
-    for (;;) {
-        int r = poll(&p, 1, timeout_ms);
-        if (r >= 0)
-            return r;
-        if (errno != EINTR)
-            return -1;
-    }
-}
-
-static int connect_one(const struct addrinfo *ai, int timeout_ms, int *fd_out)
-{
-    int fd = socket(ai->ai_family, ai->ai_socktype | SOCK_CLOEXEC, ai->ai_protocol);
-    if (fd < 0)
-        return SDFC_ECONNECT;
-    fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK);
-    int rc = SDFC_ECONNECT;
-    if (connect(fd, ai->ai_addr, ai->ai_addrlen) == 0) {
-        rc = 0;
-    } else if (errno == EINPROGRESS) {
-        int r = wait_fd(fd, POLLOUT, timeout_ms);
-        int soerr = 0;
-        socklen_t len = sizeof soerr;
-        if (r == 0)
-            rc = SDFC_ETIMEDOUT;
-        else if (r > 0 && !getsockopt(fd, SOL_SOCKET, SO_ERROR, &soerr, &len) && !soerr)
-            rc = 0;
-        else if (soerr)
-            errno = soerr;
-    }
-    if (rc) {
-        int saved = errno;
-        close(fd);
-        errno = saved;
-        return rc;
-    }
-    int one = 1;
-    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    *fd_out = fd;
-    return 0;
-}
-
 int sdfc_connect(const char *host, int port, const sdfc_options *opts, sdfc_client **out)
 {
     if (!out)
         return SDFC_EINVAL;
     *out = NULL;
-    if (!host || !*host || port <= 0 || port > 65535)
-        return SDFC_EINVAL;
     sdfc_options o = opts ? *opts : (sdfc_options){0};
-    int connect_ms = o.connect_timeout_ms ? o.connect_timeout_ms : 10000;
-    char service[16];
-    snprintf(service, sizeof service, "%d", port);
-    struct addrinfo hints = {.ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM,
-                             .ai_flags = AI_NUMERICSERV}, *list;
-    if (getaddrinfo(host, service, &hints, &list))
-        return SDFC_ECONNECT;
-    int fd = -1, rc = SDFC_ECONNECT;
-    for (struct addrinfo *ai = list; ai && fd < 0; ai = ai->ai_next)
-        rc = connect_one(ai, connect_ms, &fd);
-    freeaddrinfo(list);
-    if (fd < 0)
-        return rc;
+    if (!host || !*host || port <= 0 || port > 65535 || (o.ca_file && !o.tls))
+        return SDFC_EINVAL;
     sdfc_client *c = calloc(1, sizeof *c);
-    if (!c) {
-        close(fd);
+    if (!c || !(c->host = strdup(host))) {
+        free(c);
         return SDFC_ENOMEM;
     }
-    c->fd = fd;
+    c->conn.fd = -1;
+    c->port = port;
+    c->resend = !!o.resend;
+    c->connect_timeout_ms = o.connect_timeout_ms ? o.connect_timeout_ms : 10000;
     c->reply_timeout_ms = o.reply_timeout_ms ? o.reply_timeout_ms : 120000;
     c->next_id = c->base_id = 1;
-    if (o.token && (rc = sdfc_auth(c, o.token, strlen(o.token)))) {
+    int rc = o.tls ? sdfc__tls_new(o.ca_file, &c->tls) : 0;
+    if (!rc)
+        rc = sdfc__conn_open(&c->conn, host, port, c->tls, c->connect_timeout_ms);
+    if (!rc) {
+        c->stats.connects = 1;
+        if (o.token)
+            rc = sdfc_auth(c, o.token, strlen(o.token));
+    }
+    if (rc) {
+        int saved = errno;
         sdfc_close(c);
+        errno = saved;
         return rc;
     }
     *out = c;
+    return 0;
+}
+
+int sdfc_get_stats(const sdfc_client *c, sdfc_stats *out)
+{
+    if (!c || !out)
+        return SDFC_EINVAL;
+    *out = c->stats;
     return 0;
 }
 
@@ -253,6 +237,7 @@ static void free_entry(pending *p)
 {
     free(p->payload);
     free(p->err);
+    free(p->frame);
     *p = (pending){0};
 }
 
@@ -260,11 +245,14 @@ void sdfc_close(sdfc_client *c)
 {
     if (!c)
         return;
-    close(c->fd);
+    sdfc__conn_close(&c->conn);
+    sdfc__tls_free(c->tls);
     for (size_t i = 0; i < c->n; i++)
         free_entry(&c->pend[c->head + i]);
     free(c->pend);
     free(c->rx.buf);
+    free(c->host);
+    free(c->token);
     free(c);
 }
 
@@ -452,7 +440,18 @@ static unsigned char *rx_target(sdfc_client *c, size_t *want)
     return r->buf + at;
 }
 
-/* Read what the socket holds without blocking; *frames counts the frames completed. */
+static int conn_lost(sdfc_client *c, int code);
+
+/* A failed send or receive (errno) as the handle's error; a peer that went away may have
+ * its connection replaced. */
+static int io_failed(sdfc_client *c, int err)
+{
+    if (err == ECONNRESET || err == EPIPE)
+        return conn_lost(c, SDFC_ECLOSED);
+    return set_broken(c, err == EPROTO ? SDFC_ETLS : SDFC_EIO);
+}
+
+/* Read what the connection holds without blocking; *frames counts the frames completed. */
 static int rx_pump(sdfc_client *c, int *frames)
 {
     reader *r = &c->rx;
@@ -471,23 +470,27 @@ static int rx_pump(sdfc_client *c, int *frames)
             continue;
         }
         errno = 0;
-        ssize_t got = recv(c->fd, dst, want, MSG_DONTWAIT);
+        ssize_t got = sdfc__conn_recv(&c->conn, dst, want);
         if (got <= 0 && errno != EINTR && *frames)
             return 0; /* the frames before an end or error count first; the next call sees it */
-        if (got == 0)
-            return set_broken(c, SDFC_ECLOSED);
+        if (got == 0 && (rc = conn_lost(c, SDFC_ECLOSED)))
+            return rc;
         if (got < 0) {
             if (errno == EINTR)
                 continue;
             if (errno == EAGAIN || errno == EWOULDBLOCK)
                 return 0;
-            return set_broken(c, errno == ECONNRESET ? SDFC_ECLOSED : SDFC_EIO);
+            if ((rc = io_failed(c, errno)))
+                return rc;
         }
-        r->got += (size_t)got;
+        if (got > 0)
+            r->got += (size_t)got;
     }
 }
-/* Wait for `events` on the socket until `deadline` (now_ms's clock; no limit when the reply
- * timeout is negative): 0, or the connection marked broken with SDFC_ETIMEDOUT or SDFC_EIO. */
+
+/* Wait for `events` on the connection until `deadline` (now_ms's clock; no limit when the
+ * reply timeout is negative): 0, or the connection marked broken with SDFC_ETIMEDOUT or
+ * SDFC_EIO. */
 static int wait_deadline(sdfc_client *c, double deadline, short events)
 {
     int left = -1;
@@ -497,7 +500,7 @@ static int wait_deadline(sdfc_client *c, double deadline, short events)
             return set_broken(c, SDFC_ETIMEDOUT);
         left = l > INT_MAX ? INT_MAX : (int)l + 1;
     }
-    return wait_fd(c->fd, events, left) < 0 ? set_broken(c, SDFC_EIO) : 0;
+    return sdfc__conn_wait(&c->conn, events, left) < 0 ? set_broken(c, SDFC_EIO) : 0;
 }
 
 
@@ -516,23 +519,27 @@ static int rx_one(sdfc_client *c)
 
 /* ---- sending ----------------------------------------------------------------------------- */
 
-/* Send the iovecs in full; while the socket is full, read replies. */
+/* Send the iovecs in full; while the socket is full, read replies. When the connection is
+ * replaced meanwhile, the request these iovecs hold went out again whole on the new one
+ * (it is in the table, re-sendable, or the handle would be broken): nothing is left to do. */
 static int tx(sdfc_client *c, struct iovec *iov, int iovcnt)
 {
+    unsigned generation = c->generation;
     double deadline = now_ms() + c->reply_timeout_ms;
     while (iovcnt > 0) {
-        struct msghdr m = {.msg_iov = iov, .msg_iovlen = (size_t)iovcnt};
-        ssize_t sent = sendmsg(c->fd, &m, MSG_NOSIGNAL | MSG_DONTWAIT);
+        ssize_t sent = sdfc__conn_send(&c->conn, iov, iovcnt);
         if (sent < 0 && errno == EINTR)
             continue;
         if (sent < 0 && errno != EAGAIN && errno != EWOULDBLOCK) {
             int saved = errno, frames = 0;
             rx_pump(c, &frames); /* a closing server may have said why: keep its ERROR */
-            return set_broken(c, saved == EPIPE || saved == ECONNRESET ? SDFC_ECLOSED : SDFC_EIO);
+            if (c->broken || c->generation != generation)
+                return c->broken;
+            return io_failed(c, saved);
         }
         if (sent < 0) {
             int frames = 0, rc = rx_pump(c, &frames);
-            if (rc)
+            if (rc || c->generation != generation)
                 return rc;
             if (frames)
                 deadline = now_ms() + c->reply_timeout_ms;
@@ -553,6 +560,80 @@ static int tx(sdfc_client *c, struct iovec *iov, int iovcnt)
         }
     }
     return 0;
+}
+
+/* Keep what re-sending `p` needs: a copy of `frame`, and `points` by reference. */
+static int keep_frame(pending *p, const void *frame, size_t len, const void *points,
+                      size_t points_len)
+{
+    if (!(p->frame = malloc(len)))
+        return SDFC_ENOMEM;
+    memcpy(p->frame, frame, len);
+    p->frame_len = len;
+    p->points = points;
+    p->points_len = points_len;
+    return 0;
+}
+
+/* ---- replacing a lost connection (sdfclient.h, "Re-sending") ----------------------------- */
+
+static int call(sdfc_client *c, uint8_t type, const void *payload, size_t len, uint8_t reply,
+                pending **out);
+static int decode_hello(sdfc_client *c, pending *p, sdfc_hello_info *out);
+
+/* AUTH with the kept token and HELLO on a new connection, before anything else. */
+static int handshake(sdfc_client *c)
+{
+    pending *p;
+    int rc = 0;
+    if (c->token && !(rc = call(c, SDF_PROTO_AUTH, c->token, c->token_len, SDF_PROTO_AUTH_OK, &p)))
+        claim(c, p);
+    if (rc)
+        return rc == SDFC_ESERVER ? SDFC_ECLOSED : rc; /* the server closes after a refusal */
+    static const char name[] = "libsdfclient";
+    if ((rc = call(c, SDF_PROTO_HELLO, name, sizeof name - 1, SDF_PROTO_HELLO_OK, &p)))
+        return rc == SDFC_ESERVER ? SDFC_EPROTO : rc;
+    sdfc_hello_info h;
+    return decode_hello(c, p, &h);
+}
+
+static int reconnect(sdfc_client *c)
+{
+    c->reconnecting = 1;
+    sdfc__conn_close(&c->conn);
+    free(c->rx.buf);
+    c->rx = (reader){0};
+    c->generation++;
+    int rc = sdfc__conn_open(&c->conn, c->host, c->port, c->tls, c->connect_timeout_ms);
+    if (!rc) {
+        c->stats.connects++;
+        rc = handshake(c);
+    }
+    /* the table does not move while sending: only new requests are added to it */
+    for (size_t i = 0; !rc && i < c->n; i++) {
+        pending *p = &c->pend[c->head + i];
+        if (p->state != IN_FLIGHT)
+            continue;
+        p->resent = 1;
+        c->stats.resent++;
+        struct iovec iov[2] = {{p->frame, p->frame_len}, {(void *)p->points, p->points_len}};
+        rc = tx(c, iov, p->points_len ? 2 : 1);
+    }
+    c->reconnecting = 0;
+    return rc ? set_broken(c, rc) : 0;
+}
+
+/* The connection closed or was reset: replace it if every request in flight may go again
+ * (sdfclient.h), else the handle is broken with `code`. 0 once replaced. */
+static int conn_lost(sdfc_client *c, int code)
+{
+    int again = c->resend && !c->reconnecting && !c->broken;
+    for (size_t i = 0; again && i < c->n; i++) {
+        pending *p = &c->pend[c->head + i];
+        if (p->state == IN_FLIGHT && (!p->frame || p->resent))
+            again = 0;
+    }
+    return again ? reconnect(c) : set_broken(c, code);
 }
 
 /* ---- waiting ----------------------------------------------------------------------------- */
@@ -597,7 +678,8 @@ int sdfc_wait_any(sdfc_client *c, uint32_t *request_id)
 }
 
 /* Send a frame with no points that the server answers with `reply`; wait for it. On 0 the
- * entry is DONE with its payload, for the caller to read and then claim. */
+ * entry is DONE with its payload, for the caller to read and then claim. All but AUTH may
+ * be re-sent, their payload read again from `payload`, which outlives the entry. */
 static int call(sdfc_client *c, uint8_t type, const void *payload, size_t len, uint8_t reply,
                 pending **out)
 {
@@ -609,7 +691,9 @@ static int call(sdfc_client *c, uint8_t type, const void *payload, size_t len, u
     unsigned char head[SDF_PROTO_HEADER_SIZE];
     sdf_proto_encode_header(head, type, id, (uint32_t)len);
     struct iovec iov[2] = {{head, sizeof head}, {(void *)payload, len}};
-    int rc = tx(c, iov, len ? 2 : 1);
+    int rc = c->resend && type != SDF_PROTO_AUTH ? keep_frame(p, head, sizeof head, payload, len) : 0;
+    if (!rc)
+        rc = tx(c, iov, len ? 2 : 1);
     if (rc) {
         drop(c, lookup(c, id));
         return rc;
@@ -634,6 +718,12 @@ int sdfc_hello(sdfc_client *c, sdfc_hello_info *out)
     pending *p;
     if ((rc = call(c, SDF_PROTO_HELLO, name, sizeof name - 1, SDF_PROTO_HELLO_OK, &p)))
         return rc;
+    return decode_hello(c, p, out);
+}
+
+/* A HELLO_OK into *out and the handle's limits; claims p. */
+static int decode_hello(sdfc_client *c, pending *p, sdfc_hello_info *out)
+{
     sdf_proto_hello h;
     const char *why;
     if (sdf_proto_decode_hello_ok(p->payload, p->payload_len, &h, &why)) {
@@ -656,7 +746,19 @@ int sdfc_auth(sdfc_client *c, const char *token, size_t len)
     rc = call(c, SDF_PROTO_AUTH, token, len, SDF_PROTO_AUTH_OK, &p);
     if (rc == SDFC_ESERVER)
         set_broken(c, SDFC_ECLOSED); /* the server closes after a wrong token */
-    return rc ? rc : claim(c, p);
+    if (rc)
+        return rc;
+    char *kept = malloc(len ? len : 1); /* for the connections that replace this one */
+    if (!kept) {
+        claim(c, p);
+        return set_broken(c, SDFC_ENOMEM);
+    }
+    if (len)
+        memcpy(kept, token, len);
+    free(c->token);
+    c->token = kept;
+    c->token_len = len;
+    return claim(c, p);
 }
 
 int sdfc_list_meshes(sdfc_client *c, sdfc_mesh *out, size_t cap, size_t *count)
@@ -771,7 +873,9 @@ static int send_points(sdfc_client *c, unsigned char *frame, size_t frame_len, s
     put32(frame + 12, (uint32_t)payload);
     put32(frame + SDF_PROTO_HEADER_SIZE + 4, count);
     struct iovec iov[2] = {{frame, frame_len}, {(void *)points, 12 * (size_t)count}};
-    int rc = tx(c, iov, count ? 2 : 1);
+    int rc = c->resend ? keep_frame(p, frame, frame_len, points, 12 * (size_t)count) : 0;
+    if (!rc)
+        rc = tx(c, iov, count ? 2 : 1);
     if (rc) {
         drop(c, lookup(c, id));
         return rc;

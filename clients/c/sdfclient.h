@@ -1,9 +1,12 @@
 /* sdfclient.h - libsdfclient, a C client of sdfd's binary protocol (proto/PROTOCOL.md).
  *
- * One sdfc_client is one TCP connection to sdfd's --bin address. It sends HELLO, AUTH,
- * LIST_MESHES, and pipelined QUERY and VOLUME_QUERY requests: send many (each with its own
- * caller-owned result buffer), then receive them by request id in any order. Linking it
- * pulls in only the protocol codec, never libsdf or Embree.
+ * One sdfc_client is one TCP connection to sdfd's --bin address, plain or, for a server
+ * started with --bin-tls, inside TLS 1.2+ (GnuTLS) with the server's certificate verified.
+ * It sends HELLO, AUTH, LIST_MESHES, and pipelined QUERY and VOLUME_QUERY requests: send many
+ * (each with its own caller-owned result buffer), then receive them by request id in any
+ * order. With sdfc_options.resend, requests a connection took with it when it closed are
+ * sent again, once, on a new one ("Re-sending" below). Linking it pulls in only the protocol
+ * codec and GnuTLS, never libsdf or Embree.
  *
  * Conventions:
  *  - Every function that can fail returns int: 0 (SDFC_OK) or a negative SDFC_E* code;
@@ -16,7 +19,8 @@
  *  - Any other error on a connected handle (I/O, timeout, closed, a malformed reply) leaves
  *    the byte stream in an unknown state: the handle then fails every call with that same
  *    code; sdfc_close() it and connect again. SDFC_EINVAL (a bad argument, refused before
- *    anything is sent) is the exception and leaves the handle as it was.
+ *    anything is sent) is the exception and leaves the handle as it was. A connection that
+ *    closes under a handle with `resend` set is first replaced, as "Re-sending" says.
  *  - Thread-safety: a handle is used by one thread at a time; distinct handles are
  *    independent (the library has no global state).
  *  - Points are float32 x, y, z triples in host order; results are 32-bit words in the
@@ -52,6 +56,10 @@ enum {
     SDFC_ECLOSED = -104,     /* the server closed the connection (after a connection-level
                                 ERROR, its request id 0, sdfc_server_error() holds it) */
     SDFC_ENOREQUEST = -105,  /* sdfc_wait() for an id that is not in flight on this handle */
+    SDFC_ETLS = -106,        /* the TLS handshake failed (e.g. the port is not --bin-tls), or
+                                a TLS record did not decrypt */
+    SDFC_ECERT = -107,       /* the server's certificate did not verify: not signed by a CA
+                                of ca_file (or the system's), expired, or not for this host */
 };
 
 /* A static, human-readable message for an SDFC_E* code. */
@@ -65,14 +73,51 @@ typedef struct sdfc_options {
                                in full (or for the socket to take more of a request);
                                0 = 120000; < 0 = forever */
     const char *token;      /* non-NULL: send AUTH with it right after connecting */
+    int tls;                /* non-zero: a server started with --bin-tls. The frames travel
+                               inside TLS 1.2 or 1.3; the handshake (within the connect
+                               timeout) verifies the server's certificate against ca_file
+                               and that it names `host` (a DNS name, or an IP address
+                               against the certificate's IP addresses) */
+    const char *ca_file;    /* with tls: a PEM file of the CA certificates to trust; NULL:
+                               the system's. Without tls it must be NULL */
+    int resend;             /* non-zero: re-send requests a closed connection took with it
+                               ("Re-sending" below); `points` arrays must then stay valid
+                               until their request is waited for */
 } sdfc_options;
 
 /* Connect to HOST:PORT (a name or numeric address; IPv4 or IPv6). `opts` may be NULL
  * (defaults). On success *out is a new handle (free it with sdfc_close); on failure *out is
- * NULL and the code is SDFC_ECONNECT, SDFC_ETIMEDOUT, SDFC_ENOMEM, or the AUTH's error
- * (SDFC_ESERVER with EUNAUTHORIZED for a wrong token: its message is lost with the handle,
- * so sdfc_connect prints nothing and callers that need it call sdfc_auth themselves). */
+ * NULL and the code is SDFC_ECONNECT, SDFC_ETIMEDOUT, SDFC_ENOMEM, with tls SDFC_ETLS or
+ * SDFC_ECERT, SDFC_EINVAL for a ca_file that does not load or holds no PEM certificate (or
+ * is given without tls), or the AUTH's error (SDFC_ESERVER with EUNAUTHORIZED for a wrong
+ * token: its message is lost with the handle, so sdfc_connect prints nothing and callers
+ * that need it call sdfc_auth themselves).
+ *
+ * Re-sending (opts->resend): sdfd's replicas behind a load balancer come and go, and a
+ * connection to one that died closes or is reset with requests still unanswered. When that
+ * happens inside any call on the handle (the server closed it, without a connection-level
+ * ERROR, or a send or receive failed with EPIPE or ECONNRESET), and every request in
+ * flight is one that may go again, the handle opens a new connection to the same host and
+ * port (and TLS settings), sends AUTH again with the last token that succeeded (from
+ * opts->token or sdfc_auth) and HELLO (its limits replace the old ones), then sends every
+ * unanswered request again with its id, from its own points array, and the call goes on.
+ * Replies that had arrived are kept. The requests that may go again are the read-only
+ * ones: QUERY (sdfc_send_query, sdfc_query), VOLUME_QUERY, HELLO and LIST_MESHES; an AUTH
+ * in flight is not, so a connection lost during sdfc_auth is its error. Each request is
+ * sent again at most once: a connection that closes while any request it carries was
+ * already re-sent, a new connection that fails, or a failure while replacing one, is the
+ * error of the call that met it (SDFC_ECLOSED, or the reconnection's SDFC_ECONNECT,
+ * SDFC_ETIMEDOUT ...; a refused AUTH is SDFC_ECLOSED with sdfc_server_error() set) and the
+ * handle is unusable as for any such error. Timeouts and malformed replies are never
+ * re-sent. sdfc_get_stats() counts connections and re-sent requests. */
 int sdfc_connect(const char *host, int port, const sdfc_options *opts, sdfc_client **out);
+
+/* A handle's counters. */
+typedef struct sdfc_stats {
+    uint64_t connects;  /* connections opened: 1, plus one per replaced connection */
+    uint64_t resent;    /* requests sent again on a new connection */
+} sdfc_stats;
+int sdfc_get_stats(const sdfc_client *c, sdfc_stats *out);
 
 /* Close the connection and free the handle (NULL is allowed). Requests still in flight are
  * abandoned; their result buffers are not written after this returns. */
@@ -99,7 +144,8 @@ typedef struct sdfc_hello_info {
 int sdfc_hello(sdfc_client *c, sdfc_hello_info *out);
 
 /* AUTH with `token` (len bytes). A wrong token: SDFC_ESERVER (EUNAUTHORIZED), and the
- * server closes the connection, so the handle is unusable after it. */
+ * server closes the connection, so the handle is unusable after it. A token the server
+ * took is kept for the connections that replace this one (opts->resend). */
 int sdfc_auth(sdfc_client *c, const char *token, size_t len);
 
 /* LIST_MESHES: writes min(cap, count) entries to `out` (cap may be 0 and out NULL to ask
@@ -164,8 +210,10 @@ typedef struct sdfc_filter {
  * hold sdfc_result_size(mode, count) bytes (`result_size` says how many it has: fewer is
  * SDFC_ELIMIT, nothing sent) and must stay valid, untouched by the caller, until
  * sdfc_wait() returns this id or the handle is closed. `points` is read only during the
- * call. While the socket is full, the call reads replies that have arrived (into their own
- * buffers), so any number of requests may be sent before waiting. */
+ * call, unless the handle re-sends (opts->resend): then it is read again if the request is
+ * re-sent, so it too must stay valid and unchanged until the id is waited for. While the
+ * socket is full, the call reads replies that have arrived (into their own buffers), so
+ * any number of requests may be sent before waiting. */
 int sdfc_send_query(sdfc_client *c, const char *mesh, sdfc_mode mode, sdfc_sign sign,
                     const sdfc_filter *filter, const float *points, uint32_t count,
                     void *result, size_t result_size, uint32_t *request_id);

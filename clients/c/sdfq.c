@@ -4,9 +4,11 @@
  * ops; slice.c). Queries use the binary protocol through libsdfclient; the rest use the
  * HTTP API through libcurl. */
 #include <curl/curl.h>
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "commands.h"
 
@@ -15,6 +17,9 @@
     "  --server URL     sdfd's HTTP API (env SDFD_URL; default http://127.0.0.1:8080)\n"     \
     "  --bin HOST:PORT  its binary protocol (env SDFD_BIN; default the --server host, 9090)\n" \
     "  --token T        its bearer token (env SDFD_TOKEN)\n"                                 \
+    "  --bin-tls        the binary port speaks TLS, as sdfd --bin-tls (env SDFD_BIN_TLS=1)\n"  \
+    "  --cacert FILE    CA certificates (PEM) to verify an https:// or --bin-tls server\n"     \
+    "                   against (env SDFD_CACERT; default the system's)\n"                     \
     "  --timeout S      seconds to wait for an answer (default 120)\n"                       \
     "Exit: 0 ok, 1 usage, 2 the server refused (its status and code on stderr), 3 cannot\n"  \
     "connect or the connection failed, 4 bad input file, 5 cannot write the output.\n"
@@ -103,7 +108,7 @@ static const command commands[] = {
      "The stored volumes, one a line: name, dims, order, encoding, bytes (tab-separated).\n"},
 };
 
-static const char *const global_options = "server: bin: token: timeout: help";
+static const char *const global_options = "server: bin: bin-tls cacert: token: timeout: help";
 
 static void usage(FILE *f)
 {
@@ -172,6 +177,29 @@ static int bin_from_url(sdfq_server *srv)
     return ok ? 0 : SDFQ_USAGE;
 }
 
+/* --cacert and --bin-tls, and their environment variables (SDFD_BIN_TLS as sdfd reads it:
+ * 1, true, 0, false). */
+static int configure_tls(const sdfq_args *a, sdfq_server *srv)
+{
+    const char *env;
+    srv->cacert = sdfq_opt_value(a, "cacert");
+    if (!srv->cacert && (env = getenv("SDFD_CACERT")) && *env)
+        srv->cacert = env;
+    if (srv->cacert && access(srv->cacert, R_OK)) {
+        fprintf(stderr, "sdfq: cannot read the CA file %s: %s\n", srv->cacert, strerror(errno));
+        return SDFQ_INPUT;
+    }
+    srv->bin_tls = sdfq_opt_value(a, "bin-tls") != NULL;
+    if (!srv->bin_tls && (env = getenv("SDFD_BIN_TLS")) && *env) {
+        srv->bin_tls = !strcmp(env, "1") || !strcmp(env, "true");
+        if (!srv->bin_tls && strcmp(env, "0") && strcmp(env, "false")) {
+            fprintf(stderr, "sdfq: SDFD_BIN_TLS must be 1, true, 0 or false, not '%s'\n", env);
+            return SDFQ_USAGE;
+        }
+    }
+    return 0;
+}
+
 static int configure(const sdfq_args *a, sdfq_server *srv)
 {
     const char *env;
@@ -190,14 +218,15 @@ static int configure(const sdfq_args *a, sdfq_server *srv)
     const char *bin = sdfq_opt_value(a, "bin");
     if (!bin && (env = getenv("SDFD_BIN")) && *env)
         bin = env;
-    return bin ? parse_bin(bin, srv) : bin_from_url(srv);
+    int rc = configure_tls(a, srv);
+    return rc ? rc : bin ? parse_bin(bin, srv) : bin_from_url(srv);
 }
 
 /* The subcommand's index in argv: the first argument that is neither a global option nor
  * its value (global options may come before it); 0 if none. */
 static int find_command(int argc, char **argv)
 {
-    static const char *const valued[] = {"--server", "--bin", "--token", "--timeout"};
+    static const char *const valued[] = {"--server", "--bin", "--token", "--timeout", "--cacert"};
     for (int i = 1; i < argc; i++) {
         int skip = 0;
         for (size_t k = 0; k < sizeof valued / sizeof *valued; k++)

@@ -18,6 +18,9 @@ typedef struct sdfq_server {
     int bin_port;
     const char *token; /* NULL: none */
     int timeout_ms;    /* the reply timeout of either protocol */
+    const char *cacert; /* the CA certificates (PEM) that https and --bin-tls verify the
+                           server against; NULL: the system's */
+    int bin_tls;       /* the binary port speaks TLS (sdfd --bin-tls) */
 } sdfq_server;
 
 #endif

@@ -6,6 +6,16 @@
  * arrival order give the same bits as the same queries sent one at a time; refusals keep the
  * server's status, code and message and leave the connection usable; AUTH right and wrong;
  * local refusals (small buffer, too many points, bad names) send nothing.
+ * TLS (SDFC_TEST_TLS_BIN, a --bin-tls sdfd whose certificate the CA in SDFC_TEST_CA signed
+ * for 127.0.0.1 and localhost; SDFC_TEST_ELSEWHERE_BIN, one whose certificate names another
+ * host; SDFC_TEST_OTHER_CA, a CA that signed neither): the same bits as the plain port for
+ * the same pipelined queries; another CA, another host name, a plain port, a CA file that
+ * does not load are each refused with their own code; a silent server times the handshake
+ * out.
+ * Re-sending (through cutproxy.c, which cuts a connection after so many bytes as a dying
+ * replica behind a load balancer would): the answers arrive, bit-equal, over one new
+ * connection with the token sent again, over plain and TLS, cut while receiving and while
+ * sending; a second cut of a re-sent request is the error; without `resend` the first is.
  * Fake server (a listening socket in this process): the bytes the client sends, with the
  * points passed straight from the caller's array, are exactly the codec's
  * sdf_proto_encode_query frame (the differential test of that fast path), and each
@@ -17,14 +27,17 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "../common/check.h"
+#include "cutproxy.h"
 #include "proto.h"
 #include "sdfclient.h"
 
 static char host[64];
-static int port, auth_port;
+static int port, auth_port, tls_port, elsewhere_port;
+static const char *ca_file, *other_ca_file;
 
 static int parse_addr(const char *env, int *out)
 {
@@ -196,6 +209,182 @@ static void test_auth(void)
           "connect with a wrong token");
 }
 
+/* ---- TLS --------------------------------------------------------------------------------- */
+
+static int connect_tls(const char *h, int p, const char *ca, sdfc_client **out)
+{
+    sdfc_options o = {.reply_timeout_ms = 60000, .tls = 1, .ca_file = ca};
+    return sdfc_connect(h, p, &o, out);
+}
+
+/* The same pipelined queries (every mode, up to 100,000 points: replies of many TLS records
+ * and more than a socket buffer) on two handles give the same bits. */
+static void same_bits(sdfc_client *a, sdfc_client *b, const char *what)
+{
+    enum { N = 24 };
+    uint32_t counts[N], ida[N], idb[N];
+    sdfc_mode modes[N];
+    float *pts[N];
+    unsigned char *ra[N], *rb[N];
+    for (int i = 0; i < N; i++) {
+        counts[i] = i % 6 == 5 ? 100000 : (uint32_t)(i * 97 % 3000);
+        modes[i] = (sdfc_mode)(i % 4);
+        pts[i] = random_points(counts[i], 500u + (unsigned)i);
+        size_t size = sdfc_result_size(modes[i], counts[i]);
+        ra[i] = calloc(1, size + 1);
+        rb[i] = calloc(1, size + 1);
+        CHECK(sdfc_send_query(a, "demo", modes[i], SDFC_SIGN_AUTO, NULL, pts[i], counts[i], ra[i],
+                              size, &ida[i]) == 0 &&
+                  sdfc_send_query(b, "demo", modes[i], SDFC_SIGN_AUTO, NULL, pts[i], counts[i],
+                                  rb[i], size, &idb[i]) == 0,
+              "%s: send %d", what, i);
+    }
+    for (int i = 0; i < N; i++) {
+        size_t size = sdfc_result_size(modes[i], counts[i]);
+        int r1 = sdfc_wait(a, ida[i]), r2 = sdfc_wait(b, idb[i]);
+        CHECK(r1 == 0 && r2 == 0 && !memcmp(ra[i], rb[i], size), "%s: request %d (%u points): "
+              "%s, %s", what, i, counts[i], sdfc_strerror(r1), sdfc_strerror(r2));
+        free(pts[i]);
+        free(ra[i]);
+        free(rb[i]);
+    }
+}
+
+static void test_tls(void)
+{
+    sdfc_client *t = NULL, *plain = open_client(port, NULL);
+    int rc = connect_tls(host, tls_port, ca_file, &t);
+    CHECK(rc == 0 && t, "TLS connect: %s", sdfc_strerror(rc));
+    if (t) {
+        test_hello_and_meshes(t);
+        same_bits(t, plain, "TLS vs plain");
+        sdfc_close(t);
+    }
+    sdfc_close(plain);
+    rc = connect_tls("localhost", tls_port, ca_file, &t);
+    CHECK(rc == 0 && sdfc_hello(t, &(sdfc_hello_info){0}) == 0,
+          "by host name (SNI, a DNS name in the certificate): %s", sdfc_strerror(rc));
+    sdfc_close(t);
+
+    t = (sdfc_client *)1;
+    rc = connect_tls(host, tls_port, other_ca_file, &t);
+    CHECK(rc == SDFC_ECERT && t == NULL, "another CA: %s", sdfc_strerror(rc));
+    rc = connect_tls(host, elsewhere_port, ca_file, &t);
+    CHECK(rc == SDFC_ECERT && t == NULL, "a certificate for another host: %s", sdfc_strerror(rc));
+    rc = connect_tls(host, port, ca_file, &t);
+    CHECK(rc == SDFC_ETLS && t == NULL, "TLS to a plain port: %s", sdfc_strerror(rc));
+    rc = connect_tls(host, tls_port, "/nonexistent/ca.pem", &t);
+    CHECK(rc == SDFC_EINVAL && t == NULL, "a missing CA file: %s", sdfc_strerror(rc));
+    char junk[] = "/tmp/sdfclient-junk-XXXXXX";
+    int fd = mkstemp(junk);
+    CHECK(fd >= 0 && write(fd, "not a certificate\n", 18) == 18, "junk file");
+    close(fd);
+    rc = connect_tls(host, tls_port, junk, &t);
+    CHECK(rc == SDFC_EINVAL && t == NULL, "a CA file with no certificate: %s", sdfc_strerror(rc));
+    unlink(junk);
+    sdfc_options o = {.ca_file = ca_file};
+    CHECK(sdfc_connect(host, tls_port, &o, &t) == SDFC_EINVAL, "ca_file without tls");
+
+    /* plain frames to the TLS port: its handshake fails and it closes the connection */
+    float p[3] = {0, 0, 0}, out[1];
+    t = open_client(tls_port, NULL);
+    rc = t ? sdfc_query(t, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, p, 1, out, 4) : 0;
+    CHECK(rc == SDFC_ECLOSED || rc == SDFC_EPROTO, "plain frames to a TLS port: %s",
+          sdfc_strerror(rc));
+    sdfc_close(t);
+}
+
+/* ---- re-sending on a lost connection ----------------------------------------------------- */
+
+/* Send `n` queries of `count` points each (signed, from pts), wait for them in order; the
+ * first error, or 0. */
+static int ask(sdfc_client *c, const float *pts, int n, uint32_t count, float *out)
+{
+    uint32_t ids[16];
+    int rc = 0;
+    for (int i = 0; i < n && !rc; i++)
+        rc = sdfc_send_query(c, "demo", SDFC_SIGNED, SDFC_SIGN_AUTO, NULL, pts + 3 * (size_t)count * i,
+                             count, out + (size_t)count * i, 4 * (size_t)count, &ids[i]);
+    for (int i = 0; i < n && !rc; i++)
+        rc = sdfc_wait(c, ids[i]);
+    return rc;
+}
+
+typedef struct resend_case {
+    const char *what;
+    int upstream;        /* the server's port */
+    int tls;
+    const char *token;
+    int resend;
+    cut_plan plan[2];
+    int n;               /* requests ... */
+    uint32_t count;      /* ... of so many points */
+    int want_rc;
+    uint64_t connects, resent_min, resent_max;
+} resend_case;
+
+static void run_resend(const resend_case *k)
+{
+    size_t total = (size_t)k->n * k->count;
+    float *pts = random_points(total, 41), *ref = malloc(4 * total), *got = calloc(total, 4);
+    sdfc_client *direct = open_client(port, NULL);
+    CHECK(ask(direct, pts, k->n, k->count, ref) == 0, "%s: direct answers", k->what);
+    sdfc_close(direct);
+    cut_proxy px;
+    CHECK(cut_proxy_start(&px, k->upstream, k->plan, 2) == 0, "%s: proxy", k->what);
+    sdfc_options o = {.reply_timeout_ms = 60000, .token = k->token, .tls = k->tls,
+                      .ca_file = k->tls ? ca_file : NULL, .resend = k->resend};
+    sdfc_client *c = NULL;
+    int rc = sdfc_connect(host, px.port, &o, &c);
+    CHECK(rc == 0, "%s: connect: %s", k->what, sdfc_strerror(rc));
+    if (!rc) {
+        rc = ask(c, pts, k->n, k->count, got);
+        sdfc_stats st = {0};
+        sdfc_get_stats(c, &st);
+        CHECK(rc == k->want_rc, "%s: %s", k->what, sdfc_strerror(rc));
+        CHECK(rc || !memcmp(got, ref, 4 * total), "%s: the answers are the direct bits", k->what);
+        CHECK(st.connects == k->connects && st.resent >= k->resent_min &&
+                  st.resent <= k->resent_max,
+              "%s: %llu connections, %llu re-sent", k->what, (unsigned long long)st.connects,
+              (unsigned long long)st.resent);
+        CHECK(px.connections == (int)k->connects, "%s: the proxy saw %d", k->what,
+              (int)px.connections);
+        if (!rc && k->resend) { /* and the replacement goes on working */
+            CHECK(ask(c, pts, 1, k->count, got) == 0 && !memcmp(got, ref, 4 * (size_t)k->count),
+                  "%s: a query after", k->what);
+        }
+    }
+    sdfc_close(c);
+    cut_proxy_stop(&px);
+    free(pts);
+    free(ref);
+    free(got);
+}
+
+static void test_resend(void)
+{
+    /* 5 x 100 points: a RESULT is 16 + 8 + 400 bytes; the cut lets two and a part through */
+    const long R = 424, cut = 2 * R + 100;
+    const cut_plan pass = {-1, -1, 0};
+    resend_case cases[] = {
+        {"once", port, 0, NULL, 1, {{cut, -1, 0}, pass}, 5, 100, 0, 2, 3, 3},
+        {"twice", port, 0, NULL, 1, {{cut, -1, 0}, {cut, -1, 0}}, 5, 100, SDFC_ECLOSED, 2, 3, 3},
+        {"without resend", port, 0, NULL, 0, {{cut, -1, 0}, pass}, 5, 100, SDFC_ECLOSED, 1, 0, 0},
+        /* --auth-queries: a re-sent query without AUTH first would be refused */
+        {"with a token", auth_port, 0, "s3cret", 1, {{16 + cut, -1, 0}, pass}, 5, 100, 0, 2, 3, 3},
+        /* a reset while sending 8 x 720 KB: the request cut in half goes again whole */
+        {"reset while sending", port, 0, NULL, 1, {{-1, 1 << 20, 1}, pass}, 8, 60000, 0, 2, 1, 8},
+        {"TLS, closed while receiving", tls_port, 1, NULL, 1, {{600000, -1, 0}, pass}, 8, 60000,
+         0, 2, 1, 7},
+        {"TLS, reset while sending", tls_port, 1, NULL, 1, {{-1, 1 << 20, 1}, pass}, 8, 60000,
+         0, 2, 1, 8},
+        {"TLS, twice", tls_port, 1, NULL, 1, {{600000, -1, 0}, {600000, -1, 1}}, 8, 60000,
+         SDFC_ECLOSED, 2, 1, 7},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++)
+        run_resend(&cases[i]);
+}
+
 /* ---- the fake server --------------------------------------------------------------------- */
 
 static int listen_loopback(int *port_out)
@@ -323,6 +512,18 @@ static void test_fake_server(void)
     sdfc_close(c);
     close(lfd);
 
+    /* a TLS handshake that gets no answer: the connect timeout */
+    lfd = listen_loopback(&fport);
+    sdfc_options o = {.tls = 1, .ca_file = ca_file, .connect_timeout_ms = 300};
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int rc = sdfc_connect("127.0.0.1", fport, &o, &c);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double secs = (double)(t1.tv_sec - t0.tv_sec) + (double)(t1.tv_nsec - t0.tv_nsec) / 1e9;
+    CHECK(rc == SDFC_ETIMEDOUT && c == NULL && secs >= 0.25 && secs < 5,
+          "silent TLS handshake: %s after %.2f s", sdfc_strerror(rc), secs);
+    close(lfd);
+
     /* nobody listening */
     CHECK(sdfc_connect("127.0.0.1", fport, NULL, &c) == SDFC_ECONNECT && c == NULL, "refused");
     free(p);
@@ -330,9 +531,15 @@ static void test_fake_server(void)
 
 int main(void)
 {
-    if (parse_addr("SDFC_TEST_BIN", &port) || parse_addr("SDFC_TEST_AUTH_BIN", &auth_port)) {
-        fprintf(stderr, "test_sdfclient: set SDFC_TEST_BIN and SDFC_TEST_AUTH_BIN to host:port "
-                        "(tests/clients/run_sdfclient.py does)\n");
+    ca_file = getenv("SDFC_TEST_CA");
+    other_ca_file = getenv("SDFC_TEST_OTHER_CA");
+    if (parse_addr("SDFC_TEST_TLS_BIN", &tls_port) ||
+        parse_addr("SDFC_TEST_ELSEWHERE_BIN", &elsewhere_port) ||
+        parse_addr("SDFC_TEST_BIN", &port) || parse_addr("SDFC_TEST_AUTH_BIN", &auth_port) ||
+        !ca_file || !other_ca_file) {
+        fprintf(stderr, "test_sdfclient: set SDFC_TEST_BIN, SDFC_TEST_AUTH_BIN, "
+                        "SDFC_TEST_TLS_BIN, SDFC_TEST_ELSEWHERE_BIN (host:port), SDFC_TEST_CA "
+                        "and SDFC_TEST_OTHER_CA (tests/clients/run_sdfclient.py does)\n");
         return 1;
     }
     sdfc_client *c = open_client(port, NULL);
@@ -344,6 +551,8 @@ int main(void)
     }
     sdfc_close(c);
     test_auth();
+    test_tls();
+    test_resend();
     test_fake_server();
     return check_finish("sdfclient");
 }

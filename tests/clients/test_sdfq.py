@@ -2,7 +2,11 @@
 answers bit-equal to the server's HTTP octet-stream answers for the same points (npy and
 CSV outputs, npy and CSV inputs, many pipelined requests); its npy output byte-equal to the
 HTTP npy answer; the token over both protocols; bad input files, unknown names and an
-unreachable server, each with its documented exit code and a one-line message."""
+unreachable server, each with its documented exit code and a one-line message. Over TLS
+(certificates made by certtool as tests/server/test_tls.py makes them): --cacert with an
+https:// server and --bin-tls, the same bits as plain, and a wrong CA, a missing CA file and
+TLS on the wrong side each refused with a clear line. Through a proxy that cuts the binary
+connection as a dying replica would, sdfq's query re-sends and answers the same bits."""
 import io
 import json
 import os
@@ -10,6 +14,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import unittest
 
 import numpy as np
@@ -19,6 +24,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "..", "clients", "python"))
 sys.path.insert(0, os.path.join(HERE, "..", "server"))
 import sdfclient  # noqa: E402
 from harness import DATA, Server  # noqa: E402
+from test_tls import make_ca, make_server_cert  # noqa: E402
 
 SDFQ = os.environ.get("SDFQ", "build/clients/c/sdfq")
 MODES = ["signed", "distance", "gradient", "closest", "filtered", "filtered-gradient"]
@@ -48,6 +54,59 @@ def csv_words(text, words):
     return out
 
 
+class CutProxy:
+    """A loopback proxy to a binary port whose first connection is closed once it has relayed
+    `cut` bytes of replies (a replica dying behind a load balancer); later ones relay all."""
+
+    def __init__(self, port, cut):
+        self.port, self.cut, self.connections = port, cut, 0
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.listener.settimeout(0.1)
+        self.stopping = False
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    @property
+    def address(self):
+        return f"127.0.0.1:{self.listener.getsockname()[1]}"
+
+    def _serve(self):
+        while not self.stopping:
+            try:
+                client, _ = self.listener.accept()
+            except socket.timeout:
+                continue
+            self.connections += 1
+            limit = self.cut if self.connections == 1 else None
+            upstream = socket.create_connection(("127.0.0.1", self.port))
+            threading.Thread(target=self._pipe, args=(client, upstream, None), daemon=True).start()
+            threading.Thread(target=self._pipe, args=(upstream, client, limit), daemon=True).start()
+
+    @staticmethod
+    def _pipe(src, dst, limit):
+        relayed = 0
+        try:
+            while limit is None or relayed < limit:
+                data = src.recv(65536 if limit is None else min(65536, limit - relayed))
+                if not data:
+                    break
+                dst.sendall(data)
+                relayed += len(data)
+        except OSError:
+            pass
+        for s in (src, dst):
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            s.close()
+
+    def close(self):
+        self.stopping = True
+        self.thread.join()
+        self.listener.close()
+
+
 class Sdfq(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -56,10 +115,19 @@ class Sdfq(unittest.TestCase):
         cls.tmp = tempfile.TemporaryDirectory()
         rng = np.random.default_rng(11)
         cls.points = rng.uniform(-0.3, 0.3, (2500, 3)).astype(np.float32)
+        # the same mesh over HTTPS and --bin-tls, its certificate signed by cls.ca
+        ca = make_ca(cls.tmp.name, "ca")
+        cls.ca = ca[0]
+        cls.other_ca = make_ca(cls.tmp.name, "other-ca")[0]
+        cert, key = make_server_cert(cls.tmp.name, "server", ca, 0x4004)
+        cls.tls = Server("--mesh", f"fandisk={os.path.join(DATA, 'fandisk.off')}",
+                         "--tls-cert", cert, "--tls-key", key, "--bin-tls")
+        cls.https = f"https://127.0.0.1:{cls.tls.ports['http']}"
 
     @classmethod
     def tearDownClass(cls):
         cls.http.close()
+        cls.tls.stop()
         cls.tmp.cleanup()
         cls.server.stop()
 
@@ -69,7 +137,8 @@ class Sdfq(unittest.TestCase):
     def sdfq(self, *args, stdin=None, env_extra=None, server=None):
         server = server or self.server
         env = dict(os.environ, SDFD_URL=server.url, SDFD_BIN=f"127.0.0.1:{server.bin_port}")
-        env.pop("SDFD_TOKEN", None)
+        for name in ("SDFD_TOKEN", "SDFD_CACERT", "SDFD_BIN_TLS"):
+            env.pop(name, None)
         env.update(env_extra or {})
         return subprocess.run([SDFQ, *args], input=stdin, capture_output=True, env=env,
                               timeout=120)
@@ -361,6 +430,72 @@ class Sdfq(unittest.TestCase):
                              2, "401")
             self.assertOk(self.sdfq("upload", "c", os.path.join(DATA, "cow.off"), "--token",
                                     "s3cret", server=srv))
+
+
+    # ---- TLS (the second server) and re-sending ----
+
+    def tls_env(self, ca=None, **extra):
+        return {"SDFD_URL": self.https, "SDFD_BIN": f"127.0.0.1:{self.tls.bin_port}",
+                "SDFD_CACERT": ca or self.ca, **extra}
+
+    def test_query_and_meshes_over_tls_bit_equal(self):
+        np.save(self.path("tp.npy"), self.points)
+        ref = self.octet("gradient", self.points)
+        for env in (self.tls_env(SDFD_BIN_TLS="1"), self.tls_env(SDFD_BIN_TLS="true")):
+            r = self.sdfq("query", "fandisk", self.path("tp.npy"), "--mode", "gradient",
+                          "--batch", "300", env_extra=env)
+            self.assertOk(r)
+            self.assertTrue(np.array_equal(csv_words(r.stdout.decode(), 4), ref))
+        out = self.path("tls-out.npy")
+        self.assertOk(self.sdfq("query", "fandisk", self.path("tp.npy"), "--mode", "gradient",
+                                "-o", out, "--bin-tls", "--cacert", self.ca,
+                                "--server", self.https, "--bin", f"127.0.0.1:{self.tls.bin_port}"))
+        self.assertTrue(np.array_equal(np.load(out).view(np.uint32), ref), "--bin-tls --cacert")
+        r = self.sdfq("meshes", "--bin-tls", env_extra=self.tls_env())
+        self.assertOk(r)
+        self.assertIn("fandisk\t", r.stdout.decode())
+
+    def test_https_commands_with_cacert(self):
+        r = self.sdfq("volumes", env_extra=self.tls_env())
+        self.assertOk(r)
+        self.assertOk(self.sdfq("upload", "cow", os.path.join(DATA, "cow.off"), "--cacert",
+                                self.ca, "--server", self.https))
+        self.assertIn("cow\t", self.sdfq("meshes", "--bin-tls", env_extra=self.tls_env())
+                      .stdout.decode())
+        self.assertOk(self.sdfq("delete", "cow", env_extra=self.tls_env()))
+
+    def test_tls_refusals(self):
+        np.save(self.path("tr.npy"), self.points[:10])
+        q = ("query", "fandisk", self.path("tr.npy"))
+        self.assertFails(self.sdfq(*q, "--bin-tls", env_extra=self.tls_env(self.other_ca)), 3,
+                         "certificate is not trusted", "--cacert")
+        self.assertFails(self.sdfq("volumes", env_extra=self.tls_env(self.other_ca)), 3,
+                         "cannot reach", self.https)
+        self.assertFails(self.sdfq(*q, "--bin-tls", "--cacert", self.path("none.pem")), 4,
+                         "none.pem")
+        self.assertFails(self.sdfq(*q, env_extra=self.tls_env()), 3, "closed", "--bin-tls")
+        self.assertFails(self.sdfq(*q, "--bin-tls", "--cacert", self.ca), 3,
+                         "TLS handshake", "leave out --bin-tls")
+        self.assertFails(self.sdfq("meshes", env_extra=self.tls_env(SDFD_BIN_TLS="maybe")), 1,
+                         "SDFD_BIN_TLS")
+
+    def test_resent_after_a_cut(self):
+        pts = self.points[:2000]
+        np.save(self.path("cut.npy"), pts)
+        ref = self.octet("signed", pts)
+        for server, extra in ((self.server, []),
+                              (self.tls, ["--bin-tls", "--cacert", self.ca])):
+            # 20 requests of 100 points, replies of 424 bytes: the cut falls in the third (past
+            # the TLS handshake's few KB)
+            proxy = CutProxy(server.bin_port, 4000 if extra else 1000)
+            try:
+                r = self.sdfq("query", "fandisk", self.path("cut.npy"), "--batch", "100",
+                              "--bin", proxy.address, *extra, server=server)
+                self.assertOk(r)
+                self.assertTrue(np.array_equal(csv_words(r.stdout.decode(), 1), ref))
+                self.assertEqual(proxy.connections, 2, "one new connection")
+            finally:
+                proxy.close()
 
 
 if __name__ == "__main__":
