@@ -9,20 +9,28 @@ balancer from deploy/lb/ (its own file, with only the addresses and the routing 
 Through the balancer it uploads the meshes (PUT) and bakes a volume, and checks with
 deploy/shared_store.py that every replica answers them bit-equal to the reference and sees a
 replacement and a deletion within the staleness window. Then it runs deploy/loadgen.py's load
-of the meshes and the volume through the balancer. Mid-run one replica is SIGKILLed and started
-again, and later another is SIGTERMed (it drains and exits). It passes when:
+of the meshes and the volume through the balancer, over HTTP and, at the same time, over the
+binary protocol on the balancer's TCP port (a few workers, one sdfclient.BinaryClient each,
+which sends a query once more on a new connection when its connection dies or a draining
+replica refuses it). Mid-run one replica is SIGKILLed and started again, and later another is
+SIGTERMed (it drains and exits). It passes when:
   - the shared-store checks pass;
-  - no request failed and every answer is byte-equal to the reference's;
+  - no request failed and every answer is byte-equal to the reference's, over HTTP and over
+    the binary protocol (0 lost binary answers);
+  - each binary worker whose connection was on the killed or the SIGTERMed replica (the
+    replica that answered its last query before the event, from the replicas' logs) opened a
+    new connection for each such event, and each event hit at least one worker;
   - the load ran across both events, the SIGTERMed replica exited 0 and logged its drain;
   - every name the killed replica served before its kill was served by another replica after;
   - a query on the binary port through the balancer answers the same bits as the reference;
   - with --mode leastconn: the replicas evicted items (each sees every name, and the budget is
     under their sum);
   - with --mode hash: during the load before the kill each name was served by exactly one
-    replica, which loaded at most each of its names once (its share fits the budget), and
-    every query of a name was served by that replica whenever it was up (outside the time from
-    its kill to a few seconds after it was ready again, and after its SIGTERM) -- read from the
-    replicas' own request logs, whose point counts name the mesh or volume (loadgen.py).
+    replica, which loaded at most each of its names (and the binary load's one) once (its
+    share fits the budget), and every query of a name was served by that replica whenever it
+    was up (outside the time from its kill to a few seconds after it was ready again, and
+    after its SIGTERM) -- read from the replicas' own request logs, whose point counts name
+    the mesh or volume (loadgen.py).
 
     python3 deploy/failover.py --sdfd build/server/sdfd --lb haproxy --mode hash
 
@@ -59,6 +67,7 @@ RECOVERY_SECONDS = 4.0  # a restarted replica is back in rotation by then (check
 TOKEN = "failover-token"
 BAKED = ("fandisk", "fandisk-sdf", 40)  # mesh, volume, resolution
 QUERY_ROUTES = ("/v1/meshes/{name}/query", "/v1/volumes/{name}/query")
+BINARY_QUERIES = ("QUERY", "VOLUME_QUERY")
 
 
 def free_ports(n):
@@ -131,6 +140,21 @@ class Sdfd:
                     continue
                 if (e.get("event") == "request" and e.get("status") == 200
                         and e.get("route") in QUERY_ROUTES and e["ts"] >= since):
+                    out.append((e["ts"], e["points"]))
+        return out
+
+    def served_binary(self, since):
+        """(ts, points) of every binary QUERY and VOLUME_QUERY answered from `since` on."""
+        out = []
+        for log in self.logs:
+            for line in open(log, errors="replace"):
+                try:
+                    e = json.loads(line)
+                except ValueError:
+                    continue
+                if (e.get("event") == "request" and e.get("proto") == "binary"
+                        and e.get("status") == 200 and e.get("method") in BINARY_QUERIES
+                        and e["ts"] >= since):
                     out.append((e["ts"], e["points"]))
         return out
 
@@ -316,14 +340,18 @@ def store_counts(replicas):
             for r in replicas]
 
 
-def run_load(a, lb_url, replicas, reqs, n):
-    """The load with its two events; a dict of what happened when."""
+def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n):
+    """The HTTP and the binary load with their two events; a dict of what happened when."""
     ev = {}
     load = threading.Thread(target=lambda: ev.setdefault(
         "stats", loadgen.run(lb_url, reqs, a.workers, a.seconds, a.max_requests)))
+    bin_load = threading.Thread(target=lambda: ev.setdefault(
+        "binary", loadgen.run_binary(("127.0.0.1", bin_port), bin_reqs, a.seconds,
+                                     a.max_requests)))
     ev["counts0"] = store_counts(replicas)
     ev["t0"] = time.time()
     load.start()
+    bin_load.start()
     time.sleep(a.seconds * 0.2)
     ev["kill"], ev["term"] = kill, term = choose_targets(replicas, n, a.mode, ev["t0"])
     ev["counts1"] = store_counts(replicas)
@@ -338,6 +366,7 @@ def run_load(a, lb_url, replicas, reqs, n):
     ev["term_rc"] = replicas[term].proc.wait(timeout=30)
     ev["t_exit"] = time.time()
     load.join()
+    bin_load.join()
     ev["t_end"] = time.time()
     ev["rss"] = [r.peak_rss() if r.proc.poll() is None else None for r in replicas]
     return ev
@@ -351,11 +380,24 @@ def store_checks(a, replicas, ev, n, owner, budget):
         problems.append(f"no replica evicted anything under a budget of {budget} B")
     if budget and a.mode == "hash":
         for i in range(len(replicas)):
-            mine = sum(1 for o in owner.values() if o == i)
+            # the binary load's item reaches every replica (its port is not hashed)
+            mine = sum(1 for o in owner.values() if o == i) \
+                + sum(1 for m in ev["bin_items"] if owner.get(m) != i)
             if moved[i][0] > mine:
                 problems.append(f"replica {i} loaded {moved[i][0]} items from the store during "
-                                f"the load, more than the {mine} names it owns")
+                                f"the load, more than the {mine} names it owns or the binary "
+                                "load asks for")
     return moved, problems
+
+
+def binary_items(a, names, sizes):
+    """The indexes of the names the binary load queries. The binary port is balanced per
+    connection, not hashed, so with hashing its queries reach every replica: there it asks
+    for the smallest item only, which each replica can hold beside its own share of the
+    budget (with every name, each would hold them all and evict without end)."""
+    if a.mode != "hash":
+        return list(range(len(names)))
+    return [names.index(min(sizes, key=sizes.get))]
 
 
 def scenario(a, tmp):
@@ -385,7 +427,13 @@ def scenario(a, tmp):
         binary_ok = check_binary(bin_port, ref, names[0])
         reqs = loadgen.make_requests(names[:-1], a.requests, volumes=names[-1:])
         loadgen.fetch_expected(ref.url, reqs)
-        ev = run_load(a, lb_url, replicas, reqs, n)
+        bin_items = binary_items(a, names, sizes)
+        bin_reqs = loadgen.make_binary_requests(
+            [names[m] for m in bin_items if m < n - 1], a.bin_requests, a.bin_workers,
+            volumes=[names[m] for m in bin_items if m == n - 1])
+        loadgen.fetch_binary_expected("127.0.0.1", ref.bin_port, bin_reqs)
+        ev = run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n)
+        ev["bin_items"] = bin_items
     finally:
         if lb:
             lb.terminate()
@@ -394,6 +442,50 @@ def scenario(a, tmp):
             p.stop()
     return judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness,
                  store_problems, binary_ok)
+
+
+def last_replica(replicas, workers, t0, t):
+    """binary worker -> the replica that answered its last query before t (its connection's)."""
+    last = {}
+    for i, r in enumerate(replicas):
+        for ts, points in r.served_binary(t0):
+            w = points % workers
+            if ts < t and (w not in last or ts > last[w][0]):
+                last[w] = (ts, i)
+    return {w: i for w, (_, i) in last.items()}
+
+
+def judge_binary(a, replicas, ev):
+    """The binary load's report and problems: nothing lost or different, and every worker
+    whose replica died or drained under it reconnected."""
+    stats, counters = ev["binary"]
+    kill, term = ev["kill"], ev["term"]
+    hit = {w: 0 for w in range(a.bin_workers)}
+    on = {}
+    for what, i, t in (("killed", kill, ev["t_kill"]), ("terminated", term, ev["t_term"])):
+        on[what] = sorted(w for w, r in last_replica(replicas, a.bin_workers, ev["t0"],
+                                                     t).items() if r == i)
+        for w in on[what]:
+            hit[w] += 1
+    reconnects = [c.get("connects", 1) - 1 for c in counters]
+    report = {**stats.summary(), "workers": a.bin_workers,
+              "ok_after_kill": sum(t > ev["t_kill"] for t in stats.done_at),
+              "ok_after_term": sum(t > ev["t_term"] for t in stats.done_at),
+              "reconnects": reconnects, "resent": [c.get("resent", 0) for c in counters],
+              "on_killed": on["killed"], "on_terminated": on["terminated"]}
+    problems = []
+    if stats.failed or stats.mismatched:
+        problems.append(f"binary: {stats.failed} lost, {stats.mismatched} mismatched answers")
+    if stats.ok < 20 or report["ok_after_kill"] == 0 or report["ok_after_term"] == 0:
+        problems.append("the binary load did not run across both events")
+    for what in on:
+        if not on[what]:
+            problems.append(f"binary: no worker's connection was on the {what} replica")
+    for w, n in hit.items():
+        if reconnects[w] < n:
+            problems.append(f"binary worker {w}: {reconnects[w]} reconnects, but its replica "
+                            f"went away {n} times")
+    return report, problems
 
 
 def judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness, store_problems, binary_ok):
@@ -427,6 +519,8 @@ def judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness, store_proble
         problems.append(f"the SIGTERMed replica exited {ev['term_rc']} or did not log its drain")
     if not binary_ok:
         problems.append("a binary query through the balancer differed from the reference")
+    report["binary"], bp = judge_binary(a, replicas, ev)
+    problems += bp
     problems += check_survivors(replicas, n, t0, t_kill, kill)
     owner = {}
     if a.mode == "hash":
@@ -455,6 +549,10 @@ def main():
     ap.add_argument("--workers", type=int, default=6)
     ap.add_argument("--requests", type=int, default=48)
     ap.add_argument("--max-requests", type=int, default=20000)
+    ap.add_argument("--bin-workers", type=int, default=4,
+                    help="binary-protocol workers, one connection each (at least the replicas)")
+    ap.add_argument("--bin-requests", type=int, default=12,
+                    help="distinct binary requests per worker")
     ap.add_argument("--max-resident-bytes", type=int, default=-1,
                     help="the replicas' budget (default: under the sum of the items, over it "
                     "less any one; 0: none)")

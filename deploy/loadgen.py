@@ -13,14 +13,24 @@ The names are numbered meshes first, then volumes; the number of points of a req
 of M is i modulo M, so a replica's request log (its "points" field) tells which mesh or volume
 each query it served was for (deploy/failover.py uses that to check hashing).
 
+The same for the binary protocol (make_binary_requests, fetch_binary_expected, run_binary):
+each worker holds one sdfclient.BinaryClient (clients/python) for the whole run and sends its
+own requests (1 to ~65000 points, the same modes; a quarter of them three at a time with
+query_many), checked against the reference's binary answers. Worker w of W sends point counts
+that are w modulo W, so a replica's log tells whose connection it served. A request fails
+(an answer is lost) if the client raises; the client itself sends a query once more on a new
+connection when its connection dies or the server refuses it as shutting down, and the run
+reports each worker's reconnects.
+
     python3 deploy/loadgen.py --target http://127.0.0.1:8080 --reference http://127.0.0.1:18080 \\
         --meshes demo --workers 6 --seconds 10
 
-Standard library and numpy only.
+Standard library, numpy and clients/python (sdfclient).
 """
 import argparse
 import http.client
 import json
+import os
 import random
 import sys
 import threading
@@ -28,6 +38,10 @@ import time
 import urllib.parse
 
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                "clients", "python"))
+import sdfclient  # noqa: E402
 
 MODES = ("signed", "distance", "gradient", "closest")
 VOLUME_MODES = ("value", "gradient")
@@ -162,6 +176,122 @@ def run(target, requests, workers=6, seconds=20.0, max_requests=100000, timeout=
     for t in threads:
         t.join()
     return stats
+
+
+class BinaryRequest:
+    """One binary-protocol query: a mesh query in `mode`, or a volume query (`mode` "value"
+    or "gradient"); `expected` is its answer's arrays as bytes, by key."""
+
+    def __init__(self, worker, kind, name, points, mode):
+        self.worker, self.kind, self.name, self.points, self.mode = worker, kind, name, points, mode
+        self.expected = None
+
+    def ask(self, client):
+        """The answer from a BinaryClient, as {key: bytes}."""
+        if self.kind == "volumes":
+            r = client.query_volume(self.name, self.points, gradient=self.mode == "gradient")
+        else:
+            r = client.query(self.name, self.points, mode=self.mode)
+        return answer_bytes(r)
+
+
+def answer_bytes(result):
+    return {k: np.ascontiguousarray(v).tobytes() for k, v in result.items()}
+
+
+def make_binary_requests(meshes, per_worker, workers, seed=2, volumes=()):
+    """`per_worker` requests for each of `workers` workers, name by name in turn; worker w's
+    point counts are w modulo `workers`. A list per worker."""
+    rng = np.random.default_rng(seed)
+    names = [("meshes", m, MODES) for m in meshes] + [("volumes", v, VOLUME_MODES)
+                                                      for v in volumes]
+    out = []
+    for w in range(workers):
+        mine = []
+        for k in range(per_worker):
+            kind, name, modes = names[k % len(names)]
+            n = point_count(rng, OCTET_MAX_POINTS, w, workers)
+            pts = rng.uniform(-1.5, 1.5, (n, 3)).astype(np.float32)
+            mine.append(BinaryRequest(w, kind, name, pts, modes[rng.integers(len(modes))]))
+        out.append(mine)
+    return out
+
+
+def fetch_binary_expected(host, port, per_worker, timeout=120):
+    """Fills each request's expected answer from the reference's binary port."""
+    client = sdfclient.BinaryClient(host, port, timeout=timeout)
+    for mine in per_worker:
+        for r in mine:
+            r.expected = r.ask(client)
+    client.close()
+
+
+def binary_round(client, rng, mine, batches):
+    """One query, or three of one mode pipelined: [(request, answer or exception)]."""
+    r = mine[rng.randrange(len(mine))]
+    group = batches.get(r.mode) if r.kind == "meshes" else None
+    if not group or rng.random() >= 0.25:
+        try:
+            return [(r, r.ask(client))]
+        except (OSError, sdfclient.SdfError) as e:
+            return [(r, e)]
+    rs = [r] + [group[rng.randrange(len(group))] for _ in range(2)]
+    try:
+        got = client.query_many([(q.name, q.points) for q in rs], mode=r.mode)
+    except (OSError, sdfclient.SdfError) as e:
+        return [(q, e) for q in rs]
+    return [(q, a if isinstance(a, Exception) else answer_bytes(a)) for q, a in zip(rs, got)]
+
+
+def binary_worker(where, mine, stats, deadline, budget, seed, timeout, counters):
+    """One BinaryClient's share of the load; its connects and re-sends go in counters."""
+    rng = random.Random(seed)
+    batches = {}
+    for r in mine:
+        if r.kind == "meshes":
+            batches.setdefault(r.mode, []).append(r)
+    client = None
+    while time.monotonic() < deadline:
+        if client is None:
+            try:
+                client = sdfclient.BinaryClient(*where, timeout=timeout)
+            except OSError as e:
+                stats.record(time.time(), "failed", f"connect: {e!r}")
+                time.sleep(0.1)
+                continue
+        with budget["lock"]:
+            if budget["left"] <= 0:
+                break
+            budget["left"] -= 1
+        for r, got in binary_round(client, rng, mine, batches):
+            what = f"{r.kind}/{r.name} {r.mode} ({len(r.points)} points)"
+            if isinstance(got, Exception):
+                stats.record(time.time(), "failed", f"{what}: {got!r}")
+            elif got != r.expected:
+                stats.record(time.time(), "mismatch", f"{what}: the answer differs")
+            else:
+                stats.record(time.time(), "ok")
+    if client is not None:
+        counters.update(connects=client.connects, resent=client.resent)
+        client.close()
+
+
+def run_binary(where, per_worker, seconds=20.0, max_requests=100000, timeout=60):
+    """Runs the binary load (one worker per list of requests) to completion; returns the
+    Stats and each worker's {"connects", "resent"}."""
+    stats = Stats()
+    deadline = time.monotonic() + seconds
+    budget = {"lock": threading.Lock(), "left": max_requests}
+    counters = [{} for _ in per_worker]
+    threads = [threading.Thread(target=binary_worker,
+                                args=(where, mine, stats, deadline, budget, 100 + w, timeout,
+                                      counters[w]))
+               for w, mine in enumerate(per_worker)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return stats, counters
 
 
 def main():

@@ -7,7 +7,9 @@ and the version pyproject.toml reads from the package); that it queries a real s
 and the binary protocol with answers bit-equal to the server's plain JSON answers; that the
 examples in clients/python/README.md run; and that pyflakes and mypy --strict pass on the
 package, while mypy, run as a user's project would, sees the installed type hints: it accepts
-the README's examples and rejects calls that break them.
+the README's examples and rejects calls that break them. BinaryClient's re-sending is
+checked through a loopback proxy (CutProxy) that cuts connections mid-reply or hands them
+to a draining server.
 
 The source is copied first because pip builds in place and would leave build/ and egg-info
 in the source tree."""
@@ -16,9 +18,13 @@ import json
 import os
 import re
 import shutil
+import signal
+import socket
+import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import unittest
 import urllib.request
 
@@ -27,7 +33,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 SOURCE = os.path.normpath(os.path.join(HERE, "..", "..", "clients", "python"))
 sys.path.insert(0, os.path.join(HERE, "..", "server"))
-from harness import Server  # noqa: E402
+from harness import Server, metric, wait_until  # noqa: E402
 
 
 def run(args, cwd, timeout=240, expect=0):
@@ -39,6 +45,103 @@ def run(args, cwd, timeout=240, expect=0):
         raise AssertionError(f"{args[:4]} exited {p.returncode}, expected {expect}:\n"
                              f"{p.stdout[-4000:]}\n{p.stderr[-4000:]}")
     return p.stdout
+
+
+def json_query(url, name, points, mode):
+    """The server's own JSON answer to a mesh query, as float32 arrays."""
+    body = json.dumps({"points": points.tolist(), "mode": mode}).encode()
+    req = urllib.request.Request(f"{url}/v1/meshes/{name}/query", body,
+                                 {"Content-Type": "application/json"})
+    with urllib.request.urlopen(req, timeout=60) as r:
+        ref = json.load(r)
+    out = {"distance": np.asarray(ref["distance"], np.float32)}
+    if "gradient" in ref:
+        out["gradient"] = np.asarray(ref["gradient"], np.float32).reshape(-1, 3)
+    return out
+
+
+class CutProxy:
+    """A loopback proxy for the binary protocol. Connection k follows plan[k] (the last entry
+    for the rest), a (how, port) pair: "pass" relays both ways to `port`; "cut" relays the
+    client's bytes and the server's frames up to the first RESULT, of which it relays half
+    and then closes both ends, so that the connection dies in the middle of a reply;
+    "cut-sent" (for TLS, whose frames it cannot read) relays both ways until the client has
+    sent CUT_SENT bytes, then closes both ends, so that the request dies before its reply."""
+
+    CUT_SENT = 3000  # more than a TLS handshake and AUTH or HELLO, less than 300 points
+
+    def __init__(self, plan):
+        self.plan, self.connections = plan, 0
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.port = self.listener.getsockname()[1]
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self):
+        while True:
+            try:
+                client, _ = self.listener.accept()
+            except OSError:
+                return
+            how, port = self.plan[min(self.connections, len(self.plan) - 1)]
+            self.connections += 1
+            upstream = socket.create_connection(("127.0.0.1", port))
+            threading.Thread(target=self._up, args=(client, upstream, how),
+                             daemon=True).start()
+            threading.Thread(target=self._down, args=(client, upstream, how),
+                             daemon=True).start()
+
+    @staticmethod
+    def _end(*socks):
+        for s in socks:
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            s.close()
+
+    def _up(self, client, upstream, how):
+        sent = 0
+        try:
+            while True:
+                data = client.recv(1 << 16)
+                if not data:
+                    break
+                upstream.sendall(data)
+                sent += len(data)
+                if how == "cut-sent" and sent >= self.CUT_SENT:
+                    break
+        except OSError:
+            pass
+        self._end(client, upstream)
+
+    def _down(self, client, upstream, how):
+        def exact(n):
+            data = b""
+            while len(data) < n:
+                more = upstream.recv(n - len(data))
+                if not more:
+                    raise ConnectionError("upstream closed")
+                data += more
+            return data
+        try:
+            while how != "cut":
+                data = upstream.recv(1 << 16)
+                if not data:
+                    break
+                client.sendall(data)
+            while how == "cut":
+                head = exact(16)
+                payload = exact(struct.unpack_from("<I", head, 12)[0])
+                if how == "cut" and head[5] == 0x83:
+                    client.sendall(head + payload[:len(payload) // 2])
+                    break
+                client.sendall(head + payload)
+        except OSError:
+            pass
+        self._end(client, upstream)
+
+    def close(self):
+        self.listener.close()
 
 
 def readme_examples():
@@ -130,6 +233,155 @@ class InstalledPackage(unittest.TestCase):
                               ("bg", gradient)):
                 self.assertEqual(got[key].dtype, np.float32, key)
                 self.assertEqual(got[key].tobytes(), want.tobytes(), key)
+
+    def points_file(self, points):
+        """`points` saved where the venv's code can np.load them."""
+        path = os.path.join(self.tmp.name, f"points{len(os.listdir(self.tmp.name))}.npy")
+        np.save(path, points)
+        return path
+
+    def through(self, plan, points, code, options=""):
+        """Run `code` in the venv with `b`, a BinaryClient (with `options`, its constructor's
+        keyword arguments as text) through a CutProxy with `plan` (the ports to "pass" to or
+        "cut" default to the server's), and `p`, `points`; `code` leaves what it got in
+        `out` (a dict of arrays) and the client's counters are added. Returns them and the
+        proxy's connection count."""
+        proxy = CutProxy([(how, port or self.server.bin_port) for how, port in plan])
+        self.addCleanup(proxy.close)
+        out = os.path.join(self.tmp.name, "through.npz")
+        self.venv_python(
+            "import numpy as np, sdfclient\n"
+            f"b = sdfclient.BinaryClient('127.0.0.1', {proxy.port}{options})\n"
+            f"p = np.load({self.points_file(points)!r})\n"
+            "out = {}\n" + code +
+            "out.update(connects=b.connects, resent=b.resent)\n"
+            f"np.savez({out!r}, **out)\n")
+        with np.load(out) as got:
+            return {k: got[k] for k in got.files}, proxy.connections
+
+    def test_binary_resends_once_when_the_connection_dies(self):
+        p = np.random.default_rng(9).uniform(-3, 3, (300, 3)).astype(np.float32)
+        ref = json_query(self.server.url, "demo", p, "gradient")
+        self.assertGreater(len(np.unique(ref["distance"])), 100)
+        # One query, cut mid-reply: sent again on a second connection, answered bit for bit.
+        got, conns = self.through([("cut", 0), ("pass", 0)], p, (
+            "r = b.query('demo', p, mode='gradient')\n"
+            "out.update(d=r['distance'], g=r['gradient'])\n"))
+        self.assertEqual((int(got["connects"]), int(got["resent"]), conns), (2, 1, 2))
+        self.assertEqual(got["d"].tobytes(), ref["distance"].tobytes())
+        self.assertEqual(got["g"].tobytes(), ref["gradient"].tobytes())
+        # Five pipelined: the first reply is cut, so all five go again, in order.
+        got, conns = self.through([("cut", 0), ("pass", 0)], p, (
+            "rs = b.query_many([('demo', p[60 * i:60 * (i + 1)]) for i in range(5)],"
+            " mode='gradient', window=5)\n"
+            "out.update(d=np.concatenate([r['distance'] for r in rs]),"
+            " g=np.concatenate([r['gradient'] for r in rs]))\n"))
+        self.assertEqual((int(got["connects"]), int(got["resent"]), conns), (2, 5, 2))
+        self.assertEqual(got["d"].tobytes(), ref["distance"].tobytes())
+        self.assertEqual(got["g"].tobytes(), ref["gradient"].tobytes())
+        # A connection that dies twice under the same query: ConnectionError, no third try.
+        got, conns = self.through([("cut", 0)], p, (
+            "try:\n"
+            "    b.query('demo', p)\n"
+            "    raise SystemExit('no error')\n"
+            "except ConnectionError as e:\n"
+            "    assert not isinstance(e, sdfclient.SdfError), e\n"))
+        self.assertEqual((int(got["connects"]), int(got["resent"]), conns), (2, 1, 2))
+
+    def test_binary_volume_query_resent(self):
+        p = np.random.default_rng(4).uniform(-2, 2, (200, 3)).astype(np.float32)
+        got, conns = self.through([("cut", 0), ("pass", 0)], p, (
+            f"c = sdfclient.Client({self.server.url!r})\n"
+            "c.wait(c.bake('demo', volume='resent', resolution=24, order=1))\n"
+            "r = b.query_volume('resent', p, gradient=True)\n"
+            f"direct = sdfclient.BinaryClient('127.0.0.1', {self.server.bin_port})\n"
+            "w = direct.query_volume('resent', p, gradient=True)\n"
+            "assert direct.connects == 1 and direct.resent == 0\n"
+            "out.update(d=r['distance'], g=r['gradient'], wd=w['distance'], wg=w['gradient'])\n"))
+        self.assertEqual((int(got["connects"]), int(got["resent"]), conns), (2, 1, 2))
+        self.assertGreater(len(np.unique(got["wd"])), 100)
+        self.assertEqual(got["d"].tobytes(), got["wd"].tobytes())
+        self.assertEqual(got["g"].tobytes(), got["wg"].tobytes())
+
+    def test_binary_resends_over_tls_with_its_token(self):
+        # The new connection repeats the first one's TLS (CA file, the host name checked) and
+        # its AUTH: with --auth-queries an unauthenticated query would be refused.
+        d = self.tmp.name
+        for args in (["--generate-privkey", "--key-type=ecdsa", "--outfile", f"{d}/ca.key"],
+                     ["--generate-self-signed", "--load-privkey", f"{d}/ca.key", "--template",
+                      f"{d}/ca.tmpl", "--outfile", f"{d}/ca.pem"],
+                     ["--generate-privkey", "--key-type=ecdsa", "--outfile", f"{d}/srv.key"],
+                     ["--generate-certificate", "--load-privkey", f"{d}/srv.key",
+                      "--load-ca-certificate", f"{d}/ca.pem", "--load-ca-privkey", f"{d}/ca.key",
+                      "--template", f"{d}/srv.tmpl", "--outfile", f"{d}/srv.pem"]):
+            with open(f"{d}/ca.tmpl", "w") as f:
+                f.write('cn = "test CA"\nca\ncert_signing_key\nexpiration_days = 2\n')
+            with open(f"{d}/srv.tmpl", "w") as f:
+                f.write('cn = "127.0.0.1"\nip_address = "127.0.0.1"\ntls_www_server\n'
+                        'signing_key\nencryption_key\nexpiration_days = 2\n')
+            subprocess.run(["certtool", *args], check=True, capture_output=True)
+        p = np.random.default_rng(8).uniform(-3, 3, (300, 3)).astype(np.float32)
+        ref = json_query(self.server.url, "demo", p, "signed")
+        with Server("--tls-cert", f"{d}/srv.pem", "--tls-key", f"{d}/srv.key", "--bin-tls",
+                    "--token", "sesame", "--auth-queries") as s:
+            got, conns = self.through([("cut-sent", s.bin_port), ("pass", s.bin_port)], p, (
+                "r = b.query('demo', p)\n"
+                "out.update(d=r['distance'], tls=b.sock.version() or '')\n"),
+                f", tls=True, cafile={d + '/ca.pem'!r}, token='sesame'")
+            self.assertEqual(sum(e.get("method") == "AUTH" and e.get("status") == 200
+                                 for e in s.logs), 2)
+        self.assertEqual((int(got["connects"]), int(got["resent"]), conns), (2, 1, 2))
+        self.assertIn(str(got["tls"]), ("TLSv1.2", "TLSv1.3"))
+        self.assertEqual(got["d"].tobytes(), ref["distance"].tobytes())
+
+    def test_binary_query_refused_by_a_draining_server_goes_elsewhere(self):
+        # A server that drains (SIGTERM) answers frames on connections already open with
+        # 503 EUNAVAILABLE; the client sends the query again on a new connection, which the
+        # proxy hands to the other server. A 1 s batch window keeps the drain going meanwhile.
+        p = np.random.default_rng(3).uniform(-3, 3, (100, 3)).astype(np.float32)
+        with Server("--batch-window-us", "1000000") as draining:
+            ref = json_query(self.server.url, "demo", p, "signed")
+            proxy = CutProxy([("pass", draining.bin_port), ("pass", self.server.bin_port)])
+            self.addCleanup(proxy.close)
+            out = os.path.join(self.tmp.name, "drained.npz")
+            env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+            client = subprocess.Popen([self.python, "-c", (
+                "import sys, numpy as np, sdfclient\n"
+                f"b = sdfclient.BinaryClient('127.0.0.1', {proxy.port})\n"
+                "b.hello()\n"
+                "print('open', flush=True)\n"
+                "sys.stdin.readline()\n"
+                f"r = b.query('demo', np.load({self.points_file(p)!r}))\n"
+                f"np.savez({out!r}, d=r['distance'], connects=b.connects, resent=b.resent)\n")],
+                cwd=self.elsewhere, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                text=True)
+            self.assertEqual(client.stdout.readline(), "open\n")
+            answered = {}
+            slow = threading.Thread(target=lambda: answered.update(
+                json_query(draining.url, "demo", p, "signed")))
+            slow.start()  # in flight for the batch window: the drain waits for it
+
+            def queued():
+                with urllib.request.urlopen(draining.url + "/metrics", timeout=5) as r:
+                    return metric(r.read().decode(), "sdfd_queue_depth") == 1
+            self.assertTrue(wait_until(queued))
+            draining.proc.send_signal(signal.SIGTERM)
+            self.assertTrue(wait_until(lambda: any(
+                "draining" in e.get("message", "") for e in draining.logs)))
+            client.stdin.write("go\n")
+            client.stdin.flush()
+            self.assertEqual(client.wait(60), 0)
+            client.stdin.close()
+            client.stdout.close()
+            slow.join(30)
+            self.assertEqual(answered["distance"].tobytes(), ref["distance"].tobytes())
+            self.assertEqual(draining.stop(), 0)
+            self.assertTrue(any(e.get("proto") == "binary" and e.get("status") == 503
+                                for e in draining.logs), "the draining server refused nothing")
+        with np.load(out) as got:
+            self.assertEqual((int(got["connects"]), int(got["resent"]), proxy.connections),
+                             (2, 1, 2))
+            self.assertEqual(got["d"].tobytes(), ref["distance"].tobytes())
 
     def test_slices(self):
         out = os.path.join(self.tmp.name, "slice.npz")
