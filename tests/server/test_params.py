@@ -210,8 +210,9 @@ class Params(unittest.TestCase):
         self.strict("GET", "/v1/volumes/vol/data", misspelt=("fromat", "format"),
                     repeated="format=npy")
 
-    def volume_query(self, args, form, body_keys=None):
-        path = "/v1/volumes/vol/query" + ("?" + urllib.parse.urlencode(args) if args else "")
+    def post_points(self, route, args, form, body_keys=None):
+        """POINTS to a query route in one body form, with URL arguments and JSON keys."""
+        path = route + ("?" + urllib.parse.urlencode(args) if args else "")
         if form == "json":
             body = json.dumps({"points": POINTS.tolist(), **(body_keys or {})}).encode()
             return self.request("POST", path, body, {**JSON, "Accept": "application/x-npy"})
@@ -219,6 +220,9 @@ class Params(unittest.TestCase):
             return self.request("POST", path, npy_bytes(POINTS), NPY)
         return self.request("POST", path, POINTS.tobytes(),
                             {**OCTET, "Accept": "application/x-npy"})
+
+    def volume_query(self, args, form, body_keys=None):
+        return self.post_points("/v1/volumes/vol/query", args, form, body_keys)
 
     def test_volume_query(self):
         for args in ({"mode": "gradient"}, {"interpolation": "nearest"},
@@ -253,14 +257,7 @@ class Params(unittest.TestCase):
     # ---- mesh queries ----
 
     def query(self, args, form, body_keys=None):
-        path = "/v1/meshes/demo/query" + ("?" + urllib.parse.urlencode(args) if args else "")
-        if form == "json":
-            body = json.dumps({"points": POINTS.tolist(), **(body_keys or {})}).encode()
-            return self.request("POST", path, body, {**JSON, "Accept": "application/x-npy"})
-        if form == "npy":
-            return self.request("POST", path, npy_bytes(POINTS), NPY)
-        return self.request("POST", path, POINTS.tobytes(),
-                            {**OCTET, "Accept": "application/x-npy"})
+        return self.post_points("/v1/meshes/demo/query", args, form, body_keys)
 
     def test_query_mode_and_sign(self):
         for args in ({"mode": "closest"}, {"sign": "winding"},
