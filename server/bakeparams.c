@@ -189,20 +189,12 @@ int sdfd_bake_from_json(const char *text, size_t len, sdfd_bake_request *out,
     memset(out, 0, sizeof *out);
     memset(names, 0, sizeof *names);
     sdfd_ops_defaults(&out->ops);
-    cJSON *root = cJSON_ParseWithLength(text, len);
-    if (!root) {
-        snprintf(err, cap, "the body is not valid JSON");
-        return SDFD_ESYNTAX;
-    }
-    int rc = 0, field = -1;
+    cJSON *root;
+    int rc = sdfd_json_body_object(text, len, &root, err, cap);
+    if (rc)
+        return rc;
+    int field = -1;
     unsigned ops_seen = 0;
-    if (!cJSON_IsObject(root))
-        rc = fail(err, cap, "the body must be a JSON %s", "object");
-    const char *twice = rc ? NULL : sdfd_json_repeated_key(root);
-    if (twice) {
-        snprintf(err, cap, "'%.40s' is given twice", twice);
-        rc = SDF_EINVAL;
-    }
     for (const cJSON *item = root->child; !rc && item; item = item->next)
         rc = one_key(item, out, names, &field, &ops_seen, err, cap);
     if (!rc && ops_seen == SDFD_OPS_KEY_OTHER) /* a solver for no ops: a mistake */

@@ -10,6 +10,8 @@
 
 #include <cjson/cJSON.h>
 
+#include "errors.h"
+
 enum kind { NUMBER, COUNT, FLAG, KERNEL, SEED };
 
 /* Each name, its kind, and where it goes in sdf_filter_options (a double for NUMBER, an int
@@ -134,6 +136,25 @@ const char *sdfd_json_repeated_key(const cJSON *object)
             if (a->string && b->string && !strcmp(a->string, b->string))
                 return a->string;
     return NULL;
+}
+
+int sdfd_json_body_object(const char *text, size_t len, cJSON **root, char *err, size_t cap)
+{
+    *root = cJSON_ParseWithLength(text, len);
+    if (!*root) {
+        snprintf(err, cap, "the body is not valid JSON");
+        return SDFD_ESYNTAX;
+    }
+    const char *twice = NULL;
+    if (!cJSON_IsObject(*root))
+        snprintf(err, cap, "the body must be a JSON object");
+    else if ((twice = sdfd_json_repeated_key(*root)))
+        snprintf(err, cap, "'%.40s' is given twice", twice);
+    else
+        return 0;
+    cJSON_Delete(*root);
+    *root = NULL;
+    return SDF_EINVAL;
 }
 
 static int json_smooth(const cJSON *o, sdf_filter_options *f, char *volume_mesh, char *err,

@@ -25,6 +25,12 @@
  * undefined, so the parsers of filter and bake objects refuse them. */
 const char *sdfd_json_repeated_key(const cJSON *object);
 
+/* Parse a request body that must be one JSON object without repeated keys (bake and
+ * field-operation bodies). 0 with *root (the caller frees it with cJSON_Delete), or
+ * SDFD_ESYNTAX (not JSON) / SDF_EINVAL (not an object, a key twice) with a message in err
+ * and *root NULL. */
+int sdfd_json_body_object(const char *text, size_t len, cJSON **root, char *err, size_t cap);
+
 /* From the text of a JSON object (parsed with cJSON). 0, or SDF_EINVAL with a message. */
 #define SDFD_VOLUME_NAME_MAX 255
 

@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "errors.h"
-#include "filterparams.h" /* sdfd_json_repeated_key */
+#include "filterparams.h" /* sdfd_json_body_object */
 
 #define OP_NAMES "redistance, offset, round, fillet, smooth"
 
@@ -124,21 +124,12 @@ int sdfd_ops_from_json(const char *text, size_t len, sdfd_ops_request *out,
 {
     sdfd_ops_defaults(out);
     volume[0] = '\0';
-    cJSON *root = cJSON_ParseWithLength(text, len);
-    if (!root) {
-        snprintf(err, cap, "the body is not valid JSON");
-        return SDFD_ESYNTAX;
-    }
-    int rc = 0;
+    cJSON *root;
+    int rc = sdfd_json_body_object(text, len, &root, err, cap);
+    if (rc)
+        return rc;
     unsigned seen = 0;
-    if (!cJSON_IsObject(root))
-        rc = fail(err, cap, "the body must be a JSON %s", "object");
-    const char *twice = rc ? NULL : sdfd_json_repeated_key(root);
-    if (twice) {
-        snprintf(err, cap, "'%.40s' is given twice", twice);
-        rc = SDF_EINVAL;
-    }
-    for (const cJSON *item = rc ? NULL : root->child; !rc && item; item = item->next)
+    for (const cJSON *item = root->child; !rc && item; item = item->next)
         rc = one_key(item, out, volume, &seen, err, cap);
     if (!rc && !(seen & SDFD_OPS_KEY_OPS))
         rc = fail(err, cap, "'%s' is required: an array of operations, e.g. "
