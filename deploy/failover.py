@@ -128,9 +128,9 @@ class Sdfd:
             self.proc.kill()
             self.proc.wait()
 
-    def served(self, since):
-        """(ts, points) of every HTTP query answered 200 from `since` on, over all of this
-        replica's logs."""
+    def requests(self, since, wanted):
+        """(ts, points) of every request log event from `since` on, over all of this
+        replica's logs, that `wanted(event)` accepts."""
         out = []
         for log in self.logs:
             for line in open(log, errors="replace"):
@@ -138,25 +138,19 @@ class Sdfd:
                     e = json.loads(line)
                 except ValueError:
                     continue
-                if (e.get("event") == "request" and e.get("status") == 200
-                        and e.get("route") in QUERY_ROUTES and e["ts"] >= since):
+                if e.get("event") == "request" and e["ts"] >= since and wanted(e):
                     out.append((e["ts"], e["points"]))
         return out
 
+    def served(self, since):
+        """Every HTTP query answered 200 from `since` on."""
+        return self.requests(since, lambda e: e.get("status") == 200
+                             and e.get("route") in QUERY_ROUTES)
+
     def served_binary(self, since):
-        """(ts, points) of every binary QUERY and VOLUME_QUERY answered from `since` on."""
-        out = []
-        for log in self.logs:
-            for line in open(log, errors="replace"):
-                try:
-                    e = json.loads(line)
-                except ValueError:
-                    continue
-                if (e.get("event") == "request" and e.get("proto") == "binary"
-                        and e.get("status") == 200 and e.get("method") in BINARY_QUERIES
-                        and e["ts"] >= since):
-                    out.append((e["ts"], e["points"]))
-        return out
+        """Every binary QUERY and VOLUME_QUERY answered from `since` on."""
+        return self.requests(since, lambda e: e.get("proto") == "binary"
+                             and e.get("status") == 200 and e.get("method") in BINARY_QUERIES)
 
     def metric(self, name):
         """A counter or gauge from /metrics, as an int."""
