@@ -83,13 +83,19 @@ static const char *name_at(const struct table *t, size_t i)
     return t && t->filter ? sdfd_filter_url_name(i - own) : NULL;
 }
 
+/* Whether table t (NULL: no arguments) takes `name`; one pass over its names, since every
+ * argument of every request is looked up here. */
+static int table_takes(const struct table *t, const char *name)
+{
+    for (size_t i = 0; t && i < NAMES_MAX && t->names[i]; i++)
+        if (!strcmp(t->names[i], name))
+            return 1;
+    return t && t->filter && sdfd_filter_is_url_name(name);
+}
+
 int sdfd_url_route_takes(sdfd_route route, const char *method, const char *name)
 {
-    const struct table *t = table_of(route, method);
-    for (size_t i = 0; name_at(t, i); i++)
-        if (!strcmp(name_at(t, i), name))
-            return 1;
-    return 0;
+    return table_takes(table_of(route, method), name);
 }
 
 static size_t least(size_t x, size_t y)
@@ -133,9 +139,8 @@ static const char *nearest(const struct table *t, const char *given)
 static int known_anywhere(const char *name)
 {
     for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++)
-        for (size_t j = 0; name_at(&tables[i], j); j++)
-            if (!strcmp(name_at(&tables[i], j), name))
-                return 1;
+        if (table_takes(&tables[i], name))
+            return 1;
     return 0;
 }
 
@@ -168,7 +173,7 @@ int sdfd_url_args_check(const sdfd_url_args *args, sdfd_route route, const char 
     for (size_t i = 0; i < args->n; i++) {
         const sdfd_url_arg *a = &args->arg[i];
         *argument = a->name;
-        if (!sdfd_url_route_takes(route, method, a->name))
+        if (!table_takes(t, a->name))
             return unknown(t, a->name, err, cap);
         for (size_t j = 0; j < i; j++)
             if (!strcmp(args->arg[j].name, a->name)) {
