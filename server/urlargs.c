@@ -128,7 +128,8 @@ static const char *nearest(const struct table *t, const char *given)
     const char *best = NULL;
     for (size_t i = 0; len < SUGGEST_LEN && name_at(t, i); i++) {
         const char *name = name_at(t, i);
-        size_t e = strlen(name) < SUGGEST_LEN ? edits(given, name) : best_edits;
+        size_t n = strlen(name), apart = n > len ? n - len : len - n; /* edits >= apart */
+        size_t e = n < SUGGEST_LEN && apart < best_edits ? edits(given, name) : best_edits;
         if (e < best_edits && 2 * e <= len)
             best = name, best_edits = e;
     }
