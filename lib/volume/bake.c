@@ -20,6 +20,7 @@
 #include "mesh/mesh.h"
 #include "points/points.h"
 #include "query/filter.h"
+#include "query/samples.h"
 #include "volume/pack.h"
 #include "scan/scan.h"
 #include "volume/volume.h"

@@ -23,7 +23,7 @@
 #include "../common/workload.h"
 #include "mesh/mesh.h"
 #include "points/cluster.h"
-#include "query/filter.h"
+#include "query/samples.h"
 #include "geom/triangle.h"
 
 static double diagonal_of(const sdf_mesh *m)
