@@ -138,17 +138,45 @@ sdfd_stored_volume *sdfd_volumes_get(sdfd_volumes *v, const char *name)
     return s;
 }
 
-/* Under the lock: add or replace; takes over `s`. */
+/* Under the lock: the ops job that reads s, or NULL. */
+static job *reader_of(sdfd_volumes *v, const sdfd_stored_volume *s)
+{
+    for (job *j = v->jobs; j; j = j->next)
+        if (j->source == s)
+            return j;
+    return NULL;
+}
+
+/* Under the lock: a volume leaving the list (deleted, replaced, or evicted under
+ * --max-resident-bytes) that an ops job still reads stays in memory until that job ends,
+ * so its bytes move to the job's promise and are freed with it. With several jobs on one
+ * source, the first found keeps them. */
+static void unlist_bytes(sdfd_volumes *v, const sdfd_stored_volume *s)
+{
+    size_t bytes = sdf_volume_data_bytes(s->volume);
+    job *j = reader_of(v, s);
+    v->bytes -= bytes;
+    if (j) {
+        j->reserved += bytes;
+        v->reserved += bytes;
+    }
+}
+
+/* Under the lock: add or replace; takes over `s`. A replaced volume an ops job reads
+ * frees nothing yet (unlist_bytes). */
 static int put_locked(sdfd_volumes *v, sdfd_stored_volume *s)
 {
     size_t at = 0, bytes = sdf_volume_data_bytes(s->volume);
     long i = find(v, s->name, &at);
-    size_t old = i >= 0 ? sdf_volume_data_bytes(v->items[i]->volume) : 0;
-    if ((i < 0 && v->count >= v->max_volumes) || v->bytes - old + bytes > v->max_bytes) {
+    size_t freed = i >= 0 && !reader_of(v, v->items[i])
+                       ? sdf_volume_data_bytes(v->items[i]->volume) : 0;
+    if ((i < 0 && v->count >= v->max_volumes) || v->bytes - freed + bytes > v->max_bytes) {
         sdfd_volume_release(s);
         return SDF_ELIMIT;
     }
-    v->bytes = v->bytes - old + bytes;
+    if (i >= 0)
+        unlist_bytes(v, v->items[i]);
+    v->bytes += bytes;
     if (i >= 0) {
         sdfd_volume_release(v->items[i]);
         v->items[i] = s;
@@ -194,7 +222,7 @@ int sdfd_volumes_remove(sdfd_volumes *v, const char *name)
     sdfd_stored_volume *s = NULL;
     if (i >= 0) {
         s = v->items[i];
-        v->bytes -= sdf_volume_data_bytes(s->volume);
+        unlist_bytes(v, s);
         memmove(v->items + i, v->items + i + 1, (v->count - (size_t)i - 1) * sizeof *v->items);
         v->count--;
     }
@@ -459,9 +487,12 @@ static void *run_job(void *arg)
     sdfd_stored_volume *stored = rc ? NULL : keep(j, volume, &rc, &diag);
     sdf_mesh_release(j->mesh);
     sdf_mesh_release(j->req.smoothing_mesh);
-    sdfd_volume_release(j->source);
     j->mesh = j->req.smoothing_mesh = NULL;
+    pthread_mutex_lock(&j->owner->lock); /* unlist_bytes reads it */
+    sdfd_stored_volume *source = j->source;
     j->source = NULL;
+    pthread_mutex_unlock(&j->owner->lock);
+    sdfd_volume_release(source);
     finish(j, canceled, stored, rc, &diag);
     sdfd_log("info", j->status.kind == SDFD_JOB_OPS ? "ops_finished" : "bake_finished",
              "job %s (%s): %s after %.3f s", j->status.id, kind,

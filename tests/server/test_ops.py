@@ -256,6 +256,33 @@ class Ops(unittest.TestCase):
             self.assertGreater(21 * big, bake[2])  # else the round case proves nothing
             c.close()
 
+    def test_deleted_source_stays_counted(self):
+        """A source deleted (or evicted) while an ops job reads it is still in memory: its
+        bytes count against --max-volume-bytes until the job ends."""
+        held = re.compile(r"(\d+) of --max-volume-bytes \d+ are held or promised")
+
+        def held_bytes(s):
+            status, _, answer = self.post("/v1/meshes/fandisk/bake",
+                                          {"resolution": 400, "volume": "big"}, server=s)
+            self.assertEqual(status, 413, answer)
+            return int(held.search(answer["error"]["message"]).group(1))
+
+        with Server("--mesh", f"fandisk={os.path.join(DATA, 'fandisk.off')}", "--token", TOKEN,
+                    "--max-volume-bytes", str(64 << 20)) as s:
+            c = sdfclient.Client(s.url, token=TOKEN)
+            c.upload_volume("v", self.fan_exr)
+            job = self.start_ops("v", dict(LONG, volume="out"), server=s)
+            self.assertTrue(wait_until(lambda: c.job(job["id"])["state"] == "running", 60))
+            before = held_bytes(s)
+            self.assertGreater(before, 4 * 40 ** 3)  # the source and the job's promise
+            c._request("DELETE", "/v1/volumes/v")
+            self.assertNotIn("v", [v["name"] for v in c.volumes()])
+            self.assertEqual(held_bytes(s), before)
+            c.cancel(job["id"])
+            self.assertTrue(wait_until(lambda: c.job(job["id"])["state"] == "canceled", 30))
+            self.assertEqual(held_bytes(s), 0)
+            c.close()
+
     # ---- jobs: progress, cancellation, queueing with bakes ----
 
     def test_cancel_and_queue(self):
