@@ -1,11 +1,16 @@
 /* page.js - sdfd's page: lists the meshes (with a mesh's report) and volumes, shows a slice
  * of the selected one with an axis slider and a mode picker, probes the point under a click
  * (distance, closest point and gradient by a JSON query), and bakes a volume with a progress
- * bar that polls the job. Every HTTP call goes through the sdfd-client package
- * (clients/js), served by sdfd from its embedded copy under /static/. */
+ * bar that polls the job; a 401 opens a form for sdfd's --token. Every HTTP call goes
+ * through the sdfd-client package (clients/js), served by sdfd from its embedded copy under
+ * /static/. */
 import { Client } from '/static/index.js';
 
-const client = new Client(location.origin);
+/* sdfd's --token, when it asks for one (a 401), kept for this tab only: sessionStorage, never
+ * a cookie, so it leaves with the tab and is sent only by this page's own requests. */
+const TOKEN_KEY = 'sdfd-token';
+const token = sessionStorage.getItem(TOKEN_KEY) ?? undefined;
+const client = new Client(location.origin, token ? { token } : {});
 const $ = (id) => document.getElementById(id);
 const MODES = { mesh: ['signed', 'filtered', 'gradient'], volume: ['error', 'signed', 'gradient'] };
 /* the filtered slice is a page's preview: fewer samples than a query's default 64 keep it
@@ -19,6 +24,24 @@ let version = 0;
 function status(text, error = false) {
   $('status').textContent = text;
   $('status').className = error ? 'error' : '';
+}
+
+/* A failed call's message; a 401 also opens the token form. */
+function failed(e) {
+  if (e.status === 401) {
+    $('token-form').hidden = false;
+    $('token').focus();
+    return status(token ? 'the token was refused: enter sdfd\'s --token above'
+      : 'sdfd asks for its --token: enter it above', true);
+  }
+  status(e.message, true);
+}
+
+/* A token entered: kept for the tab, and the page starts again with it. */
+function useToken(event) {
+  event.preventDefault();
+  sessionStorage.setItem(TOKEN_KEY, $('token').value);
+  location.reload();
 }
 
 const fmt = (x) => (Math.abs(x) >= 1e4 || (Math.abs(x) < 1e-3 && x !== 0) ? x.toExponential(3) : x.toFixed(4));
@@ -128,7 +151,7 @@ async function refresh() {
       await render();
     } while (again);
   } catch (e) {
-    status(e.message, true);
+    failed(e);
   } finally {
     busy = false;
   }
@@ -218,7 +241,7 @@ async function bake(event) {
     status(`baked ${done.volume} from ${done.mesh} in ${done.seconds.toFixed(2)} s`);
     await loadVolumes();
   } catch (e) {
-    status(e.message, true);
+    failed(e);
   } finally {
     button.disabled = false;
   }
@@ -228,8 +251,10 @@ async function main() {
   $('axis').addEventListener('change', refresh);
   $('at').addEventListener('input', refresh);
   $('mode').addEventListener('change', refresh);
-  $('slice').addEventListener('click', (e) => probe(e).catch((err) => status(err.message, true)));
+  $('slice').addEventListener('click', (e) => probe(e).catch(failed));
   $('bake').addEventListener('submit', bake);
+  $('token-form').addEventListener('submit', useToken);
+  $('token-form').hidden = !token;
   const meshes = await loadMeshes();
   await loadVolumes();
   if (meshes.length) {
@@ -241,4 +266,4 @@ async function main() {
   document.body.dataset.ready = '1';
 }
 
-main().catch((e) => status(e.message, true));
+main().catch(failed);

@@ -21,8 +21,8 @@ let server, base, browser, page, profile;
 const errors = [];
 
 /* sdfd on a free loopback port: the port and readiness come from its JSON log. */
-function startServer() {
-  const proc = spawn(SDFD, ['--http', '127.0.0.1:0', '--bin', '127.0.0.1:0'],
+function startServer(...flags) {
+  const proc = spawn(SDFD, ['--http', '127.0.0.1:0', '--bin', '127.0.0.1:0', ...flags],
     { stdio: ['ignore', 'ignore', 'pipe'] });
   return new Promise((resolve, reject) => {
     let port;
@@ -164,5 +164,40 @@ test('pick a mesh, slide, switch modes, probe, bake, view the error', async () =
   await page.waitForFunction(() => /value/.test(document.getElementById('probe').textContent));
 
   await page.screenshot({ path: path.join(SHOTS, 'page.png'), fullPage: true });
+  assert.equal(await page.$eval('#token-form', (f) => f.hidden), true, 'no token asked for');
   assert.deepEqual(errors, []);
+});
+
+test('a server with --token --auth-queries: the page asks for the token, then works', async () => {
+  const locked = await startServer('--token', 'page-secret', '--auth-queries');
+  const tab = await browser.newPage();
+  const failures = [];
+  tab.on('pageerror', (e) => failures.push(`exception: ${e.message}`));
+  tab.on('requestfailed', (r) => failures.push(`request failed: ${r.url()}`));
+  try {
+    await tab.goto(`${locked.url}/`);
+    await tab.waitForSelector('#token-form:not([hidden])', { timeout: 60000 });
+    assert.match(await tab.$eval('#status', (e) => e.textContent), /--token/);
+    await tab.type('#token', 'wrong');
+    await Promise.all([tab.waitForNavigation(), tab.click('#token-form button')]);
+    await tab.waitForFunction(() => /refused/.test(document.getElementById('status').textContent),
+      { timeout: 60000 });
+    await tab.$eval('#token', (el) => { el.value = ''; });
+    await tab.type('#token', 'page-secret');
+    await Promise.all([tab.waitForNavigation(), tab.click('#token-form button')]);
+    await tab.waitForSelector('body[data-ready="1"]', { timeout: 60000 });
+    await tab.waitForFunction(() => Number(document.getElementById('slice').dataset.version ?? 0) > 0,
+      { timeout: 60000 });
+    assert.equal(await tab.$eval('#status', (e) => e.className), '');
+    /* a bake needs the token too: it runs to the end */
+    await tab.$eval('#bake [name=resolution]', (el) => { el.value = '16'; });
+    await tab.click('#bake button');
+    await tab.waitForFunction(() => document.getElementById('bake-percent').textContent === '100 %',
+      { timeout: 120000 });
+    await tab.waitForSelector('#volumes tbody tr[data-name="baked"]');
+    assert.deepEqual(failures, []);
+  } finally {
+    await tab.close();
+    locked.proc.kill('SIGTERM');
+  }
 });
