@@ -35,4 +35,15 @@ static inline size_t sdf__field_row_chunk(const sdf__field_grid *g)
     return c ? c : 1;
 }
 
+/* fmin / fmax without their NaN rules, which keep GCC from inlining them (no NaN gets
+ * here: the volume's values are checked finite). */
+static inline double sdf__lo2(double a, double b)
+{
+    return a < b ? a : b;
+}
+static inline double sdf__hi2(double a, double b)
+{
+    return a > b ? a : b;
+}
+
 #endif

@@ -43,17 +43,6 @@ int sdf__sussman_steps(const sdf__field_grid *g, double band)
     return (int)ceil(reach / sdf__sussman_dt(g));
 }
 
-/* fmin / fmax without their NaN rules, which keep GCC from inlining them (no NaN gets
- * here: the volume's values are checked finite). */
-static inline double lo2(double a, double b)
-{
-    return a < b ? a : b;
-}
-static inline double hi2(double a, double b)
-{
-    return a > b ? a : b;
-}
-
 typedef struct step {
     const sdf__field_grid *g;
     const float *src;
@@ -73,8 +62,8 @@ static inline double sq(double x)
 static inline double axis_term(double dm, double dp, int positive)
 {
     if (positive) /* max((D-^+)^2, (D+^-)^2) */
-        return hi2(sq(hi2(dm, 0)), sq(lo2(dp, 0)));
-    return hi2(sq(lo2(dm, 0)), sq(hi2(dp, 0)));
+        return sdf__hi2(sq(sdf__hi2(dm, 0)), sq(sdf__lo2(dp, 0)));
+    return sdf__hi2(sq(sdf__lo2(dm, 0)), sq(sdf__hi2(dp, 0)));
 }
 
 static void step_rows(void *ctx, size_t begin, size_t end, int worker)

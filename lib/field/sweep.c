@@ -20,17 +20,6 @@
 #define TOLERANCE 1e-4 /* of the smallest spacing: a converged round changes less */
 #define MAX_ROUNDS 64  /* derived rounds stop here (each round at least doubles the reach) */
 
-/* fmin / fmax without their NaN rules, which keep GCC from inlining them (no NaN gets
- * here: the volume's values are checked finite). */
-static inline double lo2(double a, double b)
-{
-    return a < b ? a : b;
-}
-static inline double hi2(double a, double b)
-{
-    return a > b ? a : b;
-}
-
 typedef struct sweeper {
     const sdf__field_grid *g;
     float *u;
@@ -59,11 +48,11 @@ static double local_solve(const sweeper *s, double a0, double a1, double a2)
     /* sum_i w_i (u - a_i)^2 = 1 over the first m: A u^2 - 2 B u + C = 0 */
     double A = w[0] + w[1], B = w[0] * a[0] + w[1] * a[1];
     double C = w[0] * a[0] * a[0] + w[1] * a[1] * a[1] - 1;
-    u = (B + sqrt(hi2(B * B - A * C, 0))) / A;
+    u = (B + sqrt(sdf__hi2(B * B - A * C, 0))) / A;
     if (!(u > a[2]))
         return u;
     A += w[2], B += w[2] * a[2], C += w[2] * a[2] * a[2];
-    return (B + sqrt(hi2(B * B - A * C, 0))) / A;
+    return (B + sqrt(sdf__hi2(B * B - A * C, 0))) / A;
 }
 
 /* One sweep in the order given by dir[3] (+1 ascending, -1 descending); the largest change. */
@@ -87,16 +76,16 @@ static double sweep(const sweeper *s, const int dir[3])
                 size_t i = dir[0] > 0 ? ii : n0 - 1 - ii, at = row + i;
                 if ((s->state[at] & (SDF__NODE_FROZEN | SDF__NODE_ACTIVE)) != SDF__NODE_ACTIVE)
                     continue;
-                double ax = lo2(i > 0 ? u[at - 1] : INFINITY, i + 1 < n0 ? u[at + 1] : INFINITY);
-                double ay = lo2(j > 0 ? u[at - sy] : INFINITY, j + 1 < n1 ? u[at + sy] : INFINITY);
-                double az = lo2(k > 0 ? u[at - sz] : INFINITY, k + 1 < n2 ? u[at + sz] : INFINITY);
+                double ax = sdf__lo2(i > 0 ? u[at - 1] : INFINITY, i + 1 < n0 ? u[at + 1] : INFINITY);
+                double ay = sdf__lo2(j > 0 ? u[at - sy] : INFINITY, j + 1 < n1 ? u[at + sy] : INFINITY);
+                double az = sdf__lo2(k > 0 ? u[at - sz] : INFINITY, k + 1 < n2 ? u[at + sz] : INFINITY);
                 double v = local_solve(s, ax, ay, az);
                 if (v < u[at]) {
-                    row_change = hi2(row_change, u[at] - v);
+                    row_change = sdf__hi2(row_change, u[at] - v);
                     u[at] = (float)v;
                 }
             }
-            change = hi2(change, row_change);
+            change = sdf__hi2(change, row_change);
             if (row_change > s->tol) { /* the row and its four neighbour rows may change */
                 s->unlocked[r] = 1;
                 if (j > 0)
