@@ -1,7 +1,7 @@
 /* transport.c - libsdfclient's byte stream (transport.h): a non-blocking TCP connection,
  * optionally inside TLS through GnuTLS. GnuTLS reads and writes the socket through our own
  * push and pull functions, so that a write never raises SIGPIPE (MSG_NOSIGNAL) and the
- * socket's errno survives GnuTLS's return codes, which sdfclient.c needs to tell a peer that
+ * socket's errno survives GnuTLS's return codes, which pipeline.c needs to tell a peer that
  * went away (a connection it may replace) from other failures. */
 #include "transport.h"
 

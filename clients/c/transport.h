@@ -1,6 +1,6 @@
 /* transport.h - libsdfclient's byte stream (internal): one non-blocking TCP connection to
  * sdfd's binary port, plain or inside TLS 1.2+ (GnuTLS), behind one interface, so that
- * sdfclient.c frames, sends and receives without knowing which. Nothing here is exported
+ * pipeline.c frames, sends and receives without knowing which. Nothing here is exported
  * from the shared library (hidden visibility, besides the version script). */
 #ifndef SDFC_TRANSPORT_H
 #define SDFC_TRANSPORT_H
