@@ -156,25 +156,51 @@ static int store_error(sdfc_client *c, sdfc_server_err *dst)
     return 0;
 }
 
+/* A query the server refused as unavailable (503 EUNAVAILABLE: a replica shutting down, or
+ * still loading) that may go again on a new connection: re-sending is on, and it has not
+ * gone again yet (sdfclient.h, "Re-sending"). */
+static int may_move(const sdfc_client *c, const sdfc__pending *p, const sdfc_server_err *e)
+{
+    return c->resend && p->frame && !p->resent && p->reply_type == SDF_PROTO_RESULT &&
+           e->status == 503 && !strcmp(e->code, "EUNAVAILABLE");
+}
+
+/* An ERROR frame, in full: about the connection, a refusal of p (*answered set), or p's to
+ * go again on the next connection. */
+static int file_error(sdfc_client *c, sdfc__pending *p, int *answered)
+{
+    sdfc_server_err e;
+    int rc = store_error(c, p ? &e : &c->err);
+    if (rc)
+        return rc;
+    if (!p) /* about the connection, which the server now closes */
+        return sdfc__set_broken(c, SDFC_ECLOSED);
+    if (may_move(c, p, &e)) {
+        p->unavailable = 1; /* stays in flight until it went again */
+        c->unavailable++;
+        return 0;
+    }
+    if (!(p->err = malloc(sizeof *p->err)))
+        return sdfc__set_broken(c, SDFC_ENOMEM);
+    *p->err = e;
+    p->status = SDFC_ESERVER;
+    *answered = 1;
+    return 0;
+}
+
 /* The current frame is in full: file it with its request. */
 static int rx_finish(sdfc_client *c)
 {
     sdfc__reader *r = &c->rx;
     sdfc__pending *p = sdfc__lookup(c, r->h.request_id);
-    int rc = 0;
+    int rc = 0, answered = 1;
     if (r->h.type == SDF_PROTO_RESULT) {
         /* header bytes but the flags (receivers ignore them), then the prefix */
         if (memcmp(r->hdr, p->head, 6) || memcmp(r->hdr + 8, p->head + 8, 16))
             rc = sdfc__set_broken(c, SDFC_EPROTO);
     } else if (r->h.type == SDF_PROTO_ERROR) {
-        if (!p) { /* about the connection, which the server now closes */
-            rc = store_error(c, &c->err);
-            rc = sdfc__set_broken(c, rc ? rc : SDFC_ECLOSED);
-        } else if (!(p->err = calloc(1, sizeof *p->err))) {
-            rc = sdfc__set_broken(c, SDFC_ENOMEM);
-        } else if (!(rc = store_error(c, p->err))) {
-            p->status = SDFC_ESERVER;
-        }
+        answered = 0;
+        rc = file_error(c, p, &answered);
     } else {
         p->payload = r->buf;
         p->payload_len = r->h.length;
@@ -184,7 +210,7 @@ static int rx_finish(sdfc_client *c)
     r->buf = NULL;
     r->got = 0;
     r->routed = 0;
-    if (p && !rc) {
+    if (p && !rc && answered) {
         p->state = SDFC__DONE;
         p->done_seq = ++c->done_seq;
     }
@@ -216,6 +242,8 @@ static unsigned char *rx_target(sdfc_client *c, size_t *want)
 }
 
 static int conn_lost(sdfc_client *c, int code);
+static int reconnect(sdfc_client *c);
+static int should_move(const sdfc_client *c);
 
 /* A failed send or receive (errno) as the handle's error; a peer that went away may have
  * its connection replaced. */
@@ -282,6 +310,9 @@ static int wait_deadline(sdfc_client *c, double deadline, short events)
 /* Block until at least one more frame completes, or the reply timeout passes. */
 int sdfc__rx_one(sdfc_client *c)
 {
+    int moved = should_move(c) ? reconnect(c) : 0;
+    if (moved)
+        return moved;
     double deadline = now_ms() + c->reply_timeout_ms;
     for (;;) {
         int frames = 0, rc = rx_pump(c, &frames);
@@ -352,15 +383,16 @@ int sdfc__keep_frame(sdfc__pending *p, const void *frame, size_t len, const void
 
 /* ---- replacing a lost connection (sdfclient.h, "Re-sending") ----------------------------- */
 
-/* AUTH with the kept token and HELLO on a new connection, before anything else. */
-static int handshake(sdfc_client *c)
+/* AUTH with the kept token and, with `hello`, HELLO on a new connection, before anything
+ * else. A refused AUTH is SDFC_ESERVER (the server closes the connection after it). */
+static int handshake(sdfc_client *c, int hello)
 {
     sdfc__pending *p;
     int rc = 0;
     if (c->token && !(rc = sdfc__call(c, SDF_PROTO_AUTH, c->token, c->token_len, SDF_PROTO_AUTH_OK, &p)))
         sdfc__claim(c, p);
-    if (rc)
-        return rc == SDFC_ESERVER ? SDFC_ECLOSED : rc; /* the server closes after a refusal */
+    if (rc || !hello)
+        return rc;
     static const char name[] = "libsdfclient";
     if ((rc = sdfc__call(c, SDF_PROTO_HELLO, name, sizeof name - 1, SDF_PROTO_HELLO_OK, &p)))
         return rc == SDFC_ESERVER ? SDFC_EPROTO : rc;
@@ -368,36 +400,75 @@ static int handshake(sdfc_client *c)
     return sdfc__decode_hello(c, p, &h);
 }
 
+/* A new connection's failure was its loss before the handshake's reply: closed or reset,
+ * as a balancer does when it hands the connection to a replica that is going away (with
+ * TLS, during the TLS handshake too). Another connection may well not meet it. */
+static int lost_early(const sdfc_client *c, int rc)
+{
+    return !c->broken && (rc == SDFC_ECLOSED || (rc == SDFC_ETLS && c->conn.gone));
+}
+
+static void nap(long ms)
+{
+    struct timespec ts = {.tv_sec = ms / 1000, .tv_nsec = ms % 1000 * 1000000L};
+    while (nanosleep(&ts, &ts) && errno == EINTR)
+        ;
+}
+
+int sdfc__open(sdfc_client *c, int hello)
+{
+    int attempts = c->resend ? SDFC__CONNECT_ATTEMPTS : 1, rc = 0;
+    c->opening = 1;
+    for (int i = 0; i < attempts; i++) {
+        if (i)
+            nap(50L << (i - 1));
+        sdfc__conn_close(&c->conn);
+        free(c->rx.buf);
+        c->rx = (sdfc__reader){0};
+        c->generation++;
+        rc = sdfc__conn_open(&c->conn, c->host, c->port, c->tls, c->connect_timeout_ms);
+        if (!rc) {
+            c->stats.connects++;
+            rc = handshake(c, hello);
+        }
+        if (!rc || !lost_early(c, rc))
+            break;
+    }
+    c->opening = 0;
+    return rc;
+}
+
+/* A new connection in place of the current one, and every request in flight sent again on
+ * it. 0, or the handle broken. */
 static int reconnect(sdfc_client *c)
 {
     c->reconnecting = 1;
-    sdfc__conn_close(&c->conn);
-    free(c->rx.buf);
-    c->rx = (sdfc__reader){0};
-    c->generation++;
-    int rc = sdfc__conn_open(&c->conn, c->host, c->port, c->tls, c->connect_timeout_ms);
-    if (!rc) {
-        c->stats.connects++;
-        rc = handshake(c);
-    }
+    int rc = sdfc__open(c, 1);
+    if (rc == SDFC_ESERVER)
+        rc = SDFC_ECLOSED; /* a refused AUTH, after which the server closes */
     /* the table does not move while sending: only new requests are added to it */
     for (size_t i = 0; !rc && i < c->n; i++) {
         sdfc__pending *p = &c->pend[c->head + i];
         if (p->state != SDFC__IN_FLIGHT)
             continue;
         p->resent = 1;
+        p->unavailable = 0;
         c->stats.resent++;
         struct iovec iov[2] = {{p->frame, p->frame_len}, {(void *)p->points, p->points_len}};
         rc = sdfc__tx(c, iov, p->points_len ? 2 : 1);
     }
+    c->unavailable = 0;
     c->reconnecting = 0;
     return rc ? sdfc__set_broken(c, rc) : 0;
 }
 
 /* The connection closed or was reset: replace it if every request in flight may go again
- * (sdfclient.h), else the handle is broken with `code`. 0 once replaced. */
+ * (sdfclient.h), else the handle is broken with `code`. 0 once replaced. A new connection
+ * lost during its handshake is sdfc__open's to try again. */
 static int conn_lost(sdfc_client *c, int code)
 {
+    if (c->opening)
+        return code;
     int again = c->resend && !c->reconnecting && !c->broken;
     for (size_t i = 0; again && i < c->n; i++) {
         sdfc__pending *p = &c->pend[c->head + i];
@@ -405,6 +476,20 @@ static int conn_lost(sdfc_client *c, int code)
             again = 0;
     }
     return again ? reconnect(c) : sdfc__set_broken(c, code);
+}
+
+/* Every request still in flight was refused as unavailable: no reply this connection may
+ * still bring is worth waiting for, so they go again on a new one. */
+static int should_move(const sdfc_client *c)
+{
+    if (!c->unavailable || c->reconnecting || c->opening || c->broken)
+        return 0;
+    for (size_t i = 0; i < c->n; i++) {
+        const sdfc__pending *p = &c->pend[c->head + i];
+        if (p->state == SDFC__IN_FLIGHT && !p->unavailable)
+            return 0;
+    }
+    return 1;
 }
 
 /* Send a frame with no points that the server answers with `reply`; wait for it. On 0 the
@@ -428,9 +513,13 @@ int sdfc__call(sdfc_client *c, uint8_t type, const void *payload, size_t len, ui
         sdfc__drop(c, sdfc__lookup(c, id));
         return rc;
     }
-    while ((p = sdfc__lookup(c, id))->state != SDFC__DONE)
-        if ((rc = sdfc__rx_one(c)))
+    while ((p = sdfc__lookup(c, id))->state != SDFC__DONE) {
+        if ((rc = sdfc__rx_one(c))) {
+            if ((p = sdfc__lookup(c, id))) /* a handshake's entry: sdfc__open may try again */
+                sdfc__drop(c, p);
             return rc;
+        }
+    }
     if (p->status)
         return sdfc__claim(c, p);
     *out = p;

@@ -21,6 +21,7 @@ typedef struct sdfc__pending {
     int status;              /* once DONE: 0 or SDFC_ESERVER */
     uint8_t reply_type;      /* the frame type that answers it */
     int resent;              /* sent again on a new connection already */
+    int unavailable;         /* refused 503 EUNAVAILABLE: to go again on the next connection */
     unsigned char *frame;    /* re-sendable requests: header and prefix (or the whole frame
                                 but points), owned; NULL: never re-sent */
     size_t frame_len;
@@ -47,7 +48,7 @@ typedef struct sdfc__reader {
 
 struct sdfc_client {
     sdfc__conn conn;
-    unsigned generation;     /* connections replaced so far */
+    unsigned generation;     /* connections opened so far */
     int broken;              /* sticky error code, 0 while usable */
     int reply_timeout_ms;
     int connect_timeout_ms;
@@ -55,14 +56,16 @@ struct sdfc_client {
     int port;
     sdfc__tls *tls;
     int resend;
-    int reconnecting;
+    int reconnecting;        /* in reconnect(): a lost connection breaks the handle */
+    int opening;             /* in sdfc__open(): a lost connection is its to try again */
+    size_t unavailable;      /* requests in flight refused as unavailable */
     char *token;             /* the last token the server took; NULL: none */
     size_t token_len;
     sdfc_stats stats;
     uint32_t max_points;     /* from HELLO; 0 = unknown */
     uint32_t max_payload;
     uint32_t next_id;
-    sdfc__pending *pend;           /* pend[head .. head + n) are ids base_id .. */
+    sdfc__pending *pend;     /* pend[head .. head + n) are ids base_id .. */
     size_t head, n, cap;
     uint32_t base_id;
     size_t in_flight;
@@ -103,6 +106,16 @@ SDFC__HIDDEN int sdfc__call(sdfc_client *c, uint8_t type, const void *payload, s
                             uint8_t reply, sdfc__pending **out);
 /* A HELLO_OK entry into *out and the handle's limits; claims p. */
 SDFC__HIDDEN int sdfc__decode_hello(sdfc_client *c, sdfc__pending *p, sdfc_hello_info *out);
+
+/* A handshake lost with its connection is tried this many times in all (with `resend`). */
+#define SDFC__CONNECT_ATTEMPTS 3
+
+/* Open a new connection in place of the current one (closed first) and send AUTH with the
+ * kept token (if any) and, with `hello`, HELLO, waiting for their replies. With `resend`, a
+ * connection closed or reset before they are answered (a balancer may hand it to a replica
+ * that is going away) is opened again, SDFC__CONNECT_ATTEMPTS times in all, 50 and 100 ms
+ * apart. 0, sdfc__conn_open's code, SDFC_ESERVER for a refused AUTH, or the handshake's. */
+SDFC__HIDDEN int sdfc__open(sdfc_client *c, int hello);
 
 /* At most cap - 1 bytes of s, NUL-terminated, into dst. */
 SDFC__HIDDEN void sdfc__copy_str(char *dst, size_t cap, const char *s, size_t len);

@@ -119,13 +119,13 @@ int sdfc_connect(const char *host, int port, const sdfc_options *opts, sdfc_clie
     c->reply_timeout_ms = o.reply_timeout_ms ? o.reply_timeout_ms : 120000;
     c->next_id = c->base_id = 1;
     int rc = o.tls ? sdfc__tls_new(o.ca_file, &c->tls) : 0;
-    if (!rc)
-        rc = sdfc__conn_open(&c->conn, host, port, c->tls, c->connect_timeout_ms);
-    if (!rc) {
-        c->stats.connects = 1;
-        if (o.token)
-            rc = sdfc_auth(c, o.token, strlen(o.token));
+    if (!rc && o.token) { /* kept only if the server takes it: a refusal closes the handle */
+        c->token_len = strlen(o.token);
+        if (!(c->token = strdup(o.token)))
+            rc = SDFC_ENOMEM;
     }
+    if (!rc)
+        rc = sdfc__open(c, 0);
     if (rc) {
         int saved = errno;
         sdfc_close(c);
