@@ -10,13 +10,17 @@ Through the balancer it uploads the meshes (PUT) and bakes a volume, and checks 
 deploy/shared_store.py that every replica answers them bit-equal to the reference and sees a
 replacement and a deletion within the staleness window. Then it runs deploy/loadgen.py's load
 of the meshes and the volume through the balancer, over HTTP and, at the same time, over the
-binary protocol on the balancer's TCP port (a few workers, one sdfclient.BinaryClient each,
-which sends a query once more on a new connection when its connection dies or a draining
-replica refuses it). Mid-run one replica is SIGKILLed and started again, and later another is
+binary protocol on the balancer's TCP port: workers of each client, one connection each for
+the whole run -- Python (sdfclient.BinaryClient threads), JavaScript (node
+clients/js/test/loadworker.js, a BinaryClient) and C (sdfc-load, built from
+tests/clients/sdfc_load.c with libsdfclient, opts.resend) -- each of which sends a query once
+more on a new connection when its connection dies or a draining replica refuses it, and
+compares every answer bit for bit with the reference's. Mid-run one replica is SIGKILLed and started again, and later another is
 SIGTERMed (it drains and exits). It passes when:
   - the shared-store checks pass;
   - no request failed and every answer is byte-equal to the reference's, over HTTP and over
-    the binary protocol (0 lost binary answers);
+    the binary protocol from every client (0 lost binary answers; the report counts sent,
+    answered, lost and mismatched per language);
   - each binary worker whose connection was on the killed or the SIGTERMed replica (the
     replica that answered its last query before the event, from the replicas' logs) opened a
     new connection for each such event, and each event hit at least one worker;
@@ -34,7 +38,8 @@ SIGTERMed (it drains and exits). It passes when:
 
     python3 deploy/failover.py --sdfd build/server/sdfd --lb haproxy --mode hash
 
-Needs haproxy or nginx (with the stream module) from Debian, and numpy. Every process it
+Needs haproxy or nginx (with the stream module) from Debian, numpy, node 18+ and the build's
+sdfc-load (--js-workers 0 / --c-workers 0 leave those out). Every process it
 starts listens on 127.0.0.1 only and is stopped before it exits.
 """
 import argparse
@@ -334,8 +339,35 @@ def store_counts(replicas):
             for r in replicas]
 
 
-def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n):
-    """The HTTP and the binary load with their two events; a dict of what happened when."""
+def worker_command(a, lang, bin_port, manifest, w):
+    """The command of a JS or C binary worker (clients/js/test/loadworker.js, sdfc-load)."""
+    tail = ["127.0.0.1", str(bin_port), manifest, str(a.seconds), str(100 + w)]
+    if lang == "js":
+        return [a.node, os.path.join(ROOT, "clients", "js", "test", "loadworker.js"), *tail]
+    return [a.sdfc_load, *tail]
+
+
+def finish_worker(proc, lang, seconds):
+    """A JS or C worker's JSON counts; a failed worker's are one lost request and its
+    output."""
+    try:
+        out, err = proc.communicate(timeout=seconds + 120)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    lines = out.strip().splitlines()
+    try:
+        if proc.returncode == 0 and lines:
+            return json.loads(lines[-1])
+    except ValueError:
+        pass
+    return {"sent": 1, "ok": 0, "failed": 1, "mismatched": 0, "connects": 0, "resent": 0,
+            "errors": [f"{lang} worker exited {proc.returncode}: {err[-300:]}"], "done_at": []}
+
+
+def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n, external):
+    """The HTTP and the binary load with their two events; a dict of what happened when.
+    `external`: [(worker, language, manifest)], the JS and C binary workers."""
     ev = {}
     load = threading.Thread(target=lambda: ev.setdefault(
         "stats", loadgen.run(lb_url, reqs, a.workers, a.seconds, a.max_requests)))
@@ -346,6 +378,10 @@ def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n):
     ev["t0"] = time.time()
     load.start()
     bin_load.start()
+    procs = [(w, lang, subprocess.Popen(worker_command(a, lang, bin_port, m, w),
+                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                        text=True, cwd=os.path.join(ROOT, "clients", "js")))
+             for w, lang, m in external]
     time.sleep(a.seconds * 0.2)
     ev["kill"], ev["term"] = kill, term = choose_targets(replicas, n, a.mode, ev["t0"])
     ev["counts1"] = store_counts(replicas)
@@ -361,6 +397,7 @@ def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n):
     ev["t_exit"] = time.time()
     load.join()
     bin_load.join()
+    ev["external"] = {w: (lang, finish_worker(p, lang, a.seconds)) for w, lang, p in procs}
     ev["t_end"] = time.time()
     ev["rss"] = [r.peak_rss() if r.proc.poll() is None else None for r in replicas]
     return ev
@@ -422,11 +459,15 @@ def scenario(a, tmp):
         reqs = loadgen.make_requests(names[:-1], a.requests, volumes=names[-1:])
         loadgen.fetch_expected(ref.url, reqs)
         bin_items = binary_items(a, names, sizes)
+        langs = worker_languages(a)
         bin_reqs = loadgen.make_binary_requests(
-            [names[m] for m in bin_items if m < n - 1], a.bin_requests, a.bin_workers,
+            [names[m] for m in bin_items if m < n - 1], a.bin_requests, len(langs),
             volumes=[names[m] for m in bin_items if m == n - 1])
         loadgen.fetch_binary_expected("127.0.0.1", ref.bin_port, bin_reqs)
-        ev = run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n)
+        external = [(w, lang, loadgen.write_manifest(bin_reqs[w], tmp, f"worker{w}"))
+                    for w, lang in enumerate(langs) if lang != "python"]
+        ev = run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs[:a.bin_workers], n,
+                      external)
         ev["bin_items"] = bin_items
     finally:
         if lb:
@@ -436,6 +477,11 @@ def scenario(a, tmp):
             p.stop()
     return judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness,
                  store_problems, binary_ok)
+
+
+def worker_languages(a):
+    """Binary worker w's client: the Python workers first, then JS, then C."""
+    return ["python"] * a.bin_workers + ["js"] * a.js_workers + ["c"] * a.c_workers
 
 
 def last_replica(replicas, workers, t0, t):
@@ -449,28 +495,59 @@ def last_replica(replicas, workers, t0, t):
     return {w: i for w, (_, i) in last.items()}
 
 
-def judge_binary(a, replicas, ev):
-    """The binary load's report and problems: nothing lost or different, and every worker
-    whose replica died or drained under it reconnected."""
+def per_language(a, ev):
+    """{language: its binary workers' sent, answered, lost and mismatched}, every worker's
+    connections, and the completion times of every answer."""
     stats, counters = ev["binary"]
+    langs = worker_languages(a)
+    report = {"python": {"workers": a.bin_workers, "sent": stats.sent, "answered": stats.ok,
+                         "lost": stats.failed, "mismatched": stats.mismatched,
+                         "errors": [e for _, e in stats.errors[:3]]}}
+    connects = [c.get("connects", 1) for c in counters]
+    resent = [c.get("resent", 0) for c in counters]
+    done = list(stats.done_at)
+    for w in range(a.bin_workers, len(langs)):
+        lang, t = ev["external"][w]
+        r = report.setdefault(lang, {"workers": 0, "sent": 0, "answered": 0, "lost": 0,
+                                     "mismatched": 0, "errors": []})
+        r["workers"] += 1
+        for key, theirs in (("sent", "sent"), ("answered", "ok"), ("lost", "failed"),
+                            ("mismatched", "mismatched")):
+            r[key] += t[theirs]
+        r["errors"] += t["errors"][:3]
+        connects.append(t["connects"])
+        resent.append(t["resent"])
+        done += t["done_at"]
+    return report, connects, resent, done
+
+
+def judge_binary(a, replicas, ev):
+    """The binary load's report and problems: nothing lost or different from any client, and
+    every worker whose replica died or drained under it reconnected."""
     kill, term = ev["kill"], ev["term"]
-    hit = {w: 0 for w in range(a.bin_workers)}
+    workers = len(worker_languages(a))
+    langs, connects, resent, done = per_language(a, ev)
+    hit = {w: 0 for w in range(workers)}
     on = {}
     for what, i, t in (("killed", kill, ev["t_kill"]), ("terminated", term, ev["t_term"])):
-        on[what] = sorted(w for w, r in last_replica(replicas, a.bin_workers, ev["t0"],
+        on[what] = sorted(w for w, r in last_replica(replicas, workers, ev["t0"],
                                                      t).items() if r == i)
         for w in on[what]:
             hit[w] += 1
-    reconnects = [c.get("connects", 1) - 1 for c in counters]
-    report = {**stats.summary(), "workers": a.bin_workers,
-              "ok_after_kill": sum(t > ev["t_kill"] for t in stats.done_at),
-              "ok_after_term": sum(t > ev["t_term"] for t in stats.done_at),
-              "reconnects": reconnects, "resent": [c.get("resent", 0) for c in counters],
+    reconnects = [c - 1 for c in connects]
+    report = {"languages": langs, "workers": workers,
+              "ok_after_kill": sum(t > ev["t_kill"] for t in done),
+              "ok_after_term": sum(t > ev["t_term"] for t in done),
+              "reconnects": reconnects, "resent": resent,
               "on_killed": on["killed"], "on_terminated": on["terminated"]}
     problems = []
-    if stats.failed or stats.mismatched:
-        problems.append(f"binary: {stats.failed} lost, {stats.mismatched} mismatched answers")
-    if stats.ok < 20 or report["ok_after_kill"] == 0 or report["ok_after_term"] == 0:
+    for lang, r in langs.items():
+        if r["lost"] or r["mismatched"]:
+            problems.append(f"binary ({lang}): {r['lost']} lost, {r['mismatched']} mismatched "
+                            f"answers: {r['errors'][:2]}")
+        if r["answered"] == 0:
+            problems.append(f"binary ({lang}): no answer")
+    if len(done) < 20 or report["ok_after_kill"] == 0 or report["ok_after_term"] == 0:
         problems.append("the binary load did not run across both events")
     for what in on:
         if not on[what]:
@@ -544,7 +621,15 @@ def main():
     ap.add_argument("--requests", type=int, default=48)
     ap.add_argument("--max-requests", type=int, default=20000)
     ap.add_argument("--bin-workers", type=int, default=4,
-                    help="binary-protocol workers, one connection each (at least the replicas)")
+                    help="binary-protocol workers of the Python client, one connection each "
+                    "(with the JS and C ones, at least the replicas)")
+    ap.add_argument("--js-workers", type=int, default=1,
+                    help="binary-protocol workers of the JS client (node), one process each")
+    ap.add_argument("--c-workers", type=int, default=1,
+                    help="binary-protocol workers of libsdfclient (sdfc-load), one process each")
+    ap.add_argument("--node", default="node", help="node 18+, for the JS workers")
+    ap.add_argument("--sdfc-load", default=os.path.join(ROOT, "build", "tests", "sdfc-load"),
+                    help="the C worker (built from tests/clients/sdfc_load.c)")
     ap.add_argument("--bin-requests", type=int, default=12,
                     help="distinct binary requests per worker")
     ap.add_argument("--max-resident-bytes", type=int, default=-1,

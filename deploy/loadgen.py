@@ -16,7 +16,9 @@ each query it served was for (deploy/failover.py uses that to check hashing).
 The same for the binary protocol (make_binary_requests, fetch_binary_expected, run_binary):
 each worker holds one sdfclient.BinaryClient (clients/python) for the whole run and sends its
 own requests (1 to ~65000 points, the same modes; a quarter of them three at a time with
-query_many), checked against the reference's binary answers. Worker w of W sends point counts
+query_many), checked against the reference's binary answers. write_manifest hands a worker's
+requests to the JS and C clients' workers (clients/js/test/loadworker.js,
+tests/clients/sdfc_load.c), which do the same with their own client. Worker w of W sends point counts
 that are w modulo W, so a replica's log tells whose connection it served. A request fails
 (an answer is lost) if the client raises; the client itself sends a query once more on a new
 connection when its connection dies or the server refuses it as shutting down, and the run
@@ -224,6 +226,34 @@ def fetch_binary_expected(host, port, per_worker, timeout=120):
         for r in mine:
             r.expected = r.ask(client)
     client.close()
+
+
+def result_words(expected, count):
+    """A binary answer ({key: bytes}, as answer_bytes gives) as its RESULT's words in wire
+    order (distance, then gradient or closest, then triangle), little-endian bytes."""
+    cols = [np.frombuffer(expected[k], np.uint32).reshape(count, -1)
+            for k in ("distance", "gradient", "closest", "triangle") if k in expected]
+    return np.ascontiguousarray(np.hstack(cols), dtype="<u4").tobytes()
+
+
+def write_manifest(requests, folder, tag):
+    """One worker's requests as files for the JS and C workers (clients/js/test/loadworker.js,
+    tests/clients/sdfc_load.c): a manifest of "KIND NAME MODE COUNT POINTS EXPECTED" lines,
+    the points as float32 and the expected answer as its RESULT's words; the manifest's
+    path."""
+    lines = []
+    for i, r in enumerate(requests):
+        pts = os.path.join(folder, f"{tag}.{i}.f32")
+        exp = os.path.join(folder, f"{tag}.{i}.words")
+        with open(pts, "wb") as f:
+            f.write(np.ascontiguousarray(r.points, dtype="<f4").tobytes())
+        with open(exp, "wb") as f:
+            f.write(result_words(r.expected, len(r.points)))
+        lines.append(f"{r.kind} {r.name} {r.mode} {len(r.points)} {pts} {exp}\n")
+    path = os.path.join(folder, f"{tag}.manifest")
+    with open(path, "w") as f:
+        f.writelines(lines)
+    return path
 
 
 def binary_round(client, rng, mine, batches):

@@ -4,8 +4,9 @@
  * started with --bin-tls, inside TLS 1.2+ (GnuTLS) with the server's certificate verified.
  * It sends HELLO, AUTH, LIST_MESHES, and pipelined QUERY and VOLUME_QUERY requests: send many
  * (each with its own caller-owned result buffer), then receive them by request id in any
- * order. With sdfc_options.resend, requests a connection took with it when it closed are
- * sent again, once, on a new one ("Re-sending" below). Linking it pulls in only the protocol
+ * order. With sdfc_options.resend, requests a connection took with it when it closed, and
+ * queries a server going away refused, are sent again, once, on a new one ("Re-sending"
+ * below). Linking it pulls in only the protocol
  * codec and GnuTLS, never libsdf or Embree.
  *
  * Conventions:
@@ -109,12 +110,25 @@ typedef struct sdfc_options {
  * error of the call that met it (SDFC_ECLOSED, or the reconnection's SDFC_ECONNECT,
  * SDFC_ETIMEDOUT ...; a refused AUTH is SDFC_ECLOSED with sdfc_server_error() set) and the
  * handle is unusable as for any such error. Timeouts and malformed replies are never
- * re-sent. sdfc_get_stats() counts connections and re-sent requests. */
+ * re-sent.
+ * A query (QUERY or VOLUME_QUERY) that the server refuses with 503 EUNAVAILABLE (a draining
+ * replica, or one still loading) is not its caller's error either, the first time: it stays
+ * in flight while the replies to the others in flight on that connection arrive, and once
+ * only such refused queries are left, the handle replaces the connection as above and
+ * sends them again there (a new request sent meanwhile goes on the old connection, and is
+ * refused and sent again in turn). Refused a second time, it is SDFC_ESERVER as any
+ * refusal, and the handle stays usable.
+ * A new connection (sdfc_connect's own, with opts->token, or a replacement) that is closed
+ * or reset before its AUTH and HELLO are answered, or during its TLS handshake, as a
+ * balancer does when it hands it to a replica that is going away, is opened again, three
+ * times in all, 50 and 100 ms apart; the last attempt's failure is the call's.
+ * sdfc_get_stats() counts connections and re-sent requests. */
 int sdfc_connect(const char *host, int port, const sdfc_options *opts, sdfc_client **out);
 
 /* A handle's counters. */
 typedef struct sdfc_stats {
-    uint64_t connects;  /* connections opened: 1, plus one per replaced connection */
+    uint64_t connects;  /* connections opened (TCP, and with TLS its handshake done), the
+                           first and every replacement (or attempt at one) alike */
     uint64_t resent;    /* requests sent again on a new connection */
 } sdfc_stats;
 int sdfc_get_stats(const sdfc_client *c, sdfc_stats *out);

@@ -1,7 +1,7 @@
 /* transport.c - libsdfclient's byte stream (transport.h): a non-blocking TCP connection,
  * optionally inside TLS through GnuTLS. GnuTLS reads and writes the socket through our own
  * push and pull functions, so that a write never raises SIGPIPE (MSG_NOSIGNAL) and the
- * socket's errno survives GnuTLS's return codes, which sdfclient.c needs to tell a peer that
+ * socket's errno survives GnuTLS's return codes, which pipeline.c needs to tell a peer that
  * went away (a connection it may replace) from other failures. */
 #include "transport.h"
 
@@ -102,8 +102,10 @@ static int connect_one(const struct addrinfo *ai, double deadline, int *fd_out)
         socklen_t len = sizeof soerr;
         if (r == 0)
             rc = SDFC_ETIMEDOUT;
-        else if (r > 0 && !getsockopt(fd, SOL_SOCKET, SO_ERROR, &soerr, &len) && !soerr)
-            rc = 0;
+        else if (r > 0 && !getsockopt(fd, SOL_SOCKET, SO_ERROR, &soerr, &len) &&
+                 (!soerr || soerr == ECONNRESET))
+            rc = 0; /* reset once accepted: the first send or receive says so, as for a
+                       reset a moment later, and the connection may be replaced */
         else if (soerr)
             errno = soerr;
     }

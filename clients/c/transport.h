@@ -1,6 +1,6 @@
 /* transport.h - libsdfclient's byte stream (internal): one non-blocking TCP connection to
  * sdfd's binary port, plain or inside TLS 1.2+ (GnuTLS), behind one interface, so that
- * sdfclient.c frames, sends and receives without knowing which. Nothing here is exported
+ * pipeline.c frames, sends and receives without knowing which. Nothing here is exported
  * from the shared library (hidden visibility, besides the version script). */
 #ifndef SDFC_TRANSPORT_H
 #define SDFC_TRANSPORT_H
@@ -29,7 +29,9 @@ typedef struct sdfc__conn {
 /* Connect to host:port and, with `tls`, do the handshake, verifying the server's certificate
  * and that it names `host` (a DNS name or an IP address), all within timeout_ms (< 0: no
  * limit). 0, or SDFC_ECONNECT (errno says why), SDFC_ETIMEDOUT, SDFC_ETLS, SDFC_ECERT,
- * SDFC_ENOMEM; *conn is then closed. */
+ * SDFC_ENOMEM; *conn is then closed, its `gone` set when the server closed or reset it
+ * during the TLS handshake. A connection reset right after the server accepted it opens
+ * (0): the first send or receive on it meets the reset. */
 SDFC__HIDDEN int sdfc__conn_open(sdfc__conn *conn, const char *host, int port,
                                  const sdfc__tls *tls, int timeout_ms);
 

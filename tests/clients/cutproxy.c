@@ -1,10 +1,15 @@
 /* cutproxy.c - the cutting proxy of cutproxy.h: one thread, poll() over the two ends of the
- * current connection, blocking writes (the bytes in play are a few megabytes at most). */
+ * current connection, blocking writes (the bytes in play are a few megabytes at most). The
+ * refusing relay follows the frames both ways (proto.h's header), to take one request out
+ * of the stream and put its ERROR between two replies. */
 #include "cutproxy.h"
+
+#include "proto.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <stdint.h>
 #include <string.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -31,6 +36,14 @@ static int connect_upstream(int port)
         return -1;
     }
     return fd;
+}
+
+/* Reset the connection at once: SO_LINGER 0 makes close() send RST. */
+static void reset_now(int fd)
+{
+    struct linger l = {.l_onoff = 1, .l_linger = 0};
+    setsockopt(fd, SOL_SOCKET, SO_LINGER, &l, sizeof l);
+    close(fd);
 }
 
 /* Relay one connection until either end closes, the plan cuts it, or the proxy stops. */
@@ -61,10 +74,121 @@ static void relay(cut_proxy *p, int client, const cut_plan *plan)
             cut = plan->reply_bytes >= 0 && replies >= plan->reply_bytes;
         }
     }
-    if (cut && plan->reset) {
-        struct linger l = {.l_onoff = 1, .l_linger = 0};
-        setsockopt(client, SOL_SOCKET, SO_LINGER, &l, sizeof l);
+    if (cut && plan->reset)
+        reset_now(client);
+    else
+        close(client);
+    if (server >= 0)
+        close(server);
+}
+
+/* Where one direction's stream stands: inside a frame's header (got < 16) or its payload
+ * (`left` bytes to come); `drop`: this frame is not passed on. */
+typedef struct framer {
+    unsigned char hdr[SDF_PROTO_HEADER_SIZE];
+    size_t got;
+    uint32_t left;
+    int drop;
+} framer;
+
+static uint32_t le32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+/* The next `n` bytes of `buf` through `f`: how many of them finish the current frame's
+ * header or payload, at most up to the end of that frame (0 < result <= n). *frame_done:
+ * the frame ended there; *header_done: its header, just read, is in f->hdr. */
+static size_t frame_step(framer *f, const char *buf, size_t n, int *header_done,
+                         int *frame_done)
+{
+    size_t take;
+    *header_done = *frame_done = 0;
+    if (f->got < SDF_PROTO_HEADER_SIZE) {
+        take = SDF_PROTO_HEADER_SIZE - f->got < n ? SDF_PROTO_HEADER_SIZE - f->got : n;
+        memcpy(f->hdr + f->got, buf, take);
+        f->got += take;
+        if (f->got == SDF_PROTO_HEADER_SIZE) {
+            *header_done = 1;
+            f->left = le32(f->hdr + 12);
+        }
+    } else {
+        take = f->left < n ? f->left : n;
+        f->left -= (uint32_t)take;
     }
+    if (f->got == SDF_PROTO_HEADER_SIZE && f->left == 0) {
+        *frame_done = 1;
+        f->got = 0;
+    }
+    return take;
+}
+
+/* The unavailable relay (cutproxy.h): requests pass but the first query, whose ERROR goes
+ * to the client once the server's replies stand between two frames. */
+static void relay_refusing(cut_proxy *p, int client)
+{
+    int server = connect_upstream(p->upstream_port);
+    static char buf[1 << 16];
+    unsigned char error[256];
+    size_t error_len = 0;
+    int refused = 0;
+    framer up = {0}, down = {0};
+    while (server >= 0 && !p->stop) {
+        struct pollfd f[2] = {{.fd = client, .events = POLLIN}, {.fd = server, .events = POLLIN}};
+        if (poll(f, 2, 100) <= 0)
+            continue;
+        if (f[0].revents) {
+            ssize_t n = recv(client, buf, sizeof buf, 0);
+            if (n <= 0)
+                break;
+            for (size_t at = 0; at < (size_t)n;) {
+                int head, done;
+                size_t take = frame_step(&up, buf + at, (size_t)n - at, &head, &done);
+                if (head) {
+                    uint8_t type = up.hdr[5];
+                    up.drop = !refused && (type == SDF_PROTO_QUERY || type == SDF_PROTO_VOLUME_QUERY);
+                    if (up.drop) {
+                        refused = 1;
+                        error_len = sdf_proto_encode_error(error, sizeof error, le32(up.hdr + 8),
+                                                           503, "EUNAVAILABLE",
+                                                           "the server is shutting down");
+                    } else if (write_all(server, (const char *)up.hdr, sizeof up.hdr)) {
+                        goto out;
+                    }
+                } else if (up.got == SDF_PROTO_HEADER_SIZE || done) {
+                    if (!up.drop && write_all(server, buf + at, take))
+                        goto out;
+                }
+                at += take;
+            }
+        }
+        if (f[1].revents) {
+            ssize_t n = recv(server, buf, sizeof buf, 0);
+            if (n <= 0)
+                break;
+            size_t from = 0;
+            for (size_t at = 0; at < (size_t)n;) {
+                int head, done;
+                at += frame_step(&down, buf + at, (size_t)n - at, &head, &done);
+                if (done && error_len) { /* between two replies: the refusal goes in */
+                    if (write_all(client, buf + from, at - from) ||
+                        write_all(client, (const char *)error, error_len))
+                        goto out;
+                    from = at;
+                    error_len = 0;
+                }
+            }
+            if (write_all(client, buf + from, (size_t)n - from))
+                break;
+        }
+        /* the server idle between replies: the refusal need not wait */
+        if (error_len && down.got == 0) {
+            if (write_all(client, (const char *)error, error_len))
+                break;
+            error_len = 0;
+        }
+    }
+out:
     close(client);
     if (server >= 0)
         close(server);
@@ -81,7 +205,13 @@ static void *serve(void *arg)
         if (client < 0)
             continue;
         int i = p->connections++;
-        relay(p, client, &p->plan[i < p->nplan ? i : p->nplan - 1]);
+        const cut_plan *plan = &p->plan[i < p->nplan ? i : p->nplan - 1];
+        if (plan->accept_reset)
+            reset_now(client);
+        else if (plan->unavailable)
+            relay_refusing(p, client);
+        else
+            relay(p, client, plan);
     }
     return NULL;
 }

@@ -1,9 +1,14 @@
 /* cutproxy.h - a loopback TCP proxy for libsdfclient's re-send tests: it stands for a
- * load balancer in front of a replica that dies. Connection i (counting from 0) follows
- * plan[i] (the last entry for the rest): it relays both ways, and once it has relayed
- * `reply_bytes` bytes from the server (or the client has sent `request_bytes`), it closes
- * both ends, with a reset instead of a FIN when `reset` is set. A negative limit never cuts.
- * Connections are served one after another, which is how one client handle uses them. */
+ * load balancer in front of a replica that dies, drains, or is going away. Connection i
+ * (counting from 0) follows plan[i] (the last entry for the rest): it relays both ways, and
+ * once it has relayed `reply_bytes` bytes from the server (or the client has sent
+ * `request_bytes`), it closes both ends, with a reset instead of a FIN when `reset` is set.
+ * A negative limit never cuts. With `accept_reset` it resets the connection as soon as it
+ * accepts it (a balancer whose replica went away). With `unavailable` it answers the first
+ * QUERY or VOLUME_QUERY itself with the ERROR a draining sdfd sends (503 EUNAVAILABLE,
+ * between two of the server's reply frames) and relays everything else; its limits are
+ * ignored. Connections are served one after another, which is how one client handle uses
+ * them. */
 #ifndef SDF_TESTS_CUTPROXY_H
 #define SDF_TESTS_CUTPROXY_H
 
@@ -13,6 +18,8 @@ typedef struct cut_plan {
     long reply_bytes;   /* < 0: no limit */
     long request_bytes; /* < 0: no limit */
     int reset;
+    int accept_reset;
+    int unavailable;
 } cut_plan;
 
 typedef struct cut_proxy {

@@ -16,6 +16,10 @@
  * replica behind a load balancer would): the answers arrive, bit-equal, over one new
  * connection with the token sent again, over plain and TLS, cut while receiving and while
  * sending; a second cut of a re-sent request is the error; without `resend` the first is.
+ * A query the proxy refuses as a draining sdfd would (503 EUNAVAILABLE) goes again once on
+ * a new connection, after the replies on the old one; a second refusal, or one without
+ * `resend`, is the caller's. A connection the proxy resets as soon as it accepts it is
+ * replaced (sdfc_connect's AUTH, a replacement's handshake: three attempts in all).
  * Fake server (a listening socket in this process): the bytes the client sends, with the
  * points passed straight from the caller's array, are exactly the codec's
  * sdf_proto_encode_query frame (the differential test of that fast path), and each
@@ -316,7 +320,7 @@ typedef struct resend_case {
     int tls;
     const char *token;
     int resend;
-    cut_plan plan[2];
+    cut_plan plan[3];    /* a third entry all zero: two (a zero plan cuts at once) */
     int n;               /* requests ... */
     uint32_t count;      /* ... of so many points */
     int want_rc;
@@ -331,7 +335,10 @@ static void run_resend(const resend_case *k)
     CHECK(ask(direct, pts, k->n, k->count, ref) == 0, "%s: direct answers", k->what);
     sdfc_close(direct);
     cut_proxy px;
-    CHECK(cut_proxy_start(&px, k->upstream, k->plan, 2) == 0, "%s: proxy", k->what);
+    const cut_plan *third = &k->plan[2];
+    int nplan = third->reply_bytes || third->request_bytes || third->accept_reset ||
+                third->unavailable ? 3 : 2;
+    CHECK(cut_proxy_start(&px, k->upstream, k->plan, nplan) == 0, "%s: proxy", k->what);
     sdfc_options o = {.reply_timeout_ms = 60000, .token = k->token, .tls = k->tls,
                       .ca_file = k->tls ? ca_file : NULL, .resend = k->resend};
     sdfc_client *c = NULL;
@@ -342,8 +349,14 @@ static void run_resend(const resend_case *k)
         sdfc_stats st = {0};
         sdfc_get_stats(c, &st);
         CHECK(rc == k->want_rc, "%s: %s", k->what, sdfc_strerror(rc));
+        CHECK(rc != SDFC_ESERVER || !strcmp(sdfc_server_error(c)->code, "EUNAVAILABLE"),
+              "%s: the refusal is the proxy's: %s", k->what, sdfc_server_error(c)->code);
         CHECK(rc || !memcmp(got, ref, 4 * total), "%s: the answers are the direct bits", k->what);
-        CHECK(st.connects == k->connects && st.resent >= k->resent_min &&
+        /* a TLS connection reset before its TLS handshake is never opened */
+        uint64_t opened = k->connects;
+        for (int i = 0; k->tls && i < (int)k->connects; i++)
+            opened -= (uint64_t)k->plan[i < nplan ? i : nplan - 1].accept_reset;
+        CHECK(st.connects == opened && st.resent >= k->resent_min &&
                   st.resent <= k->resent_max,
               "%s: %llu connections, %llu re-sent", k->what, (unsigned long long)st.connects,
               (unsigned long long)st.resent);
@@ -365,22 +378,47 @@ static void test_resend(void)
 {
     /* 5 x 100 points: a RESULT is 16 + 8 + 400 bytes; the cut lets two and a part through */
     const long R = 424, cut = 2 * R + 100;
-    const cut_plan pass = {-1, -1, 0};
+#define CUT(replies, requests, reset) {(replies), (requests), (reset), 0, 0}
+    const cut_plan pass = CUT(-1, -1, 0), first = CUT(cut, -1, 0);
+    const cut_plan refuse = {-1, -1, 0, 0, 1}, reset_at_accept = {-1, -1, 0, 1, 0};
     resend_case cases[] = {
-        {"once", port, 0, NULL, 1, {{cut, -1, 0}, pass}, 5, 100, 0, 2, 3, 3},
-        {"twice", port, 0, NULL, 1, {{cut, -1, 0}, {cut, -1, 0}}, 5, 100, SDFC_ECLOSED, 2, 3, 3},
-        {"without resend", port, 0, NULL, 0, {{cut, -1, 0}, pass}, 5, 100, SDFC_ECLOSED, 1, 0, 0},
+        {"once", port, 0, NULL, 1, {first, pass}, 5, 100, 0, 2, 3, 3},
+        {"twice", port, 0, NULL, 1, {first, first}, 5, 100, SDFC_ECLOSED, 2, 3, 3},
+        {"without resend", port, 0, NULL, 0, {first, pass}, 5, 100, SDFC_ECLOSED, 1, 0, 0},
         /* --auth-queries: a re-sent query without AUTH first would be refused */
-        {"with a token", auth_port, 0, "s3cret", 1, {{16 + cut, -1, 0}, pass}, 5, 100, 0, 2, 3, 3},
+        {"with a token", auth_port, 0, "s3cret", 1, {CUT(16 + cut, -1, 0), pass}, 5, 100, 0, 2,
+         3, 3},
         /* a reset while sending 8 x 720 KB: the request cut in half goes again whole */
-        {"reset while sending", port, 0, NULL, 1, {{-1, 1 << 20, 1}, pass}, 8, 60000, 0, 2, 1, 8},
-        {"TLS, closed while receiving", tls_port, 1, NULL, 1, {{600000, -1, 0}, pass}, 8, 60000,
-         0, 2, 1, 7},
-        {"TLS, reset while sending", tls_port, 1, NULL, 1, {{-1, 1 << 20, 1}, pass}, 8, 60000,
-         0, 2, 1, 8},
-        {"TLS, twice", tls_port, 1, NULL, 1, {{600000, -1, 0}, {600000, -1, 1}}, 8, 60000,
+        {"reset while sending", port, 0, NULL, 1, {CUT(-1, 1 << 20, 1), pass}, 8, 60000, 0, 2,
+         1, 8},
+        {"TLS, closed while receiving", tls_port, 1, NULL, 1, {CUT(600000, -1, 0), pass}, 8,
+         60000, 0, 2, 1, 7},
+        {"TLS, reset while sending", tls_port, 1, NULL, 1, {CUT(-1, 1 << 20, 1), pass}, 8,
+         60000, 0, 2, 1, 8},
+        {"TLS, twice", tls_port, 1, NULL, 1, {CUT(600000, -1, 0), CUT(600000, -1, 1)}, 8, 60000,
          SDFC_ECLOSED, 2, 1, 7},
+        /* a draining replica refuses the first query: it alone goes again, once, after the
+         * other four are answered on the first connection */
+        {"unavailable", port, 0, NULL, 1, {refuse, pass}, 5, 100, 0, 2, 1, 1},
+        {"unavailable, with a token", auth_port, 0, "s3cret", 1, {refuse, pass}, 5, 100, 0, 2,
+         1, 1},
+        {"unavailable twice", port, 0, NULL, 1, {refuse, refuse}, 5, 100, SDFC_ESERVER, 2, 1, 1},
+        {"unavailable without resend", port, 0, NULL, 0, {refuse, pass}, 5, 100, SDFC_ESERVER,
+         1, 0, 0},
+        /* a connection reset as soon as the balancer took it: sdfc_connect's AUTH, or the
+         * first query, goes on a new one */
+        {"reset at accept", port, 0, NULL, 1, {reset_at_accept, pass}, 5, 100, 0, 2, 1, 5},
+        {"reset at accept, with a token", auth_port, 0, "s3cret", 1, {reset_at_accept, pass}, 5,
+         100, 0, 2, 0, 0},
+        /* the replacement's handshake is tried again, three times in all */
+        {"a replacement reset at accept", port, 0, NULL, 1, {first, reset_at_accept, pass}, 5,
+         100, 0, 3, 3, 3},
+        {"TLS, a replacement reset at accept", tls_port, 1, NULL, 1,
+         {CUT(600000, -1, 0), reset_at_accept, pass}, 8, 60000, 0, 3, 1, 7},
+        {"every replacement reset at accept", port, 0, NULL, 1, {first, reset_at_accept}, 5, 100,
+         SDFC_ECLOSED, 4, 0, 0},
     };
+#undef CUT
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++)
         run_resend(&cases[i]);
 }

@@ -9,7 +9,11 @@
  * closes it; each connection first sends AUTH (with a token) and HELLO, whose max_payload
  * lets an oversized request be refused here instead of costing the whole connection (the
  * server answers a frame over it by closing). Every message of this protocol only reads, so
- * a request whose connection died before its reply is sent once more on the next one. */
+ * a request whose connection died before its reply is sent once more on the next one; so is
+ * a query a server going away refused (503 EUNAVAILABLE), once the connection has answered
+ * the rest, and a new connection closed or reset before its handshake is answered (a
+ * balancer handing it to a replica that is going away) is opened again, CONNECT_ATTEMPTS
+ * times in all. */
 import net from 'node:net';
 import tls from 'node:tls';
 import { SdfError } from './errors.js';
@@ -30,6 +34,9 @@ const SMALL_MAX = 16 << 20;
 const KERNELS = { gaussian: 0, bump: 1 };
 const VOLUMES = { sphere: 1, box: 2, mesh: 3 };
 const SIGN_NAMES = Object.fromEntries(Object.entries(SIGNS).map(([k, v]) => [v, k]));
+/* A new connection lost before its handshake's reply is opened this many times in all, 50
+ * and 100 ms apart. */
+const CONNECT_ATTEMPTS = 3;
 
 const pad4 = (n) => (n + 3) & ~3;
 const utf8 = new TextEncoder();
@@ -225,6 +232,9 @@ export class BinaryClient {
   #frame = null; /* the header of a frame whose payload is still arriving */
   #limits = null;
   #queue = [];
+  #moving = []; /* queries refused as unavailable, for the next connection once this one is done */
+  #attempt = 0; /* handshakes lost in a row */
+  #retryTimer = null;
   #inflight = new Map();
   #nextId = 1;
   #closed = false;
@@ -303,6 +313,8 @@ export class BinaryClient {
   /** Close the connection; requests not yet answered are rejected. */
   close() {
     this.#closed = true;
+    clearTimeout(this.#retryTimer);
+    this.#retryTimer = null;
     const s = this.#abandon(new Error('the BinaryClient was closed'));
     if (!s || s.destroyed)
       return Promise.resolve();
@@ -328,9 +340,11 @@ export class BinaryClient {
       const onAbort = () => {
         const queued = r.state === 'queued';
         r.finish(signal.reason);
-        const i = queued ? this.#queue.indexOf(r) : -1;
-        if (i >= 0)
-          this.#queue.splice(i, 1);
+        for (const list of queued ? [this.#queue, this.#moving] : []) {
+          const i = list.indexOf(r);
+          if (i >= 0)
+            list.splice(i, 1);
+        }
         this.#refresh();
       };
       r.finish = (err, value) => {
@@ -359,11 +373,13 @@ export class BinaryClient {
     if (this.#closed)
       return;
     if (!this.#socket) {
-      if (this.#queue.length)
+      if (this.#queue.length && !this.#retryTimer)
         this.#connect();
       return;
     }
-    while (this.#open && this.#writable && this.#queue.length && this.#inflight.size < this.#window) {
+    /* nothing new on a connection whose server refused a query as unavailable */
+    while (this.#open && this.#writable && !this.#moving.length && this.#queue.length
+      && this.#inflight.size < this.#window) {
       const r = this.#queue.shift();
       if (r.frame.length - HEADER > this.#limits.maxPayload)
         r.finish(this.#tooLarge(r.frame));
@@ -401,7 +417,7 @@ export class BinaryClient {
     const s = this.#socket;
     if (!s)
       return;
-    let busy = this.#queue.length > 0;
+    let busy = this.#queue.length > 0 || this.#moving.length > 0;
     for (const r of this.#inflight.values())
       busy ||= r.state !== 'done';
     if (busy)
@@ -473,6 +489,7 @@ export class BinaryClient {
           this.#limits = value;
         if (--waiting === 0) {
           this.#open = true;
+          this.#attempt = 0;
           this.#pump();
         }
       };
@@ -534,8 +551,33 @@ export class BinaryClient {
       } catch (e) {
         err = e;
       }
-      r.finish(err, value);
+      if (err && this.#mayMove(r, err)) {
+        r.retried = true;
+        r.state = 'queued';
+        this.#moving.push(r);
+        this.#stats.resent++;
+      } else {
+        r.finish(err, value);
+      }
     }
+    if (this.#moving.length && ![...this.#inflight.values()].some((x) => x.state !== 'done'))
+      return this.#move();
+    this.#pump();
+  }
+
+  /* A query the server refused as unavailable (a replica shutting down, or still loading)
+   * goes again on the next connection, once (as one its connection took with it). */
+  #mayMove(r, err) {
+    return this.#resend && !r.retried && (r.type === QUERY || r.type === VOLUME_QUERY)
+      && err instanceof SdfError && err.status === 503 && err.code === 'EUNAVAILABLE';
+  }
+
+  /* Every request on this connection is answered but the refused ones: they go first on a
+   * new connection (to whichever replica the balancer picks). */
+  #move() {
+    const s = this.#drop();
+    this.#queue.unshift(...this.#moving.splice(0));
+    s.destroy();
     this.#pump();
   }
 
@@ -546,13 +588,23 @@ export class BinaryClient {
     const wasOpen = this.#open;
     const lost = [...this.#inflight.values()];
     this.#drop();
+    if (!wasOpen && this.#resend && ++this.#attempt < CONNECT_ATTEMPTS
+      && (!failure || failure.code === 'ECONNRESET' || failure.code === 'EPIPE')) {
+      /* closed or reset before the handshake's reply: another connection may not be */
+      this.#retryTimer = setTimeout(() => {
+        this.#retryTimer = null;
+        this.#pump();
+      }, 50 << (this.#attempt - 1));
+      return;
+    }
     if (!wasOpen) {
+      this.#attempt = 0;
       const err = failure ?? Object.assign(new Error(
         `sdfd at ${this.#host}:${this.#port} closed the connection before the handshake`),
       { code: 'ECONNRESET' });
       for (const r of lost)
         r.finish(err);
-      for (const r of this.#queue.splice(0))
+      for (const r of [...this.#moving.splice(0), ...this.#queue.splice(0)])
         r.finish(err);
       return;
     }
@@ -571,7 +623,7 @@ export class BinaryClient {
         r.finish(err);
       }
     }
-    this.#queue.unshift(...again);
+    this.#queue.unshift(...this.#moving.splice(0), ...again);
     this.#pump();
   }
 
@@ -585,9 +637,10 @@ export class BinaryClient {
   #abandon(err) {
     const lost = [...this.#inflight.values()];
     const s = this.#drop();
+    this.#attempt = 0;
     for (const r of lost)
       r.finish(err);
-    for (const r of this.#queue.splice(0))
+    for (const r of [...this.#moving.splice(0), ...this.#queue.splice(0)])
       r.finish(err);
     return s;
   }

@@ -29,7 +29,10 @@ export interface BinaryClientOptions {
   /** Most requests written and not yet answered (default 64, the server's own window). */
   maxInFlight?: number;
   /** Send a request once more on a new connection when its connection died before its
-   * reply (default true: every message of the protocol only reads). */
+   * reply, or a query when the server refused it as unavailable (503 EUNAVAILABLE, a
+   * replica shutting down), and open a new connection closed or reset before its handshake
+   * is answered again, three times in all (default true: every message of the protocol
+   * only reads). */
   resend?: boolean;
   /** Milliseconds to wait for a connection (default 10000). */
   connectTimeout?: number;
