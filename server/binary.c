@@ -38,7 +38,17 @@
  * epoll: such a connection goes on the ready list and is read on the next pass without
  * waiting. So does one whose input holds a whole frame the limits held back once they let it
  * go. The limits above apply unchanged to the decrypted bytes.
- */
+ *
+ * Shutdown (SIGTERM) sheds the clients so that they reconnect elsewhere (behind a balancer,
+ * to another replica): from the moment the server drains no new frame is handed on; the
+ * quiesce shuts the listening socket (connects are refused at once, and those waiting in its
+ * backlog reset), and every connection is closed as soon as it has no query in flight and
+ * nothing unsent: its replies go out first, and one idle between frames closes at once.
+ * Frames it had not handed on (held back by the limits, or sent after the drain began) are
+ * not answered: the client sees its connection end and sends them again on a new one. The
+ * 503 EUNAVAILABLE binrequests.c answers for a draining server is left to a frame handed on
+ * in the instant the drain begins (it passed this file's check, then saw the flag); its main
+ * use is a server still loading its meshes. */
 #define _GNU_SOURCE /* accept4 */
 #include "binary.h"
 
@@ -67,16 +77,19 @@
 #define MAX_QUEUED_OUT (64u << 20) /* unsent reply bytes before we stop reading */
 #define MIN_RATE (64.0 * 1024) /* bytes a second a frame must arrive at, after the timeout */
 #define MAX_EVENTS 256 /* epoll events taken a pass; more wait for the next one */
+#define DISCARD_MAX (64 * 1024) /* unread bytes dropped before a close, so it sends no reset */
 
 /* ---- connections ------------------------------------------------------------------------- */
 
 static int resize_input(sdfd_binary *b, connection *c, size_t cap);
 
-/* Parse every complete frame in the input buffer. */
+/* Parse every complete frame in the input buffer; none once the server drains (the file's
+ * comment). */
 static void consume_input(sdfd_binary *b, connection *c)
 {
     size_t off = 0;
-    while (!c->closing && c->in_len - off >= SDF_PROTO_HEADER_SIZE) {
+    while (!c->closing && !atomic_load(&b->srv->draining) &&
+           c->in_len - off >= SDF_PROTO_HEADER_SIZE) {
         pthread_mutex_lock(&c->lock);
         int busy = c->in_flight >= MAX_IN_FLIGHT || c->out_bytes >= MAX_QUEUED_OUT;
         pthread_mutex_unlock(&c->lock);
@@ -218,6 +231,20 @@ static int write_output(connection *c)
         pthread_mutex_unlock(&c->lock);
         free(f->data);
         free(f);
+    }
+}
+
+/* Read and drop what the client sent and nobody will read (at most DISCARD_MAX): closing a
+ * socket with unread bytes resets the connection, and the reset can cost the client the
+ * replies it has not read yet. */
+static void discard_unread(connection *c)
+{
+    unsigned char sink[4096];
+    for (size_t n = 0; n < DISCARD_MAX;) {
+        ssize_t got = sdfd_bin_recv(c, sink, sizeof sink);
+        if (got <= 0)
+            return;
+        n += (size_t)got;
     }
 }
 
@@ -376,8 +403,7 @@ static shared_state look(connection *c)
 /* Does the loop read connection c (and so hand on its frames)? */
 static int reading(const sdfd_binary *b, const connection *c, const shared_state *s)
 {
-    (void)b;
-    return s->room && !c->closing;
+    return s->room && !c->closing && !atomic_load(&b->srv->draining);
 }
 
 /* Put c on the ready list: the next pass looks at it without waiting for epoll. */
@@ -432,6 +458,8 @@ static void service(sdfd_binary *b, connection *c, uint32_t events)
     }
     if (s.pending && !c->out_since)
         c->out_since = sdfd_now(); /* replies wait from now: stalled() times them */
+    if (!fail && c->closing && !s.pending && !s.flying)
+        discard_unread(c); /* done: nothing of what is left will be answered */
     if (fail || (c->closing && !s.pending && !s.flying)) {
         close_socket(b, c);
         return;
@@ -509,16 +537,34 @@ static void serve_notified(sdfd_binary *b)
     }
 }
 
+/* The quiesce, seen on this thread: stop listening and close every connection as soon as it
+ * is done (the file's comment). The one walk of every connection a drain makes. */
+static void start_drain(sdfd_binary *b)
+{
+    b->draining = 1;
+    epoll_ctl(b->epoll_fd, EPOLL_CTL_DEL, b->listen_fd, NULL);
+    close(b->listen_fd);
+    b->listen_fd = -1;
+    size_t open = b->conn_count;
+    for (connection *c = b->conns; c; c = c->next) {
+        if (c->dead)
+            continue;
+        c->closing = 1;
+        service(b, c, 0);
+    }
+    sdfd_log("info", "shutdown",
+             "binary: listener closed; %zu of %zu connections closed at once, the rest close "
+             "once their replies are out", open - b->conn_count, open);
+}
+
 static void *event_loop(void *arg)
 {
     sdfd_binary *b = arg;
     struct epoll_event events[MAX_EVENTS];
     b->next_sweep = sdfd_now() + 1;
     while (!atomic_load(&b->stop)) {
-        if (atomic_load(&b->quiesced) && !b->draining) { /* no new connections */
-            b->draining = 1;
-            epoll_ctl(b->epoll_fd, EPOLL_CTL_DEL, b->listen_fd, NULL);
-        }
+        if (atomic_load(&b->quiesced) && !b->draining)
+            start_drain(b);
         double wait = b->next_sweep - sdfd_now();
         int timeout = b->ready ? 0 : wait <= 0 ? 0 : wait >= 1 ? 1000 : (int)(wait * 1000) + 1;
         int n = epoll_wait(b->epoll_fd, events, MAX_EVENTS, timeout);
@@ -590,8 +636,11 @@ int sdfd_binary_start(sdfd_server *srv, sdfd_binary **out)
     return 0;
 }
 
+/* Shut down the listening socket here, on the caller's thread, so that connects are refused
+ * (and the backlog reset) once this returns; the loop closes it and begins the drain. */
 void sdfd_binary_quiesce(sdfd_binary *b)
 {
+    shutdown(b->listen_fd, SHUT_RDWR);
     atomic_store(&b->quiesced, 1);
     sdfd_bin_wake(b);
 }

@@ -74,7 +74,7 @@ struct sdfd_binary {
     pthread_mutex_t notify_lock; /* notify, and each connection's notified and notify_next */
     connection *notify;         /* connections whose requests ended on other threads */
     double next_sweep;          /* when the loop next checks every connection's clocks */
-    int draining;               /* the loop has seen the quiesce */
+    int draining;               /* the loop has seen the quiesce: it closes its connections */
     uint32_t max_payload;
 };
 
