@@ -1,6 +1,7 @@
 /* binconn.c - what the binary front end's connections share across threads (binconn.h):
- * queueing a reply frame, from any thread, and waking the poll loop to send it; counting and
- * logging a request; and a request's end. And their byte I/O on the poll thread: plain
+ * queueing a reply frame, from any thread; counting and logging a request; and a request's
+ * end, which hands the connection to the event loop and wakes it. And their byte I/O on the
+ * loop's thread: plain
  * recv/send, or GnuTLS records (--bin-tls) on the same non-blocking socket, so the loop
  * treats both alike. */
 #include "binconn.h"
@@ -60,12 +61,26 @@ void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int st
                      status, points, seconds * 1e6, bytes_in, bytes_out);
 }
 
+/* The count goes down and c goes on the list under one hold of notify_lock: the loop frees a
+ * closed connection only with nothing in flight and off the list (binary.c's can_free), so it
+ * cannot free c between the two. Only the push onto an empty list wakes the loop: a list with
+ * entries has a wake on its way, sent by the thread that pushed the first one. */
 void sdfd_bin_request_finished(sdfd_binary *b, connection *c)
 {
+    pthread_mutex_lock(&b->notify_lock);
     pthread_mutex_lock(&c->lock);
     c->in_flight--;
     pthread_mutex_unlock(&c->lock);
-    atomic_fetch_sub(&b->srv->in_flight, 1);
+    int first = !b->notify;
+    if (!c->notified) {
+        c->notified = 1;
+        c->notify_next = b->notify;
+        b->notify = c;
+    }
+    pthread_mutex_unlock(&b->notify_lock);
+    if (first)
+        sdfd_bin_wake(b);
+    atomic_fetch_sub(&b->srv->in_flight, 1); /* last: shutdown frees b once it reaches 0 */
 }
 
 void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what)

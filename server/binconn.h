@@ -1,9 +1,10 @@
 /* binconn.h - the binary front end's connections, their reply queues and their byte I/O,
  * plain or TLS (binconn.c), used by
- * binary.c, which owns the sockets (it polls them, splits their bytes into frames and hands
- * each frame to binrequests.c), and by binrequests.c, which answers a frame or starts the
- * work that will. Replies go out through a connection's queue (sdfd_bin_enqueue), from any
- * thread. Private to those three files. */
+ * binary.c, which owns the sockets (it watches them with epoll, splits their bytes into frames
+ * and hands each frame to binrequests.c), and by binrequests.c, which answers a frame or starts
+ * the work that will. Replies go out through a connection's queue (sdfd_bin_enqueue), from any
+ * thread, and the request's end (sdfd_bin_request_finished) puts the connection on the list
+ * the loop looks at next. Private to those three files. */
 #ifndef SDFD_BINCONN_H
 #define SDFD_BINCONN_H
 
@@ -52,21 +53,32 @@ struct connection {
     size_t out_bytes;           /* queued, not yet sent */
     int in_flight;
     int authenticated;          /* sent AUTH with the --token */
-    connection *next;
+    uint32_t watched;           /* the epoll events registered for fd */
+    connection *prev, *next;    /* every connection not yet freed (sdfd_binary.conns) */
+    /* The loop's lists (binary.c): each flag says the connection is on that list. */
+    connection *ready_next;     /* to look at on the next pass without waiting */
+    connection *reap_next;      /* closed this pass: free it at the pass's end if it can go */
+    int ready, reaping;
+    connection *notify_next;    /* a request ended on another thread (under notify_lock) */
+    int notified;
 };
 
 struct sdfd_binary {
     sdfd_server *srv;
-    int listen_fd, wake_fd;
+    int listen_fd, wake_fd, epoll_fd;
     pthread_t thread;
     atomic_int stop, quiesced;
     connection *conns;
-    size_t conn_count;
-    size_t dead_count;          /* closed connections not yet freed (reap) */
+    size_t conn_count;          /* sockets open */
+    connection *ready, *reap;   /* the loop's own lists */
+    pthread_mutex_t notify_lock; /* notify, and each connection's notified and notify_next */
+    connection *notify;         /* connections whose requests ended on other threads */
+    double next_sweep;          /* when the loop next checks every connection's clocks */
+    int draining;               /* the loop has seen the quiesce: it closes its connections */
     uint32_t max_payload;
 };
 
-/* Wake the poll loop (a reply was queued from another thread). */
+/* Wake the event loop (a reply was queued from another thread). */
 void sdfd_bin_wake(sdfd_binary *b);
 /* Queue a frame; takes ownership of data. Any thread. */
 void sdfd_bin_enqueue(connection *c, char *data, size_t len);
@@ -75,12 +87,14 @@ void sdfd_bin_send_error(connection *c, uint32_t id, int err, const char *messag
 /* One request: metrics and a log line, as the HTTP side does. */
 void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int status,
                       size_t points, double start, size_t bytes_in, size_t bytes_out);
-/* A request of connection c has been answered (or refused after it was counted). */
+/* A request of connection c has been answered (or refused after it was counted): c goes on
+ * the list the loop looks at next (its reply is sent, the frames held back for the in-flight
+ * limit go on), and the loop is woken. */
 void sdfd_bin_request_finished(sdfd_binary *b, connection *c);
 
 /* A connection's bytes, through TLS or not. Like recv and send: the count, 0 at the end of
- * the stream (recv), or -1 with errno (EAGAIN: nothing can move now; poll for
- * sdfd_bin_wants_write ? POLLOUT : POLLIN). A send that was refused for EAGAIN must be
+ * the stream (recv), or -1 with errno (EAGAIN: nothing can move now; wait for
+ * sdfd_bin_wants_write ? EPOLLOUT : EPOLLIN). A send that was refused for EAGAIN must be
  * repeated with the same bytes (GnuTLS holds the record it had begun). */
 ssize_t sdfd_bin_recv(connection *c, void *buf, size_t n);
 ssize_t sdfd_bin_send(connection *c, const void *buf, size_t n);

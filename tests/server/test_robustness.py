@@ -5,7 +5,8 @@
   - a client that sends half a request and stalls is cut off by the timeout, others unaffected;
   - 64 concurrent clients of small requests all get correct answers, and /metrics proves
     that batches coalesced more than one request;
-  - SIGTERM with requests in flight: every one of them is answered, then exit 0."""
+  - SIGTERM with requests in flight: every one of them is answered, then exit 0; binary
+    clients are shed (idle connections closed at once, busy ones once answered)."""
 import http.client
 import json
 import os
@@ -511,6 +512,36 @@ class Concurrency(unittest.TestCase):
             self.assertIn("make it narrower", data["error"]["message"])
 
 
+BIN_HEADER = struct.Struct("<4sBBHII")
+BIN_RESULT = 0x83
+
+
+def bin_query(rid, points, name=b"demo"):
+    """A binary QUERY frame (signed distances) of float32 points (N, 3)."""
+    payload = struct.pack("<BBHI", 0, 0, len(name), len(points)) + name + \
+        b"\0" * (-len(name) % 4) + points.tobytes()
+    return BIN_HEADER.pack(b"SDFP", 1, 3, 0, rid, len(payload)) + payload
+
+
+def bin_reply(sock):
+    """(type, request id, payload) of the next frame; ConnectionError at the end of stream."""
+    def exact(n):
+        out = b""
+        while len(out) < n:
+            chunk = sock.recv(n - len(out))
+            if not chunk:
+                raise ConnectionError("the connection ended")
+            out += chunk
+        return out
+    _, _, type_, _, rid, length = BIN_HEADER.unpack(exact(16))
+    return type_, rid, exact(length)
+
+
+def binary_drain_logged(server):
+    return any(e.get("event") == "shutdown" and e.get("message", "").startswith("binary:")
+               for e in server.logs)
+
+
 class Shutdown(unittest.TestCase):
     def test_sigterm_answers_everything_in_flight(self):
         s = Server()
@@ -536,9 +567,10 @@ class Shutdown(unittest.TestCase):
         self.assertTrue(wait_until(lambda: any(e.get("event") == "shutdown" for e in s.logs), 10))
         status, _ = self._readyz(watcher)
         self.assertEqual(status, 503, "/readyz on an open connection while draining")
-        with self.assertRaises(OSError):  # no new connections
-            socket.create_connection(("127.0.0.1", s.bin_port), timeout=2).recv(1)
-        with self.assertRaises(ConnectionRefusedError):  # HTTP's socket is shut: refused at once
+        self.assertTrue(wait_until(lambda: binary_drain_logged(s), 10))
+        with self.assertRaises(ConnectionRefusedError):  # both sockets are shut: refused at once
+            socket.create_connection(("127.0.0.1", s.bin_port), timeout=2)
+        with self.assertRaises(ConnectionRefusedError):
             socket.create_connection(("127.0.0.1", s.ports["http"]), timeout=2)
         for t in threads:
             t.join(120)
@@ -548,6 +580,68 @@ class Shutdown(unittest.TestCase):
         events = [e.get("event") for e in s.logs]
         self.assertIn("shutdown", events)
         self.assertEqual(events[-1], "stopped")
+
+    def test_sigterm_sheds_binary_clients(self):
+        """A draining sdfd sheds its binary clients so that they reconnect elsewhere: a
+        pipeline's queries sent before SIGTERM are each answered bit for bit or lost with the
+        connection (never a 503), idle connections end at once, new connects are refused, and
+        the server exits 0 having logged the drain."""
+        n, queries = 20000, 32
+        # One query a batch, so the replies come one by one and the signal lands mid-pipeline.
+        s = Server("--batch-max-points", str(n), "--drain-seconds", "60")
+        rng = np.random.default_rng(5)
+        frames = {rid: bin_query(rid, rng.uniform(-3, 3, (n, 3)).astype(np.float32))
+                  for rid in range(1, queries + 1)}
+        ref = {}  # each query's reply payload, from a connection of its own before the drain
+        with socket.create_connection(("127.0.0.1", s.bin_port), timeout=60) as c:
+            for rid, frame in frames.items():
+                c.sendall(frame)
+                type_, got, payload = bin_reply(c)
+                self.assertEqual((type_, got), (BIN_RESULT, rid), payload[:200])
+                ref[rid] = payload
+        hello = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)
+        hello.sendall(BIN_HEADER.pack(b"SDFP", 1, 1, 0, 99, 0))  # spoke once, now between frames
+        self.assertEqual(bin_reply(hello)[:2], (0x81, 99))
+        silent = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)  # never speaks
+        half = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)
+        half.sendall(frames[1][:100])  # stops mid-frame
+        pipe = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)
+        pipe.sendall(b"".join(frames.values()))
+        first = bin_reply(pipe)  # the pipeline is under way
+        s.proc.send_signal(signal.SIGTERM)
+        signalled = time.time()
+        for name, sock in (("hello", hello), ("silent", silent), ("half", half)):
+            sock.settimeout(5)
+            self.assertEqual(sock.recv(100), b"", f"the {name} connection got bytes, not EOF")
+            sock.close()
+        idle_closed = time.time() - signalled
+        still_draining = s.proc.poll() is None
+        self.assertTrue(wait_until(lambda: binary_drain_logged(s), 10))
+        with self.assertRaises(ConnectionRefusedError):
+            socket.create_connection(("127.0.0.1", s.bin_port), timeout=2)
+        answered = [first]
+        while True:
+            try:
+                answered.append(bin_reply(pipe))
+            except (ConnectionError, OSError):
+                break  # the connection ended: the rest is the client's to send elsewhere
+        pipe_closed = time.time() - signalled
+        pipe.close()
+        lost = queries - len(answered)
+        print(f"\n  binary drain: idle connections closed {idle_closed * 1e3:.0f} ms after "
+              f"SIGTERM, the pipeline's {pipe_closed * 1e3:.0f} ms after; of its {queries} "
+              f"queries {len(answered)} answered, {lost} lost with the connection",
+              file=sys.stderr)
+        for type_, rid, payload in answered:
+            self.assertEqual(type_, BIN_RESULT, f"query {rid}: {payload[:200]!r}")
+            self.assertEqual(payload, ref[rid], f"query {rid}: not the reference's bytes")
+        self.assertEqual(len({rid for _, rid, _ in answered}), len(answered), "a reply twice")
+        self.assertGreater(len(answered), 1, "no reply after the signal: not mid-pipeline")
+        self.assertLess(idle_closed, 2.0, "idle connections not closed at once")
+        self.assertTrue(still_draining, "idle connections ended only with the process")
+        self.assertEqual(s.stop(), 0)
+        self.assertTrue(binary_drain_logged(s))
+        self.assertEqual([e.get("event") for e in s.logs][-1], "stopped")
 
     def test_loading_answers_503_not_404(self):
         """A replica listens before its meshes are loaded (so /readyz can say so): until then
