@@ -1,8 +1,8 @@
 /* mesh.c - the sdf_mesh handle: building the index from a triangle soup, sharing it
  * (retain/release) and reporting on it.
  *
- * The build is a fixed graph of named steps: weld; then, side by side, analyse the edges and
- * build our own tree (with Embree's builder); orient (flip a closed inside-out mesh, which
+ * The build is a fixed graph of named steps: weld; then, side by side, build our own tree
+ * (with Embree's builder, on the caller's thread) and analyse the edges; orient (flip a closed inside-out mesh, which
  * needs both done: the tree reads the corners the flip swaps); then, side by side, the
  * pseudonormals and the search for self-intersections (they decide what `auto` signs with);
  * last the winding-number moments where `auto` needs them. Each pair runs on its own thread and
@@ -243,8 +243,10 @@ int sdf__mesh_build(float *positions, size_t vertex_count, uint32_t *triangles,
         sdf__diag_set(diag, rc, 0, -1, "out of memory for %zu triangles", triangle_count);
     side_step side;
     if (!rc) {
-        side_start(&side, step_trees, &b);
-        rc = side_finish(&side, step_analyse(&b, diag), diag);
+        /* The trees on the caller's thread: Embree keeps a per-thread allocator (sdf.h) for
+         * every thread that ever builds, so a fresh side thread each time would grow it. */
+        side_start(&side, step_analyse, &b);
+        rc = side_finish(&side, step_trees(&b, diag), diag);
     }
     if (!rc) {
         step_orient(m);

@@ -14,6 +14,10 @@
  *  - Batch calls take caller-owned arrays; only *_create/_load functions allocate.
  *  - A zeroed options struct (or a NULL pointer to one) means defaults.
  *  - No global state: two meshes, or two threads, never interfere.
+ *  - Embree, which builds the index, keeps about 200 bytes for every thread that has ever
+ *    built one (sdf_mesh_load_*, sdf_mesh_create, and the first raycast-signed or
+ *    single-traversal query of a mesh, which builds Embree's own scene) until the process
+ *    exits. A long-running program builds on threads it keeps, not a new one each time.
  */
 #ifndef SDF_SDF_H
 #define SDF_SDF_H
