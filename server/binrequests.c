@@ -1,8 +1,8 @@
 /* binrequests.c - what the binary front end answers (PROTOCOL.md): QUERY and VOLUME_QUERY go
  * to the handlers (queries.h), as HTTP's queries do, with a reply frame built in place (the
  * result words sit right after the frame header, so nothing is copied) and queued when the
- * handler's done callback runs; HELLO, LIST_MESHES and AUTH are answered at once on the poll
- * thread. The connections themselves (polling, framing, limits) are binary.c's, their reply
+ * handler's done callback runs; HELLO, LIST_MESHES and AUTH are answered at once on the loop's
+ * thread. The connections themselves (epoll, framing, limits) are binary.c's, their reply
  * queues binconn.c's. */
 #include <pthread.h>
 #include <stdio.h>
@@ -48,8 +48,7 @@ static void query_done(sdfd_job *job)
     sdfd_query_release(&bj->query);
     free(bj->points);
     free(bj);
-    sdfd_bin_request_finished(b, c);
-    sdfd_bin_wake(b);
+    sdfd_bin_request_finished(b, c); /* wakes the loop; b may be freed once it returns */
 }
 
 /* Refuse a request: ERROR frame, metrics, log. */
@@ -159,8 +158,7 @@ static void volume_query_done(sdfd_volume_query *vq)
     sdfd_volume_query_release(vq);
     free(vj->points);
     free(vj);
-    sdfd_bin_request_finished(b, c);
-    sdfd_bin_wake(b);
+    sdfd_bin_request_finished(b, c); /* wakes the loop; b may be freed once it returns */
 }
 
 static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
