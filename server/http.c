@@ -396,6 +396,7 @@ static enum MHD_Result dispatch(request *req)
                          .batch_scratch_bytes = sdfd_batcher_kept_bytes(srv->batcher)};
         sdfd_volumes_usage(srv->volumes, &g.volume_bytes, &g.bakes_running, &g.bakes_queued);
         sdfd_volumes_ops_usage(srv->volumes, &g.ops_running, &g.ops_queued);
+        sdfd_workers_counts(srv->workers, &g.workers_idle, &g.workers_started);
         sdfd_cache_stats st;
         sdfd_cache_stats_get(srv->cache, &st);
         g.resident_bytes = st.resident_bytes, g.resident_budget = st.budget;

@@ -259,27 +259,21 @@ void sdfd_http_resume(request *req)
     MHD_resume_connection(req->conn);
 }
 
-static void *thread_main(void *arg)
+static void run_request(void *arg)
 {
     request *req = arg;
     req->run(req);
     sdfd_http_resume(req);
-    return NULL;
 }
 
-/* Suspend the connection and run `run` on a new thread; `respond` answers after the resume. */
+/* Suspend the connection and run `run` on a worker thread (workers.h); `respond` answers
+ * after the resume. */
 enum MHD_Result sdfd_http_start_thread(request *req, sdfd_http_work run,
                                        sdfd_http_respond respond)
 {
-    pthread_t t;
-    pthread_attr_t attr;
-    pthread_attr_init(&attr);
-    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
     req->run = run;
     sdfd_http_wait(req, respond);
-    int failed = pthread_create(&t, &attr, thread_main, req);
-    pthread_attr_destroy(&attr);
-    if (failed) {
+    if (sdfd_workers_run(req->srv->workers, run_request, req)) {
         sdfd_http_unwait(req);
         return sdfd_http_error(req, SDFD_EUNAVAILABLE, "cannot start a worker thread");
     }

@@ -165,6 +165,7 @@ int main(int argc, char **argv)
     srv.cache = sdfd_cache_create(store, srv.registry, srv.volumes, srv.metrics,
                                   srv.cfg.max_resident_bytes, srv.cfg.max_total_triangles);
     if (!srv.registry || !srv.metrics || !srv.volumes || !srv.cache ||
+        sdfd_workers_create(SDFD_IDLE_WORKERS, &srv.workers) ||
         sdfd_batcher_create(srv.cfg.threads, srv.cfg.batch_window_us, srv.cfg.batch_max_points,
                             srv.cfg.max_queued_points, srv.metrics, &srv.batcher)) {
         sdfd_log("error", "start", "out of memory");
@@ -178,6 +179,7 @@ int main(int argc, char **argv)
         sdfd_cache_destroy(srv.cache);
         sdfd_binary_stop(bin);
         sdfd_http_stop(http);
+        sdfd_workers_destroy(srv.workers);
         sdfd_batcher_destroy(srv.batcher);
         sdfd_volumes_destroy(srv.volumes);
         sdfd_tls_destroy(srv.tls);
@@ -204,6 +206,7 @@ int main(int argc, char **argv)
     sdfd_batcher_destroy(srv.batcher);
     sdfd_binary_stop(bin);
     sdfd_http_stop(http);
+    sdfd_workers_destroy(srv.workers); /* their tasks ended with the requests they served */
     sdfd_volumes_destroy(srv.volumes);
     sdfd_cache_destroy(srv.cache);
     sdfd_registry_destroy(srv.registry);

@@ -181,6 +181,12 @@ char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len)
     emit(&o, "# HELP sdfd_batch_scratch_bytes Bytes the batcher keeps between batches.\n"
              "# TYPE sdfd_batch_scratch_bytes gauge\nsdfd_batch_scratch_bytes %zu\n",
          g->batch_scratch_bytes);
+    emit(&o, "# HELP sdfd_worker_threads_idle Worker threads waiting for a task.\n"
+             "# TYPE sdfd_worker_threads_idle gauge\nsdfd_worker_threads_idle %zu\n",
+         g->workers_idle);
+    emit(&o, "# HELP sdfd_worker_threads_started_total Worker threads started (for uploads, "
+             "slices, volume queries).\n# TYPE sdfd_worker_threads_started_total counter\n"
+             "sdfd_worker_threads_started_total %zu\n", g->workers_started);
     emit(&o, "# HELP sdfd_bakes Bake jobs by state.\n# TYPE sdfd_bakes gauge\n"
              "sdfd_bakes{state=\"running\"} %zu\nsdfd_bakes{state=\"queued\"} %zu\n",
          g->bakes_running, g->bakes_queued);

@@ -35,6 +35,7 @@ typedef struct sdfd_gauges {
     size_t ops_running, ops_queued; /* field-operation jobs */
     size_t buffered_bytes; /* request bodies and binary input held (--max-buffered-bytes) */
     size_t batch_scratch_bytes; /* what the batcher keeps between batches */
+    size_t workers_idle, workers_started; /* worker threads waiting; started since start */
     size_t resident_bytes, resident_budget; /* meshes and volumes in memory; the budget */
     unsigned long long store_loads, store_evictions, store_quarantined;
 } sdfd_gauges;

@@ -124,7 +124,7 @@ void sdfd_query_release(sdfd_query *q)
 /* ---- volume queries: arithmetic, not the batcher's geometry, but too slow for a front
  * end's I/O threads ------------------------------------------------------------------------- */
 
-static void *evaluate(void *arg)
+static void evaluate(void *arg)
 {
     sdfd_volume_query *vq = arg;
     size_t bad = 0;
@@ -137,28 +137,21 @@ static void *evaluate(void *arg)
         snprintf(vq->message, sizeof vq->message, "%s",
                  vq->status ? sdfd_strerror(vq->status) : "");
     vq->done(vq);
-    return NULL;
 }
 
-/* Evaluate on a new thread, which calls done; hermite is refused on a zero-order volume. */
+/* Evaluate on a worker thread, which calls done; hermite is refused on a zero-order volume. */
 static int start(sdfd_volume_query *vq, char *msg, size_t cap)
 {
     sdf_volume_info info;
     sdf_volume_get_info(vq->stored->volume, &info);
     if (vq->interpolation == SDF_VOLUME_HERMITE && info.order != 1) {
-        snprintf(msg, cap, "interpolation 'hermite' needs a first-order volume; '%s' is zero "
+        snprintf(msg, cap, "interpolation 'hermite' needs a first-order volume; '%.128s' is zero "
                  "order (trilinear or nearest)", vq->stored->name);
         return SDF_EINVAL;
     }
-    pthread_t thread;
-    pthread_attr_t attr;
-    pthread_attr_init(&attr);
-    pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
     sdfd_server *srv = vq->srv;
-    size_t count = vq->count; /* vq may be gone once the thread has started */
-    int failed = pthread_create(&thread, &attr, evaluate, vq);
-    pthread_attr_destroy(&attr);
-    if (failed) {
+    size_t count = vq->count; /* vq may be gone once the task has started */
+    if (sdfd_workers_run(srv->workers, evaluate, vq)) {
         snprintf(msg, cap, "cannot start a worker thread");
         return SDFD_EUNAVAILABLE;
     }

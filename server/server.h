@@ -1,6 +1,6 @@
 /* server.h - the state every part of sdfd shares: settings, the mesh registry, the volumes,
- * the cache (the store behind both), metrics, the batcher, and the lifecycle flags that
- * drive /readyz and graceful shutdown. */
+ * the cache (the store behind both), metrics, the batcher, the worker threads, and the
+ * lifecycle flags that drive /readyz and graceful shutdown. */
 #ifndef SDFD_SERVER_H
 #define SDFD_SERVER_H
 
@@ -13,6 +13,7 @@
 #include "registry.h"
 #include "tls.h"
 #include "volumes.h"
+#include "workers.h"
 
 #define SDFD_VERSION "0.1.0"
 
@@ -24,6 +25,7 @@ typedef struct sdfd_server {
     sdfd_volumes *volumes;   /* baked volumes and bake jobs */
     sdfd_cache *cache;       /* lookups, uploads and deletes of both, through the store if any */
     sdfd_tls *tls;           /* --tls-cert and --tls-key, or NULL: no TLS */
+    sdfd_workers *workers;   /* threads for uploads, slices and volume queries */
     atomic_int ready;        /* meshes loaded: /readyz 200 */
     atomic_int draining;     /* SIGTERM seen: /readyz 503, new work refused */
     atomic_long in_flight;   /* requests received and not yet answered (both protocols) */
