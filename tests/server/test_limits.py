@@ -333,12 +333,16 @@ class NonReader(unittest.TestCase):
             t = threading.Thread(target=sender, daemon=True)
             t.start()
             # Measure once the server has stopped reading it (no send went through for 1 s):
-            # before that it computes the queries it reads, which is load, not an attack.
+            # before that it computes the queries it reads, which is load, not an attack. It
+            # stops for good only with 64 MiB of replies unsent (binary.c); a pause before
+            # that many frames are in is the limit of 64 queries in flight waiting on their
+            # computation (seconds long under ThreadSanitizer), which then reads on.
+            full = 0.9 * (64 * 2**20 / 20000) * len(frame)
             plateau = None
             while plateau is None and time.time() - t0 < self.T and cut is None:
                 time.sleep(0.2)
                 recent = [b for when, b in progress[-2000:] if when >= time.time() - t0 - 1.0]
-                if time.time() - t0 > 1.0 and recent and recent[0] == sent:
+                if time.time() - t0 > 1.0 and recent and recent[0] == sent and sent >= full:
                     plateau = time.time() - t0
             held = sent
             http_s, bin_s, _ = prober.medians(3)
@@ -366,8 +370,9 @@ class NonReader(unittest.TestCase):
             quarantine = 256 * 2**20 if "address" in os.environ.get("SDF_SANITIZE", "") else 0
             quarantine += 512 * 2**20 if "thread" in os.environ.get("SDF_SANITIZE", "") else 0
             self.assertLess(peak - base_rss, 160e6 + quarantine)
-            self.assertLess(http_s, LATENCY_FACTOR * idle_http, "HTTP latency under attack")
-            self.assertLess(bin_s, LATENCY_FACTOR * idle_bin, "binary latency under attack")
+            if plateau is not None:  # else the probes waited behind its queries: load
+                self.assertLess(http_s, LATENCY_FACTOR * idle_http, "HTTP latency under attack")
+                self.assertLess(bin_s, LATENCY_FACTOR * idle_bin, "binary latency under attack")
 
 
 if __name__ == "__main__":
