@@ -56,16 +56,18 @@ deps() {
     fi
 }
 
+# sdfd, and failover.py's C binary worker (sdfc-load, libsdfclient).
 sdfd_binary() {
-    if [ ! -x build/server/sdfd ]; then
+    if [ ! -x build/server/sdfd ] || [ ! -x build/tests/sdfc-load ]; then
         .ci/deps
         [ -f build/build.ninja ] || meson setup build --buildtype=release >/dev/null
-        meson compile -C build sdfd >/dev/null
+        meson compile -C build sdfd sdfc-load >/dev/null
     fi
 }
 
 part_lb() {
     deps haproxy nginx-light libnginx-mod-stream python3-numpy
+    command -v node >/dev/null || deps nodejs # failover.py's JS binary worker
     sdfd_binary
     check "haproxy.cfg parses" haproxy -c -q -f deploy/lb/haproxy.cfg
     local lb mode
