@@ -13,7 +13,9 @@
 # keeps what it finds in build-fuzz/fuzz-corpus/<harness>/, so later runs go on from there;
 # a crash, leak or timeout input is written to build-fuzz/fuzz-artifacts/<harness>/ and its
 # log kept as build-fuzz/fuzz-logs/<harness>.log. Options: -timeout=10 (seconds for one input)
-# and -rss_limit_mb=2048 (also the largest single allocation), with the harness's dictionary.
+# -malloc_limit_mb=2048 (the largest single allocation) and -rss_limit_mb=4096 (the whole
+# process, whose sanitizer bookkeeping grows over millions of executions: docs/robustness.md),
+# with the harness's dictionary.
 #
 # Prints one line per harness (executions, exec/s, coverage as libFuzzer counts it: cov edges
 # and ft features, the corpus, the verdict) and `fuzz: N passed, N failed`; exits non-zero if
@@ -58,8 +60,8 @@ for h in $harnesses; do
     [ -d "tests/fuzz/regressions/$h" ] && set -- "$@" "tests/fuzz/regressions/$h"
     rc=0
     "$build/tests/fuzz/fuzz-$h" -max_total_time="$seconds" -runs="$runs" -timeout=10 \
-        -rss_limit_mb=2048 -dict="tests/fuzz/dict/$(dict_of "$h").dict" -print_final_stats=1 \
-        -artifact_prefix="$art/" "$work" "$@" >"$log" 2>&1 || rc=$?
+        -malloc_limit_mb=2048 -rss_limit_mb=4096 -dict="tests/fuzz/dict/$(dict_of "$h").dict" \
+        -print_final_stats=1 -artifact_prefix="$art/" "$work" "$@" >"$log" 2>&1 || rc=$?
     result=ok
     if [ "$rc" -ne 0 ]; then
         result="FAILED (exit $rc)"
