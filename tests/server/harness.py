@@ -3,10 +3,13 @@
 Ports: sdfd is started with --http 127.0.0.1:0 --bin 127.0.0.1:0 and logs the ports the
 kernel picked ("listening" events); the harness reads them from its JSON log. The log is
 drained on a thread (a full pipe would block the server) and kept for assertions.
-Paths come from meson: SDFD (the daemon), SDF_BENCH (sdf-bench), SDF_TEST_DATA."""
+Paths come from meson: SDFD (the daemon), SDF_BENCH (sdf-bench), SDF_TEST_DATA. Also the
+two binary-protocol frames tests write by hand (proto/PROTOCOL.md): a QUERY, and reading one
+reply."""
 import json
 import os
 import signal
+import struct
 import subprocess
 import threading
 import time
@@ -80,6 +83,31 @@ class Server:
 
     def __exit__(self, *exc):
         self.stop()
+
+
+BIN_HEADER = struct.Struct("<4sBBHII")  # magic, version, type, flags, request id, length
+
+
+def bin_query(rid, points, name=b"demo", mode=0):
+    """A binary QUERY frame of float32 points (bytes, or an array of shape (N, 3))."""
+    data = points if isinstance(points, bytes) else points.tobytes()
+    payload = struct.pack("<BBHI", mode, 0, len(name), len(data) // 12) + name + \
+        b"\0" * (-len(name) % 4) + data
+    return BIN_HEADER.pack(b"SDFP", 1, 3, 0, rid, len(payload)) + payload
+
+
+def recv_frame(sock):
+    """(type, request id, payload) of the next frame; ConnectionError at the end of stream."""
+    def exact(n):
+        out = b""
+        while len(out) < n:
+            chunk = sock.recv(n - len(out))
+            if not chunk:
+                raise ConnectionError("the connection ended")
+            out += chunk
+        return out
+    _, _, type_, _, rid, length = BIN_HEADER.unpack(exact(16))
+    return type_, rid, exact(length)
 
 
 def same_bits(a, b):

@@ -24,7 +24,7 @@ import time
 import unittest
 
 sys.path.insert(0, os.path.dirname(__file__))
-from harness import Server, wait_until  # noqa: E402
+from harness import Server, bin_query, recv_frame, wait_until  # noqa: E402
 
 TIMEOUT = 2          # --timeout of the servers here
 SLACK = 1.6          # the HTTP watch looks 4 times a second, the binary loop once a second
@@ -33,26 +33,10 @@ SLACK = 1.6          # the HTTP watch looks 4 times a second, the binary loop on
 SANITIZED = os.environ.get("SDF_SANITIZE", "none") != "none"
 LATENCY_FACTOR = 4.0 if SANITIZED else 2.0
 FLOOD = 1000
-HEADER = struct.Struct("<4sBBHII")
 
 
 def query_frame(rid, n=1, mode=0, name=b"demo"):
-    payload = struct.pack("<BBHI", mode, 0, len(name), n) + name + b"\0" * (-len(name) % 4) \
-        + struct.pack("<%df" % (3 * n), *([0.25] * (3 * n)))
-    return HEADER.pack(b"SDFP", 1, 3, 0, rid, len(payload)) + payload
-
-
-def recv_frame(sock):
-    def exact(n):
-        out = b""
-        while len(out) < n:
-            chunk = sock.recv(n - len(out))
-            if not chunk:
-                raise ConnectionError("closed")
-            out += chunk
-        return out
-    magic, _, type_, _, rid, length = HEADER.unpack(exact(16))
-    return type_, rid, exact(length)
+    return bin_query(rid, struct.pack("<%df" % (3 * n), *([0.25] * (3 * n))), name, mode)
 
 
 def open_fds(pid):

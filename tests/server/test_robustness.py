@@ -22,7 +22,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
-from harness import Server, metric, wait_until  # noqa: E402
+from harness import (BIN_HEADER, Server, bin_query, metric, recv_frame,  # noqa: E402
+                     wait_until)
 
 
 def raw_http(port, method, path, body=b"", headers=None):
@@ -512,29 +513,7 @@ class Concurrency(unittest.TestCase):
             self.assertIn("make it narrower", data["error"]["message"])
 
 
-BIN_HEADER = struct.Struct("<4sBBHII")
 BIN_RESULT = 0x83
-
-
-def bin_query(rid, points, name=b"demo"):
-    """A binary QUERY frame (signed distances) of float32 points (N, 3)."""
-    payload = struct.pack("<BBHI", 0, 0, len(name), len(points)) + name + \
-        b"\0" * (-len(name) % 4) + points.tobytes()
-    return BIN_HEADER.pack(b"SDFP", 1, 3, 0, rid, len(payload)) + payload
-
-
-def bin_reply(sock):
-    """(type, request id, payload) of the next frame; ConnectionError at the end of stream."""
-    def exact(n):
-        out = b""
-        while len(out) < n:
-            chunk = sock.recv(n - len(out))
-            if not chunk:
-                raise ConnectionError("the connection ended")
-            out += chunk
-        return out
-    _, _, type_, _, rid, length = BIN_HEADER.unpack(exact(16))
-    return type_, rid, exact(length)
 
 
 def binary_drain_logged(server):
@@ -596,18 +575,18 @@ class Shutdown(unittest.TestCase):
         with socket.create_connection(("127.0.0.1", s.bin_port), timeout=60) as c:
             for rid, frame in frames.items():
                 c.sendall(frame)
-                type_, got, payload = bin_reply(c)
+                type_, got, payload = recv_frame(c)
                 self.assertEqual((type_, got), (BIN_RESULT, rid), payload[:200])
                 ref[rid] = payload
         hello = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)
         hello.sendall(BIN_HEADER.pack(b"SDFP", 1, 1, 0, 99, 0))  # spoke once, now between frames
-        self.assertEqual(bin_reply(hello)[:2], (0x81, 99))
+        self.assertEqual(recv_frame(hello)[:2], (0x81, 99))
         silent = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)  # never speaks
         half = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)
         half.sendall(frames[1][:100])  # stops mid-frame
         pipe = socket.create_connection(("127.0.0.1", s.bin_port), timeout=60)
         pipe.sendall(b"".join(frames.values()))
-        first = bin_reply(pipe)  # the pipeline is under way
+        first = recv_frame(pipe)  # the pipeline is under way
         s.proc.send_signal(signal.SIGTERM)
         signalled = time.time()
         for name, sock in (("hello", hello), ("silent", silent), ("half", half)):
@@ -622,7 +601,7 @@ class Shutdown(unittest.TestCase):
         answered = [first]
         while True:
             try:
-                answered.append(bin_reply(pipe))
+                answered.append(recv_frame(pipe))
             except (ConnectionError, OSError):
                 break  # the connection ended: the rest is the client's to send elsewhere
         pipe_closed = time.time() - signalled
