@@ -46,35 +46,36 @@ static void reset_now(int fd)
     close(fd);
 }
 
+/* Move what `from` has to `to`, no more than limit - *moved in all (limit < 0: no limit).
+ * -1 when either end is gone, 1 when the limit is reached (the cut), else 0. */
+static int pass_on(int from, int to, long limit, long *moved)
+{
+    static char buf[1 << 16];
+    long want = limit < 0 ? (long)sizeof buf : limit - *moved;
+    ssize_t n = recv(from, buf, (size_t)(want < (long)sizeof buf ? want : (long)sizeof buf), 0);
+    if (n <= 0 || write_all(to, buf, (size_t)n))
+        return -1;
+    *moved += n;
+    return limit >= 0 && *moved >= limit;
+}
+
 /* Relay one connection until either end closes, the plan cuts it, or the proxy stops. */
 static void relay(cut_proxy *p, int client, const cut_plan *plan)
 {
     int server = connect_upstream(p->upstream_port);
     long replies = 0, requests = 0;
-    static char buf[1 << 16];
     int cut = 0;
     while (server >= 0 && !p->stop && !cut) {
         struct pollfd f[2] = {{.fd = client, .events = POLLIN}, {.fd = server, .events = POLLIN}};
         if (poll(f, 2, 100) <= 0)
             continue;
-        if (f[0].revents) {
-            long want = plan->request_bytes < 0 ? (long)sizeof buf : plan->request_bytes - requests;
-            ssize_t n = recv(client, buf, (size_t)(want < (long)sizeof buf ? want : (long)sizeof buf), 0);
-            if (n <= 0 || write_all(server, buf, (size_t)n))
-                break;
-            requests += n;
-            cut = plan->request_bytes >= 0 && requests >= plan->request_bytes;
-        }
-        if (f[1].revents && !cut) {
-            long want = plan->reply_bytes < 0 ? (long)sizeof buf : plan->reply_bytes - replies;
-            ssize_t n = recv(server, buf, (size_t)(want < (long)sizeof buf ? want : (long)sizeof buf), 0);
-            if (n <= 0 || write_all(client, buf, (size_t)n))
-                break;
-            replies += n;
-            cut = plan->reply_bytes >= 0 && replies >= plan->reply_bytes;
-        }
+        if (f[0].revents && (cut = pass_on(client, server, plan->request_bytes, &requests)) < 0)
+            break;
+        if (f[1].revents && !cut &&
+            (cut = pass_on(server, client, plan->reply_bytes, &replies)) < 0)
+            break;
     }
-    if (cut && plan->reset)
+    if (cut > 0 && plan->reset) /* cut by the plan, not ended by one side */
         reset_now(client);
     else
         close(client);
