@@ -458,9 +458,10 @@ static void service(sdfd_binary *b, connection *c, uint32_t events)
     }
     if (s.pending && !c->out_since)
         c->out_since = sdfd_now(); /* replies wait from now: stalled() times them */
-    if (!fail && c->closing && !s.pending && !s.flying)
+    int drained = c->closing && !s.pending && !s.flying;
+    if (!fail && drained)
         discard_unread(c); /* done: nothing of what is left will be answered */
-    if (fail || (c->closing && !s.pending && !s.flying)) {
+    if (fail || drained) {
         close_socket(b, c);
         return;
     }

@@ -2,17 +2,17 @@
  * (retain/release) and reporting on it.
  *
  * The build is a fixed graph of named steps: weld; then, side by side, build our own tree
- * (with Embree's builder, on the caller's thread) and analyse the edges; orient (flip a closed inside-out mesh, which
- * needs both done: the tree reads the corners the flip swaps); then, side by side, the
- * pseudonormals and the search for self-intersections (they decide what `auto` signs with);
- * last the winding-number moments where `auto` needs them. Each pair runs on its own thread and
- * the caller's because neither step is parallel throughout (a sequential part of one fills the
- * core the other leaves idle). Every step is always done, so any sign method can be asked for
- * on any mesh and the mesh is immutable (hence lock-free) once built. Two caches are the
- * exceptions, made on first use and not counted in the report's index bytes: Embree's own
- * scene, which only the raycast sign and SDF_TRAVERSAL_SINGLE use (bvh/embree.h), and, on
- * meshes that `auto` signs by pseudonormals, the winding-number moments (22 bytes per
- * triangle). */
+ * (with Embree's builder, on the caller's thread) and analyse the edges; orient (flip a
+ * closed inside-out mesh, which needs both done: the tree reads the corners the flip swaps);
+ * then, side by side, the pseudonormals and the search for self-intersections (they decide
+ * what `auto` signs with); last the winding-number moments where `auto` needs them. Each pair
+ * runs on its own thread and the caller's because neither step is parallel throughout (a
+ * sequential part of one fills the core the other leaves idle). Every step is always done, so
+ * any sign method can be asked for on any mesh and the mesh is immutable (hence lock-free)
+ * once built. Two caches are the exceptions, made on first use and not counted in the
+ * report's index bytes: Embree's own scene, which only the raycast sign and
+ * SDF_TRAVERSAL_SINGLE use (bvh/embree.h), and, on meshes that `auto` signs by pseudonormals,
+ * the winding-number moments (22 bytes per triangle). */
 #include "mesh/mesh.h"
 
 #include <float.h>
