@@ -33,7 +33,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 SOURCE = os.path.normpath(os.path.join(HERE, "..", "..", "clients", "python"))
 sys.path.insert(0, os.path.join(HERE, "..", "server"))
-from harness import Server, metric, wait_until  # noqa: E402
+from harness import Server, metric, recv_exact, wait_until  # noqa: E402
 
 
 def run(args, cwd, timeout=240, expect=0):
@@ -115,14 +115,6 @@ class CutProxy:
         self._end(client, upstream)
 
     def _down(self, client, upstream, how):
-        def exact(n):
-            data = b""
-            while len(data) < n:
-                more = upstream.recv(n - len(data))
-                if not more:
-                    raise ConnectionError("upstream closed")
-                data += more
-            return data
         try:
             while how != "cut":
                 data = upstream.recv(1 << 16)
@@ -130,8 +122,8 @@ class CutProxy:
                     break
                 client.sendall(data)
             while how == "cut":
-                head = exact(16)
-                payload = exact(struct.unpack_from("<I", head, 12)[0])
+                head = recv_exact(upstream, 16)
+                payload = recv_exact(upstream, struct.unpack_from("<I", head, 12)[0])
                 if how == "cut" and head[5] == 0x83:
                     client.sendall(head + payload[:len(payload) // 2])
                     break

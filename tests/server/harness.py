@@ -96,18 +96,21 @@ def bin_query(rid, points, name=b"demo", mode=0):
     return BIN_HEADER.pack(b"SDFP", 1, 3, 0, rid, len(payload)) + payload
 
 
+def recv_exact(sock, n):
+    """n bytes from sock; ConnectionError if the stream ends first."""
+    out = b""
+    while len(out) < n:
+        chunk = sock.recv(n - len(out))
+        if not chunk:
+            raise ConnectionError("the connection ended")
+        out += chunk
+    return out
+
+
 def recv_frame(sock):
     """(type, request id, payload) of the next frame; ConnectionError at the end of stream."""
-    def exact(n):
-        out = b""
-        while len(out) < n:
-            chunk = sock.recv(n - len(out))
-            if not chunk:
-                raise ConnectionError("the connection ended")
-            out += chunk
-        return out
-    _, _, type_, _, rid, length = BIN_HEADER.unpack(exact(16))
-    return type_, rid, exact(length)
+    _, _, type_, _, rid, length = BIN_HEADER.unpack(recv_exact(sock, 16))
+    return type_, rid, recv_exact(sock, length)
 
 
 def same_bits(a, b):
