@@ -23,6 +23,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "admission.h"
 #include "body.h"
 #include "errors.h"
 #include "filterparams.h"
@@ -79,102 +80,45 @@ static cJSON *report_json(const char *name, const sdf_mesh *mesh)
 
 /* ---- admission: everything decided from the request line and headers ------------------- */
 
-static int parse_route(request *req, const char *url)
-{
-    static const struct { const char *path; sdfd_route route; } fixed[] = {
-        {"/healthz", SDFD_ROUTE_HEALTH}, {"/readyz", SDFD_ROUTE_READY},
-        {"/metrics", SDFD_ROUTE_METRICS}, {"/v1/meshes", SDFD_ROUTE_MESHES},
-        {"/v1/jobs", SDFD_ROUTE_JOBS}, {"/v1/volumes", SDFD_ROUTE_VOLUMES},
-        {"/", SDFD_ROUTE_PAGE}};
-    /* collection/{name}[suffix] */
-    static const struct { const char *collection, *suffix; sdfd_route route; } named[] = {
-        {"/v1/meshes/", "", SDFD_ROUTE_MESH}, {"/v1/meshes/", "/query", SDFD_ROUTE_QUERY},
-        {"/v1/meshes/", "/bake", SDFD_ROUTE_BAKE}, {"/v1/jobs/", "", SDFD_ROUTE_JOB},
-        {"/v1/volumes/", "", SDFD_ROUTE_VOLUME}, {"/v1/volumes/", "/data", SDFD_ROUTE_VOLUME_DATA},
-        {"/v1/volumes/", "/query", SDFD_ROUTE_VOLUME_QUERY},
-        {"/v1/volumes/", "/ops", SDFD_ROUTE_VOLUME_OPS},
-        {"/v1/meshes/", "/slice.png", SDFD_ROUTE_SLICE},
-        {"/v1/volumes/", "/slice.png", SDFD_ROUTE_VOLUME_SLICE},
-        {"/static/", "", SDFD_ROUTE_PAGE}};
-    for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++) {
-        if (!strcmp(url, fixed[i].path)) {
-            req->route = fixed[i].route;
-            snprintf(req->route_text, sizeof req->route_text, "%s", url);
-            return 0;
-        }
-    }
-    for (size_t i = 0; i < sizeof named / sizeof named[0]; i++) {
-        size_t c = strlen(named[i].collection);
-        if (strncmp(url, named[i].collection, c))
-            continue;
-        const char *name = url + c, *slash = strchr(name, '/');
-        size_t n = slash ? (size_t)(slash - name) : strlen(name);
-        if (strcmp(slash ? slash : "", named[i].suffix))
-            continue;
-        if (!sdfd_valid_name(name, n))
-            return -2;
-        memcpy(req->name, name, n);
-        req->name[n] = '\0';
-        req->route = named[i].route;
-        snprintf(req->route_text, sizeof req->route_text, "%s", sdfd_route_name(req->route));
-        return 0;
-    }
-    return -1;
-}
-
-static int method_allowed(const request *req)
-{
-    const char *list = sdfd_http_allowed_methods(req->route), *m = req->method;
-    size_t n = strlen(m);
-    for (const char *p = strstr(list, m); p; p = strstr(p + 1, m))
-        if ((p == list || p[-1] == ' ') && (p[n] == ',' || p[n] == '\0'))
-            return 1;
-    return 0;
-}
-
-static int authorized(const request *req)
+/* The bearer token, when the request presents the right one. */
+static int token_ok(const request *req)
 {
     const sdfd_config *cfg = &req->srv->cfg;
-    int needs = !strcmp(req->method, "PUT") || !strcmp(req->method, "DELETE") ||
-                req->route == SDFD_ROUTE_BAKE || req->route == SDFD_ROUTE_VOLUME_OPS ||
-                (cfg->auth_queries &&
-                 (req->route == SDFD_ROUTE_QUERY || req->route == SDFD_ROUTE_VOLUME_QUERY ||
-                  req->route == SDFD_ROUTE_VOLUME_DATA || /* a download is every node's answer */
-                  req->route == SDFD_ROUTE_SLICE || req->route == SDFD_ROUTE_VOLUME_SLICE));
-    if (!cfg->token || !needs)
-        return 1;
     const char *h = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
                                                 MHD_HTTP_HEADER_AUTHORIZATION);
     return h && !strncmp(h, "Bearer ", 7) && sdfd_token_matches(cfg, h + 7, strlen(h + 7));
+}
+
+/* The operation (optable.h) and the checks every operation passes (admission.h). */
+static enum MHD_Result admit_operation(request *req, const char *url)
+{
+    char msg[300];
+    int rc = sdfd_op_match(req->method, url, &req->op, req->name, sizeof req->name);
+    if (rc == SDF_ENOTFOUND)
+        return sdfd_http_error(req, rc, "no route %s", url);
+    if (rc == SDF_EINVAL)
+        return sdfd_http_error(req, rc, "names are 1-255 characters of A-Z a-z 0-9 . _ - "
+                                        "and do not start with '.'");
+    if (rc == SDFD_EMETHOD)
+        return sdfd_http_error(req, rc, "%s is not allowed on %s", req->method, req->op->path);
+    rc = sdfd_admit(req->srv, req->op, token_ok(req), msg, sizeof msg);
+    if (rc == SDFD_EUNAUTHORIZED)
+        return sdfd_http_error(req, rc, "this request needs 'Authorization: Bearer <token>'");
+    enum MHD_Result refused;
+    if (sdfd_http_check_args(req, &refused))
+        return refused;
+    if (rc)
+        return sdfd_http_error(req, rc, "%s", msg);
+    return MHD_YES;
 }
 
 /* Decide from the headers alone; returns MHD_YES with a response queued if refused. */
 static enum MHD_Result admit(request *req, const char *url)
 {
     sdfd_server *srv = req->srv;
-    int route = parse_route(req, url);
-    if (route == -1)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no route %s", url);
-    if (route == -2)
-        return sdfd_http_error(req, SDF_EINVAL,
-                               "names are 1-255 characters of A-Z a-z 0-9 . _ - "
-                               "and do not start with '.'");
-    if (!method_allowed(req))
-        return sdfd_http_error(req, SDFD_EMETHOD, "%s is not allowed on %s", req->method,
-                               req->route_text);
-    if (!authorized(req))
-        return sdfd_http_error(req, SDFD_EUNAUTHORIZED,
-                               "this request needs 'Authorization: Bearer <token>'");
-    enum MHD_Result refused;
-    if (sdfd_http_check_args(req, &refused))
-        return refused;
-    const char *unavailable = sdfd_unavailable(srv);
-    if (unavailable && req->route != SDFD_ROUTE_HEALTH && req->route != SDFD_ROUTE_READY &&
-        req->route != SDFD_ROUTE_METRICS)
-        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "%s", unavailable);
-    int has_body = !strcmp(req->method, "POST") || !strcmp(req->method, "PUT");
-    if (!has_body)
-        return MHD_YES;
+    enum MHD_Result r = admit_operation(req, url);
+    if (r != MHD_YES || req->answered || !(req->op->flags & SDFD_OP_BODY))
+        return r;
     const char *cl = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
                                                  MHD_HTTP_HEADER_CONTENT_LENGTH);
     char *end;
@@ -378,17 +322,17 @@ static enum MHD_Result mesh_route(request *req)
 static enum MHD_Result dispatch(request *req)
 {
     sdfd_server *srv = req->srv;
-    switch (req->route) {
-    case SDFD_ROUTE_HEALTH:
+    switch (req->op->id) {
+    case SDFD_OP_HEALTH:
         return status_reply(req, 200, "ok");
-    case SDFD_ROUTE_READY:
+    case SDFD_OP_READY:
         if (atomic_load(&srv->draining))
             return status_reply(req, 503, "draining");
         if (!atomic_load(&srv->ready))
             return status_reply(req, 503, "loading");
         return sdfd_cache_probe(srv->cache) ? status_reply(req, 503, "store unreadable")
                                             : status_reply(req, 200, "ready");
-    case SDFD_ROUTE_METRICS: {
+    case SDFD_OP_METRICS: {
         size_t len;
         sdfd_gauges g = {.meshes_loaded = sdfd_registry_count(srv->registry),
                          .volumes_loaded = sdfd_volumes_count(srv->volumes),
@@ -406,32 +350,38 @@ static enum MHD_Result dispatch(request *req)
         return text ? sdfd_http_buffer(req, 200, "text/plain; version=0.0.4", text, len, NULL)
                     : MHD_NO;
     }
-    case SDFD_ROUTE_MESHES:
+    case SDFD_OP_MESH_LIST:
         return list_meshes(req);
-    case SDFD_ROUTE_MESH:
+    case SDFD_OP_MESH_GET:
+    case SDFD_OP_MESH_PUT:
+    case SDFD_OP_MESH_DELETE:
         return mesh_route(req);
-    case SDFD_ROUTE_QUERY:
+    case SDFD_OP_QUERY:
         return start_query(req);
-    case SDFD_ROUTE_BAKE:
+    case SDFD_OP_BAKE:
         return sdfd_http_bake(req);
-    case SDFD_ROUTE_VOLUME_OPS:
+    case SDFD_OP_VOLUME_OPS:
         return sdfd_http_volume_ops(req);
-    case SDFD_ROUTE_JOBS:
+    case SDFD_OP_JOB_LIST:
         return sdfd_http_jobs(req);
-    case SDFD_ROUTE_JOB:
+    case SDFD_OP_JOB_GET:
+    case SDFD_OP_JOB_CANCEL:
         return sdfd_http_job(req);
-    case SDFD_ROUTE_VOLUMES:
+    case SDFD_OP_VOLUME_LIST:
         return sdfd_http_volumes(req);
-    case SDFD_ROUTE_VOLUME:
+    case SDFD_OP_VOLUME_GET:
+    case SDFD_OP_VOLUME_PUT:
+    case SDFD_OP_VOLUME_DELETE:
         return sdfd_http_volume(req);
-    case SDFD_ROUTE_VOLUME_DATA:
+    case SDFD_OP_VOLUME_DATA:
         return sdfd_http_volume_data(req);
-    case SDFD_ROUTE_VOLUME_QUERY:
+    case SDFD_OP_VOLUME_QUERY:
         return sdfd_http_volume_query(req);
-    case SDFD_ROUTE_SLICE:
-    case SDFD_ROUTE_VOLUME_SLICE:
+    case SDFD_OP_MESH_SLICE:
+    case SDFD_OP_VOLUME_SLICE:
         return sdfd_http_slice(req);
-    case SDFD_ROUTE_PAGE:
+    case SDFD_OP_PAGE:
+    case SDFD_OP_STATIC:
         return sdfd_http_page(req);
     default:
         return sdfd_http_error(req, SDF_ENOTFOUND, "no such route");
@@ -454,8 +404,6 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         req->srv = http->srv;
         req->conn = conn;
         req->method = method;
-        req->route = SDFD_ROUTE_OTHER;
-        snprintf(req->route_text, sizeof req->route_text, "%s", "other");
         req->start = sdfd_now();
         atomic_fetch_add(&http->srv->in_flight, 1);
         *state = req;
@@ -497,13 +445,10 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
     if (!req)
         return;
     sdfd_server *srv = req->srv;
-    double seconds = sdfd_now() - req->start;
     int status = req->answered ? req->status : 499; /* client went away */
-    sdfd_metrics_request(srv->metrics, req->route, status, seconds);
-    if (req->route != SDFD_ROUTE_HEALTH && req->route != SDFD_ROUTE_READY &&
-        req->route != SDFD_ROUTE_METRICS)
-        sdfd_log_request("http", req->method, req->route_text, status, req->points, seconds * 1e6,
-                         req->len, req->bytes_out);
+    sdfd_account(srv, &(sdfd_answered){.op = req->op, .what = req->method, .status = status,
+                                       .points = req->points, .start = req->start,
+                                       .bytes_in = req->len, .bytes_out = req->bytes_out});
     sdfd_query_release(&req->query);
     sdfd_volume_query_release(&req->volume_query);
     sdf_mesh_release(req->uploaded);

@@ -16,24 +16,6 @@ typedef sdfd_http_request request;
 
 /* ---- responses --------------------------------------------------------------------------- */
 
-const char *sdfd_http_allowed_methods(sdfd_route route)
-{
-    switch (route) {
-    case SDFD_ROUTE_MESH:
-    case SDFD_ROUTE_VOLUME:
-        return "GET, HEAD, PUT, DELETE"; /* HEAD wherever GET: MHD drops the body */
-    case SDFD_ROUTE_QUERY:
-    case SDFD_ROUTE_BAKE:
-    case SDFD_ROUTE_VOLUME_QUERY:
-    case SDFD_ROUTE_VOLUME_OPS:
-        return "POST";
-    case SDFD_ROUTE_JOB:
-        return "GET, HEAD, DELETE";
-    default:
-        return "GET, HEAD";
-    }
-}
-
 /* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
 enum MHD_Result sdfd_http_queue(request *req, int status, const char *type, struct MHD_Response *r,
                                 size_t len, const sdfd_http_header *extra, int n_extra)
@@ -43,8 +25,10 @@ enum MHD_Result sdfd_http_queue(request *req, int status, const char *type, stru
         MHD_add_response_header(r, extra[i].name, extra[i].value);
     if (status == MHD_HTTP_UNAUTHORIZED)
         MHD_add_response_header(r, MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
-    if (status == MHD_HTTP_METHOD_NOT_ALLOWED)
-        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW, sdfd_http_allowed_methods(req->route));
+    char allowed[64];
+    if (status == MHD_HTTP_METHOD_NOT_ALLOWED && req->op)
+        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW,
+                                sdfd_op_allowed(req->op, allowed, sizeof allowed));
     if (atomic_load(&req->srv->draining))
         MHD_add_response_header(r, MHD_HTTP_HEADER_CONNECTION, "close");
     enum MHD_Result ok = MHD_queue_response(req->conn, (unsigned)status, r);
@@ -145,7 +129,7 @@ int sdfd_http_check_args(request *req, enum MHD_Result *refused)
     MHD_get_connection_values(req->conn, MHD_GET_ARGUMENT_KIND, collect, &req->args);
     char err[300];
     const char *argument;
-    if (!sdfd_url_args_check(&req->args, req->route, req->method, err, sizeof err, &argument))
+    if (!sdfd_url_args_check(&req->args, req->op, err, sizeof err, &argument))
         return 0;
     *refused = sdfd_http_refuse(req, SDF_EINVAL, argument, "%s", err);
     return -1;
@@ -188,7 +172,7 @@ static int url_param(request *req, const char *key, const char **v, size_t *n,
 /* A body's parameters and the URL's together (the URL's names were checked at admission). */
 static int merge_params(request *req, sdfd_query_params *p, enum MHD_Result *refused)
 {
-    int volume = req->route == SDFD_ROUTE_VOLUME_QUERY;
+    int volume = req->op->id == SDFD_OP_VOLUME_QUERY;
     const char *stray = volume ? (p->sign ? "sign" : p->filter ? "filter" : NULL)
                                : (p->interpolation ? "interpolation" : NULL);
     if (stray) {

@@ -10,6 +10,7 @@
 #include <stdatomic.h>
 
 #include "body.h"
+#include "optable.h"
 #include "queries.h"
 #include "server.h"
 #include "urlargs.h"
@@ -28,8 +29,7 @@ struct sdfd_http_request {
     sdfd_server *srv;
     struct MHD_Connection *conn;
     const char *method;
-    sdfd_route route;
-    char route_text[96];
+    const sdfd_op *op;            /* what it asks for; NULL until admission matched one */
     char name[SDFD_MAX_NAME + 1]; /* mesh or volume name, or job id, from the URL */
     sdfd_url_args args;           /* the URL's arguments, checked at admission (urlargs.h) */
     double start;
@@ -65,9 +65,6 @@ struct sdfd_http_request {
 };
 
 /* ---- responses ---- */
-
-/* The methods a route takes, as an Allow header lists them. */
-const char *sdfd_http_allowed_methods(sdfd_route route);
 
 /* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
 enum MHD_Result sdfd_http_queue(sdfd_http_request *req, int status, const char *type,

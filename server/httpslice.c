@@ -277,7 +277,7 @@ enum MHD_Result sdfd_http_slice(request *req)
     req->route_state = w; /* freed when the request completes */
     w->argument = "";
     char err[300];
-    int rc = sdfd_slice_parse(&req->args, req->route == SDFD_ROUTE_VOLUME_SLICE, &w->params, err,
+    int rc = sdfd_slice_parse(&req->args, req->op->id == SDFD_OP_VOLUME_SLICE, &w->params, err,
                               sizeof err, &w->argument);
     if (rc)
         return sdfd_http_refuse(req, rc, w->argument, "%s", err);
