@@ -37,6 +37,7 @@ enum {
     SDFD_OP_BODY = 2,     /* takes a request body (Content-Length required) */
     SDFD_OP_FILTER = 4,   /* takes the filter's URL arguments too (filterparams.h) */
     SDFD_OP_UNLOGGED = 8, /* no request log line (probes and scrapes would drown the log) */
+    SDFD_OP_ASYNC = 16,   /* may finish on a worker thread (call.h) */
 };
 
 #define SDFD_OP_MAX_ARGS 12
