@@ -172,10 +172,10 @@ static void refuse_for_room(sdfd_binary *b, connection *c)
     }
     sdfd_bin_send_error(c, h.request_id, SDFD_EBUSY, why);
     size_t frame = SDF_PROTO_HEADER_SIZE + (size_t)h.length;
-    sdfd_route route;
+    const sdfd_op *op;
     const char *what;
-    sdfd_bin_frame_kind(h.type, &route, &what);
-    sdfd_bin_account(b, route, what, sdfd_http_status(SDFD_EBUSY), 0, sdfd_now(), frame, 0);
+    sdfd_bin_frame_kind(h.type, &op, &what);
+    sdfd_bin_account(b, op, what, sdfd_http_status(SDFD_EBUSY), 0, sdfd_now(), frame, 0);
     c->skip = frame - c->in_len;
     c->in_len = 0;
 }

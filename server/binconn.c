@@ -13,6 +13,7 @@
 
 #include "errors.h"
 #include "log.h"
+#include "admission.h"
 
 void sdfd_bin_wake(sdfd_binary *b)
 {
@@ -49,16 +50,12 @@ void sdfd_bin_send_error(connection *c, uint32_t id, int err, const char *messag
     sdfd_bin_enqueue(c, frame, n);
 }
 
-void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int status,
+void sdfd_bin_account(sdfd_binary *b, const sdfd_op *op, const char *what, int status,
                       size_t points, double start, size_t bytes_in, size_t bytes_out)
 {
-    double seconds = sdfd_now() - start;
-    sdfd_metrics_request(b->srv->metrics, route, status, seconds);
-    sdfd_log_request("binary", what,
-                     route == SDFD_ROUTE_BIN_QUERY          ? "query"
-                     : route == SDFD_ROUTE_BIN_VOLUME_QUERY ? "volume_query"
-                                                            : "other",
-                     status, points, seconds * 1e6, bytes_in, bytes_out);
+    sdfd_account(b->srv, &(sdfd_answered){.op = op, .binary = 1, .what = what, .status = status,
+                                          .points = points, .start = start,
+                                          .bytes_in = bytes_in, .bytes_out = bytes_out});
 }
 
 /* The count goes down and c goes on the list under one hold of notify_lock: the loop frees a
@@ -83,11 +80,9 @@ void sdfd_bin_request_finished(sdfd_binary *b, connection *c)
     atomic_fetch_sub(&b->srv->in_flight, 1); /* last: shutdown frees b once it reaches 0 */
 }
 
-void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what)
+void sdfd_bin_frame_kind(uint8_t type, const sdfd_op **op, const char **what)
 {
-    *route = type == SDF_PROTO_QUERY          ? SDFD_ROUTE_BIN_QUERY
-             : type == SDF_PROTO_VOLUME_QUERY ? SDFD_ROUTE_BIN_VOLUME_QUERY
-                                              : SDFD_ROUTE_BIN_OTHER;
+    *op = sdfd_op_of_frame(type);
     *what = type == SDF_PROTO_QUERY          ? "QUERY"
             : type == SDF_PROTO_VOLUME_QUERY ? "VOLUME_QUERY"
             : type == SDF_PROTO_HELLO        ? "HELLO"

@@ -16,6 +16,7 @@
 
 #include <gnutls/gnutls.h>
 
+#include "optable.h"
 #include "proto.h"
 #include "server.h"
 
@@ -85,7 +86,7 @@ void sdfd_bin_enqueue(connection *c, char *data, size_t len);
 /* Queue an ERROR frame answering request `id`. */
 void sdfd_bin_send_error(connection *c, uint32_t id, int err, const char *message);
 /* One request: metrics and a log line, as the HTTP side does. */
-void sdfd_bin_account(sdfd_binary *b, sdfd_route route, const char *what, int status,
+void sdfd_bin_account(sdfd_binary *b, const sdfd_op *op, const char *what, int status,
                       size_t points, double start, size_t bytes_in, size_t bytes_out);
 /* A request of connection c has been answered (or refused after it was counted): c goes on
  * the list the loop looks at next (its reply is sent, the frames held back for the in-flight
@@ -108,7 +109,7 @@ size_t sdfd_bin_pending(const connection *c);
 /* Shut down and free the TLS session (if any); the socket stays open. */
 void sdfd_bin_end_tls(sdfd_binary *b, connection *c);
 
-/* A frame type's route and name, as its requests are counted and logged. */
-void sdfd_bin_frame_kind(uint8_t type, sdfd_route *route, const char **what);
+/* A frame type's operation (NULL: none) and name, as its requests are counted and logged. */
+void sdfd_bin_frame_kind(uint8_t type, const sdfd_op **op, const char **what);
 
 #endif

@@ -12,6 +12,7 @@
 #include "binrequests.h"
 #include "errors.h"
 #include "log.h"
+#include "admission.h"
 #include "queries.h"
 
 /* ---- queries ----------------------------------------------------------------------------- */
@@ -43,7 +44,7 @@ static void query_done(sdfd_job *job)
     } else {
         sdfd_bin_enqueue(c, bj->frame, len);
     }
-    sdfd_bin_account(b, SDFD_ROUTE_BIN_QUERY, "QUERY", status, refused ? 0 : job->count,
+    sdfd_bin_account(b, sdfd_op_get(SDFD_OP_QUERY), "QUERY", status, refused ? 0 : job->count,
                      bj->start, bj->bytes_in, job->status ? 0 : len);
     sdfd_query_release(&bj->query);
     free(bj->points);
@@ -52,11 +53,11 @@ static void query_done(sdfd_job *job)
 }
 
 /* Refuse a request: ERROR frame, metrics, log. */
-static void refuse(sdfd_binary *b, connection *c, sdfd_route route, const char *what, uint32_t id,
-                   int err, const char *message, double start, size_t bytes_in)
+static void refuse(sdfd_binary *b, connection *c, const sdfd_op *op, const char *what,
+                   uint32_t id, int err, const char *message, double start, size_t bytes_in)
 {
     sdfd_bin_send_error(c, id, err, message);
-    sdfd_bin_account(b, route, what, sdfd_http_status(err), 0, start, bytes_in, 0);
+    sdfd_bin_account(b, op, what, sdfd_http_status(err), 0, start, bytes_in, 0);
 }
 
 static void count_in_flight(sdfd_binary *b, connection *c)
@@ -78,15 +79,10 @@ static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsig
     const char *why;
     char message[300];
 #define REFUSE(err, text) \
-    refuse(b, c, SDFD_ROUTE_BIN_QUERY, "QUERY", id, err, text, start, bytes_in)
+    refuse(b, c, sdfd_op_get(SDFD_OP_QUERY), "QUERY", id, err, text, start, bytes_in)
     int rc = sdf_proto_decode_query(payload, len, (uint32_t)srv->cfg.max_points, &d, &why);
     if (rc) {
         REFUSE(rc, why);
-        return;
-    }
-    const char *unavailable = sdfd_unavailable(srv);
-    if (unavailable) {
-        REFUSE(SDFD_EUNAVAILABLE, unavailable);
         return;
     }
     bin_job *bj = calloc(1, sizeof *bj);
@@ -151,7 +147,7 @@ static void volume_query_done(sdfd_volume_query *vq)
     } else {
         sdfd_bin_enqueue(c, vj->frame, len);
     }
-    sdfd_bin_account(b, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY",
+    sdfd_bin_account(b, sdfd_op_get(SDFD_OP_VOLUME_QUERY), "VOLUME_QUERY",
                      vq->status ? sdfd_http_status(vq->status) : 200,
                      vq->refused ? 0 : vq->count, vj->start, vj->bytes_in,
                      vq->status ? 0 : len);
@@ -171,11 +167,11 @@ static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
     const char *why;
     char message[300];
 #define REFUSE(err, text) \
-    refuse(b, c, SDFD_ROUTE_BIN_VOLUME_QUERY, "VOLUME_QUERY", id, err, text, start, bytes_in)
+    refuse(b, c, sdfd_op_get(SDFD_OP_VOLUME_QUERY), "VOLUME_QUERY", id, err, text, start, \
+           bytes_in)
     int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)srv->cfg.max_points, &d, &why);
-    const char *unavailable = rc ? why : sdfd_unavailable(srv);
-    if (unavailable) {
-        REFUSE(rc ? rc : SDFD_EUNAVAILABLE, unavailable);
+    if (rc) {
+        REFUSE(rc, why);
         return;
     }
     volume_job *vj = calloc(1, sizeof *vj);
@@ -232,6 +228,18 @@ static void handle_list(sdfd_binary *b, connection *c, uint32_t id)
     free(list);
 }
 
+static void handle_hello(sdfd_binary *b, connection *c, uint32_t id)
+{
+    sdf_proto_hello hello = {SDF_PROTO_VERSION, b->max_payload, (uint32_t)b->srv->cfg.max_points,
+                             "sdfd " SDFD_VERSION, strlen("sdfd " SDFD_VERSION)};
+    char *frame = malloc(128);
+    size_t n = frame ? sdf_proto_encode_hello_ok(frame, 128, id, &hello) : 0;
+    if (n)
+        sdfd_bin_enqueue(c, frame, n);
+    else
+        free(frame);
+}
+
 /* AUTH: the payload is the token. A wrong one closes the connection, so guesses cost a
  * connection each. */
 static void handle_auth(sdfd_binary *b, connection *c, uint32_t id, const unsigned char *payload,
@@ -252,48 +260,42 @@ static void handle_auth(sdfd_binary *b, connection *c, uint32_t id, const unsign
 
 /* ---- dispatch ---------------------------------------------------------------------------- */
 
+/* Admission (admission.h) in the protocol's words, then the operation. */
 void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header *h,
                            const unsigned char *payload)
 {
-    const sdfd_config *cfg = &b->srv->cfg;
-    sdfd_route route;
+    const sdfd_op *op;
     const char *what;
-    sdfd_bin_frame_kind(h->type, &route, &what);
-    if ((h->type == SDF_PROTO_QUERY || h->type == SDF_PROTO_VOLUME_QUERY) && cfg->token &&
-        cfg->auth_queries && !c->authenticated) {
-        sdfd_bin_send_error(c, h->request_id, SDFD_EUNAUTHORIZED,
-                            "this server needs AUTH with its token before queries");
-        sdfd_bin_account(b, route, what, 401, 0, sdfd_now(), SDF_PROTO_HEADER_SIZE + h->length,
-                         0);
+    sdfd_bin_frame_kind(h->type, &op, &what);
+    double start = sdfd_now();
+    size_t bytes_in = SDF_PROTO_HEADER_SIZE + h->length;
+    char msg[300];
+    int rc = op ? sdfd_admit(b->srv, op, c->authenticated, msg, sizeof msg) : SDFD_EPROTO;
+    if (rc) {
+        if (rc == SDFD_EUNAUTHORIZED)
+            snprintf(msg, sizeof msg, "this server needs AUTH with its token before queries");
+        else if (rc == SDFD_EPROTO)
+            snprintf(msg, sizeof msg, "unknown message type");
+        refuse(b, c, op, what, h->request_id, rc, msg, start, bytes_in);
         return;
     }
-    if (h->type == SDF_PROTO_QUERY) {
+    int status = 200;
+    switch (op->id) {
+    case SDFD_OP_QUERY:
         handle_query(b, c, h->request_id, payload, h->length);
         return;
-    }
-    if (h->type == SDF_PROTO_VOLUME_QUERY) {
+    case SDFD_OP_VOLUME_QUERY:
         handle_volume_query(b, c, h->request_id, payload, h->length);
         return;
-    }
-    double start = sdfd_now();
-    int status = 200;
-    if (h->type == SDF_PROTO_HELLO) {
-        sdf_proto_hello hello = {SDF_PROTO_VERSION, b->max_payload, (uint32_t)b->srv->cfg.max_points,
-                                 "sdfd " SDFD_VERSION, strlen("sdfd " SDFD_VERSION)};
-        char *frame = malloc(128);
-        size_t n = frame ? sdf_proto_encode_hello_ok(frame, 128, h->request_id, &hello) : 0;
-        if (n)
-            sdfd_bin_enqueue(c, frame, n);
-        else
-            free(frame);
-    } else if (h->type == SDF_PROTO_LIST_MESHES) {
+    case SDFD_OP_HELLO:
+        handle_hello(b, c, h->request_id);
+        break;
+    case SDFD_OP_MESH_LIST:
         handle_list(b, c, h->request_id);
-    } else if (h->type == SDF_PROTO_AUTH) {
+        break;
+    default: /* SDFD_OP_AUTH */
         handle_auth(b, c, h->request_id, payload, h->length);
         status = c->authenticated ? 200 : 401;
-    } else {
-        sdfd_bin_send_error(c, h->request_id, SDFD_EPROTO, "unknown message type");
-        status = 400;
     }
-    sdfd_bin_account(b, route, what, status, 0, start, SDF_PROTO_HEADER_SIZE + h->length, 0);
+    sdfd_bin_account(b, op, what, status, 0, start, bytes_in, 0);
 }

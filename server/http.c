@@ -23,12 +23,12 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "admission.h"
 #include "body.h"
 #include "errors.h"
-#include "filterparams.h"
 #include "httpreq.h"
-#include "httpslice.h"
-#include "httpvolumes.h"
+#include "dispatch.h"
+#include "httpquery.h"
 #include "httpwatch.h"
 #include "page.h"
 #include "log.h"
@@ -45,136 +45,47 @@ struct sdfd_http {
 
 typedef sdfd_http_request request;
 
-static cJSON *report_json(const char *name, const sdf_mesh *mesh)
-{
-    sdf_mesh_report r;
-    sdf_mesh_get_report(mesh, &r);
-    cJSON *o = cJSON_CreateObject();
-    cJSON_AddStringToObject(o, "name", name);
-    cJSON_AddStringToObject(o, "format", sdf_format_name(r.format));
-    cJSON_AddNumberToObject(o, "vertices", (double)r.vertices);
-    cJSON_AddNumberToObject(o, "input_vertices", (double)r.input_vertices);
-    cJSON_AddNumberToObject(o, "triangles", (double)r.triangles);
-    cJSON *bbox = cJSON_AddObjectToObject(o, "bbox");
-    cJSON_AddItemToObject(bbox, "min", cJSON_CreateFloatArray(r.bbox_min, 3));
-    cJSON_AddItemToObject(bbox, "max", cJSON_CreateFloatArray(r.bbox_max, 3));
-    cJSON_AddNumberToObject(o, "diagonal", r.diagonal);
-    cJSON_AddBoolToObject(o, "closed", r.closed);
-    cJSON_AddBoolToObject(o, "edge_manifold", r.edge_manifold);
-    cJSON_AddBoolToObject(o, "self_intersecting", r.self_intersecting);
-    cJSON_AddBoolToObject(o, "flipped", r.flipped);
-    cJSON_AddNumberToObject(o, "degenerate_triangles", (double)r.degenerate_triangles);
-    cJSON_AddNumberToObject(o, "boundary_edges", (double)r.boundary_edges);
-    cJSON_AddNumberToObject(o, "nonmanifold_edges", (double)r.nonmanifold_edges);
-    cJSON_AddNumberToObject(o, "misoriented_edges", (double)r.misoriented_edges);
-    cJSON_AddNumberToObject(o, "volume", r.volume);
-    cJSON_AddStringToObject(o, "sign", sdf_sign_name(r.auto_sign));
-    cJSON_AddNumberToObject(o, "index_bytes", (double)r.index_bytes);
-    cJSON_AddNumberToObject(o, "build_seconds", r.build_seconds);
-    cJSON_AddNumberToObject(o, "warnings", (double)r.warnings);
-    if (r.warnings)
-        cJSON_AddStringToObject(o, "warning", r.warning);
-    return o;
-}
-
 /* ---- admission: everything decided from the request line and headers ------------------- */
 
-static int parse_route(request *req, const char *url)
-{
-    static const struct { const char *path; sdfd_route route; } fixed[] = {
-        {"/healthz", SDFD_ROUTE_HEALTH}, {"/readyz", SDFD_ROUTE_READY},
-        {"/metrics", SDFD_ROUTE_METRICS}, {"/v1/meshes", SDFD_ROUTE_MESHES},
-        {"/v1/jobs", SDFD_ROUTE_JOBS}, {"/v1/volumes", SDFD_ROUTE_VOLUMES},
-        {"/", SDFD_ROUTE_PAGE}};
-    /* collection/{name}[suffix] */
-    static const struct { const char *collection, *suffix; sdfd_route route; } named[] = {
-        {"/v1/meshes/", "", SDFD_ROUTE_MESH}, {"/v1/meshes/", "/query", SDFD_ROUTE_QUERY},
-        {"/v1/meshes/", "/bake", SDFD_ROUTE_BAKE}, {"/v1/jobs/", "", SDFD_ROUTE_JOB},
-        {"/v1/volumes/", "", SDFD_ROUTE_VOLUME}, {"/v1/volumes/", "/data", SDFD_ROUTE_VOLUME_DATA},
-        {"/v1/volumes/", "/query", SDFD_ROUTE_VOLUME_QUERY},
-        {"/v1/volumes/", "/ops", SDFD_ROUTE_VOLUME_OPS},
-        {"/v1/meshes/", "/slice.png", SDFD_ROUTE_SLICE},
-        {"/v1/volumes/", "/slice.png", SDFD_ROUTE_VOLUME_SLICE},
-        {"/static/", "", SDFD_ROUTE_PAGE}};
-    for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++) {
-        if (!strcmp(url, fixed[i].path)) {
-            req->route = fixed[i].route;
-            snprintf(req->route_text, sizeof req->route_text, "%s", url);
-            return 0;
-        }
-    }
-    for (size_t i = 0; i < sizeof named / sizeof named[0]; i++) {
-        size_t c = strlen(named[i].collection);
-        if (strncmp(url, named[i].collection, c))
-            continue;
-        const char *name = url + c, *slash = strchr(name, '/');
-        size_t n = slash ? (size_t)(slash - name) : strlen(name);
-        if (strcmp(slash ? slash : "", named[i].suffix))
-            continue;
-        if (!sdfd_valid_name(name, n))
-            return -2;
-        memcpy(req->name, name, n);
-        req->name[n] = '\0';
-        req->route = named[i].route;
-        snprintf(req->route_text, sizeof req->route_text, "%s", sdfd_route_name(req->route));
-        return 0;
-    }
-    return -1;
-}
-
-static int method_allowed(const request *req)
-{
-    const char *list = sdfd_http_allowed_methods(req->route), *m = req->method;
-    size_t n = strlen(m);
-    for (const char *p = strstr(list, m); p; p = strstr(p + 1, m))
-        if ((p == list || p[-1] == ' ') && (p[n] == ',' || p[n] == '\0'))
-            return 1;
-    return 0;
-}
-
-static int authorized(const request *req)
+/* The bearer token, when the request presents the right one. */
+static int token_ok(const request *req)
 {
     const sdfd_config *cfg = &req->srv->cfg;
-    int needs = !strcmp(req->method, "PUT") || !strcmp(req->method, "DELETE") ||
-                req->route == SDFD_ROUTE_BAKE || req->route == SDFD_ROUTE_VOLUME_OPS ||
-                (cfg->auth_queries &&
-                 (req->route == SDFD_ROUTE_QUERY || req->route == SDFD_ROUTE_VOLUME_QUERY ||
-                  req->route == SDFD_ROUTE_VOLUME_DATA || /* a download is every node's answer */
-                  req->route == SDFD_ROUTE_SLICE || req->route == SDFD_ROUTE_VOLUME_SLICE));
-    if (!cfg->token || !needs)
-        return 1;
     const char *h = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
                                                 MHD_HTTP_HEADER_AUTHORIZATION);
     return h && !strncmp(h, "Bearer ", 7) && sdfd_token_matches(cfg, h + 7, strlen(h + 7));
+}
+
+/* The operation (optable.h) and the checks every operation passes (admission.h). */
+static enum MHD_Result admit_operation(request *req, const char *url)
+{
+    char msg[300];
+    int rc = sdfd_op_match(req->method, url, &req->op, req->name, sizeof req->name);
+    if (rc == SDF_ENOTFOUND)
+        return sdfd_http_error(req, rc, "no route %s", url);
+    if (rc == SDF_EINVAL)
+        return sdfd_http_error(req, rc, "names are 1-255 characters of A-Z a-z 0-9 . _ - "
+                                        "and do not start with '.'");
+    if (rc == SDFD_EMETHOD)
+        return sdfd_http_error(req, rc, "%s is not allowed on %s", req->method, req->op->path);
+    rc = sdfd_admit(req->srv, req->op, token_ok(req), msg, sizeof msg);
+    if (rc == SDFD_EUNAUTHORIZED)
+        return sdfd_http_error(req, rc, "this request needs 'Authorization: Bearer <token>'");
+    enum MHD_Result refused;
+    if (sdfd_http_check_args(req, &refused))
+        return refused;
+    if (rc)
+        return sdfd_http_error(req, rc, "%s", msg);
+    return MHD_YES;
 }
 
 /* Decide from the headers alone; returns MHD_YES with a response queued if refused. */
 static enum MHD_Result admit(request *req, const char *url)
 {
     sdfd_server *srv = req->srv;
-    int route = parse_route(req, url);
-    if (route == -1)
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no route %s", url);
-    if (route == -2)
-        return sdfd_http_error(req, SDF_EINVAL,
-                               "names are 1-255 characters of A-Z a-z 0-9 . _ - "
-                               "and do not start with '.'");
-    if (!method_allowed(req))
-        return sdfd_http_error(req, SDFD_EMETHOD, "%s is not allowed on %s", req->method,
-                               req->route_text);
-    if (!authorized(req))
-        return sdfd_http_error(req, SDFD_EUNAUTHORIZED,
-                               "this request needs 'Authorization: Bearer <token>'");
-    enum MHD_Result refused;
-    if (sdfd_http_check_args(req, &refused))
-        return refused;
-    const char *unavailable = sdfd_unavailable(srv);
-    if (unavailable && req->route != SDFD_ROUTE_HEALTH && req->route != SDFD_ROUTE_READY &&
-        req->route != SDFD_ROUTE_METRICS)
-        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "%s", unavailable);
-    int has_body = !strcmp(req->method, "POST") || !strcmp(req->method, "PUT");
-    if (!has_body)
-        return MHD_YES;
+    enum MHD_Result r = admit_operation(req, url);
+    if (r != MHD_YES || req->answered || !(req->op->flags & SDFD_OP_BODY))
+        return r;
     const char *cl = MHD_lookup_connection_value(req->conn, MHD_HEADER_KIND,
                                                  MHD_HTTP_HEADER_CONTENT_LENGTH);
     char *end;
@@ -197,244 +108,48 @@ static enum MHD_Result admit(request *req, const char *url)
     return MHD_YES;
 }
 
-/* ---- work: queries ----------------------------------------------------------------------- */
+/* ---- work -------------------------------------------------------------------------------- */
 
-static void query_done(sdfd_job *job)
+static enum MHD_Result reply_call(request *req)
 {
-    sdfd_http_resume(job->user);
+    req->points = req->call.points;
+    return sdfd_http_result(req, &req->call.result);
 }
 
-static enum MHD_Result reply_query(request *req)
+static void call_done(sdfd_call *call)
 {
-    if (req->query.refused) { /* after a load */
-        req->points = 0;
-        return sdfd_http_error(req, req->query.job.status, "%s", req->query.refusal);
-    }
-    if (req->query.job.status)
-        return sdfd_http_error(req, req->query.job.status, "query failed: %s",
-                               req->query.job.message);
-    return sdfd_http_results(req);
+    sdfd_http_resume(call->user);
 }
 
-/* The filter's parameters go with the filtered modes only: with another they would be
- * ignored, so they are refused. 0, or -1 with the refusal queued (its result in *refused). */
-static int filter_misplaced(request *req, const sdfd_query_params *params, const char *mode,
-                            enum MHD_Result *refused)
+/* An operation of call.h: the request as a call, run; an asynchronous one with the
+ * connection suspended first, so the worker's resume cannot come before it. */
+static enum MHD_Result run_call(request *req)
 {
-    const char *arg = sdfd_url_first_filter_arg(&req->args);
-    if (params->filter)
-        *refused = sdfd_http_error(req, SDF_EINVAL, "\"filter\" goes with mode filtered or "
-                                   "filtered-gradient, not '%s'", mode ? mode : "signed");
-    else if (arg)
-        *refused = sdfd_http_refuse(req, SDF_EINVAL, arg, "'%s' is a filter parameter: it goes "
-                                    "with mode=filtered or filtered-gradient, not '%s'", arg,
-                                    mode ? mode : "signed");
-    return params->filter || arg ? -1 : 0;
-}
-
-/* The HTTP spelling of a query (body, URL arguments, Accept) into the handler's terms. */
-static enum MHD_Result start_query(request *req)
-{
-    sdfd_server *srv = req->srv;
-    sdfd_form form;
-    sdfd_query_params params;
-    size_t count;
-    enum MHD_Result refused;
-    if (sdfd_http_read_points(req, &form, &params, &count, &refused))
-        return refused;
-    char err[300], mode_buf[32], sign_buf[32];
-    int rc;
-    const char *mode = sdfd_http_param(params.mode, params.mode_len, mode_buf, sizeof mode_buf);
-    const char *sign = sdfd_http_param(params.sign, params.sign_len, sign_buf, sizeof sign_buf);
-    sdf_proto_mode m = SDF_MODE_SIGNED;
-    sdf_sign_method s = SDF_SIGN_AUTO;
-    if (mode && sdf_proto_mode_from_name(mode, &m))
-        return sdfd_http_error(req, SDF_EINVAL,
-                               "unknown mode '%s' (signed, distance, gradient, closest, filtered, "
-                               "filtered-gradient)",
-                               mode);
-    if (sign && sdf_sign_from_name(sign, &s))
-        return sdfd_http_error(req, SDF_EINVAL,
-                               "unknown sign '%s' (auto, pseudonormal, winding, raycast, none)",
-                               sign);
-    if (!sdf_proto_mode_filtered(m) && filter_misplaced(req, &params, mode, &refused))
-        return refused;
-    sdfd_query *q = &req->query;
-    *q = (sdfd_query){.mesh_name = req->name, .mesh_name_len = strlen(req->name),
-                      .job = {.mode = m, .sign = s, .points = req->points_buf, .count = count,
-                              .done = query_done, .user = req}};
-    char volume_name[SDFD_VOLUME_NAME_MAX + 1] = "";
-    if (sdf_proto_mode_filtered(m)) {
-        sdf_filter_options *filter = &q->job.filter;
-        rc = params.filter ? sdfd_filter_from_json(params.filter, params.filter_len, filter,
-                                                   volume_name, err, sizeof err)
-                           : sdfd_filter_from_strings(sdfd_url_lookup, &req->args, filter,
-                                                      volume_name, err, sizeof err);
-        if (rc)
-            return sdfd_http_error(req, rc, "%s", err);
-        if (volume_name[0])
-            q->smoothing_name = volume_name, q->smoothing_name_len = strlen(volume_name);
-    }
-    req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
-    if (sdfd_reply_init(&req->reply, req->reply_form, m, count))
-        return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
-    q->job.words = req->reply.words;
-    req->points = count;
-    sdfd_http_wait(req, reply_query); /* admission may end on a loader's thread */
-    if ((rc = sdfd_query_admit(srv, q, err, sizeof err))) {
+    req->call = (sdfd_call){.srv = req->srv, .op = req->op, .name = req->name,
+                            .args = &req->args, .body = req->body, .len = req->len,
+                            .done = call_done, .user = req};
+    int async = req->op->flags & SDFD_OP_ASYNC;
+    if (async)
+        sdfd_http_wait(req, reply_call);
+    if (sdfd_dispatch(&req->call) == SDFD_CALL_PENDING)
+        return MHD_YES;
+    if (async)
         sdfd_http_unwait(req);
-        req->points = 0;
-        return sdfd_http_error(req, rc, "%s", err);
-    }
-    return MHD_YES;
-}
-
-/* ---- work: uploads ----------------------------------------------------------------------- */
-
-static enum MHD_Result reply_upload(request *req);
-
-static void load_upload(request *req)
-{
-    sdfd_server *srv = req->srv;
-    sdf_mesh_options opts = {.max_triangles = srv->cfg.max_total_triangles};
-    if (req->format[0] && sdf_format_from_name(req->format, &opts.format)) {
-        req->work_rc = SDF_EFORMAT;
-        snprintf(req->diag.message, sizeof req->diag.message,
-                 "unknown format '%s' (obj, ply, stl, off)", req->format);
-    } else {
-        req->work_rc = sdf_mesh_load_memory(req->body, req->len, &opts, &req->uploaded, &req->diag);
-    }
-    if (!req->work_rc)
-        req->work_rc = sdfd_cache_put_mesh(srv->cache, req->name, sdf_mesh_retain(req->uploaded),
-                                           req->body, req->len, &req->replaced,
-                                           req->diag.message, sizeof req->diag.message);
-}
-
-static enum MHD_Result start_upload(request *req)
-{
-    /* The loader thread must not call MHD: take what it needs from the request now. */
-    const char *format = sdfd_url_value(&req->args, "format");
-    if (format)
-        snprintf(req->format, sizeof req->format, "%s", format);
-    return sdfd_http_start_thread(req, load_upload, reply_upload);
-}
-
-static enum MHD_Result reply_upload(request *req)
-{
-    if (req->work_rc)
-        return sdfd_http_error(req, req->work_rc, "%s", req->diag.message);
-    sdfd_log("info", "mesh_loaded", "%s: %s by upload", req->name,
-             req->replaced ? "replaced" : "added");
-    return sdfd_http_json(req, req->replaced ? 200 : 201, report_json(req->name, req->uploaded));
-}
-
-/* ---- the simple routes ------------------------------------------------------------------- */
-
-static enum MHD_Result status_reply(request *req, int status, const char *state)
-{
-    cJSON *o = cJSON_CreateObject();
-    cJSON_AddStringToObject(o, "status", state);
-    return sdfd_http_json(req, status, o);
-}
-
-static enum MHD_Result list_meshes(request *req)
-{
-    sdfd_mesh_summary *list;
-    size_t n = sdfd_cache_list_meshes(req->srv->cache, &list);
-    cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "meshes");
-    for (size_t i = 0; i < n; i++) {
-        cJSON *o = cJSON_CreateObject();
-        cJSON_AddStringToObject(o, "name", list[i].name);
-        cJSON_AddNumberToObject(o, "triangles", (double)list[i].triangles);
-        cJSON_AddBoolToObject(o, "closed", list[i].closed);
-        cJSON_AddStringToObject(o, "sign", sdf_sign_name(list[i].sign));
-        cJSON_AddItemToArray(arr, o);
-    }
-    free(list);
-    return sdfd_http_json(req, 200, root);
-}
-
-static enum MHD_Result mesh_route(request *req)
-{
-    sdfd_server *srv = req->srv;
-    if (!strcmp(req->method, "PUT"))
-        return start_upload(req);
-    char msg[512];
-    int rc;
-    if (!strcmp(req->method, "DELETE")) {
-        if ((rc = sdfd_cache_remove_mesh(srv->cache, req->name, msg, sizeof msg)))
-            return sdfd_http_error(req, rc, "%s", msg);
-        sdfd_log("info", "mesh_deleted", "%s", req->name);
-        return sdfd_http_buffer(req, 204, "application/json", NULL, 0, NULL);
-    }
-    sdf_mesh *mesh;
-    if ((rc = sdfd_cache_mesh(srv->cache, req->name, strlen(req->name), &mesh, msg, sizeof msg)))
-        return sdfd_http_error(req, rc, "%s", msg);
-    enum MHD_Result r = sdfd_http_json(req, 200, report_json(req->name, mesh));
-    sdf_mesh_release(mesh);
-    return r;
+    return reply_call(req);
 }
 
 static enum MHD_Result dispatch(request *req)
 {
-    sdfd_server *srv = req->srv;
-    switch (req->route) {
-    case SDFD_ROUTE_HEALTH:
-        return status_reply(req, 200, "ok");
-    case SDFD_ROUTE_READY:
-        if (atomic_load(&srv->draining))
-            return status_reply(req, 503, "draining");
-        if (!atomic_load(&srv->ready))
-            return status_reply(req, 503, "loading");
-        return sdfd_cache_probe(srv->cache) ? status_reply(req, 503, "store unreadable")
-                                            : status_reply(req, 200, "ready");
-    case SDFD_ROUTE_METRICS: {
-        size_t len;
-        sdfd_gauges g = {.meshes_loaded = sdfd_registry_count(srv->registry),
-                         .volumes_loaded = sdfd_volumes_count(srv->volumes),
-                         .buffered_bytes = atomic_load(&srv->buffered),
-                         .batch_scratch_bytes = sdfd_batcher_kept_bytes(srv->batcher)};
-        sdfd_volumes_usage(srv->volumes, &g.volume_bytes, &g.bakes_running, &g.bakes_queued);
-        sdfd_volumes_ops_usage(srv->volumes, &g.ops_running, &g.ops_queued);
-        sdfd_workers_counts(srv->workers, &g.workers_idle, &g.workers_started);
-        sdfd_cache_stats st;
-        sdfd_cache_stats_get(srv->cache, &st);
-        g.resident_bytes = st.resident_bytes, g.resident_budget = st.budget;
-        g.store_loads = st.loads, g.store_evictions = st.evictions;
-        g.store_quarantined = st.quarantined;
-        char *text = sdfd_metrics_render(srv->metrics, &g, &len);
-        return text ? sdfd_http_buffer(req, 200, "text/plain; version=0.0.4", text, len, NULL)
-                    : MHD_NO;
-    }
-    case SDFD_ROUTE_MESHES:
-        return list_meshes(req);
-    case SDFD_ROUTE_MESH:
-        return mesh_route(req);
-    case SDFD_ROUTE_QUERY:
-        return start_query(req);
-    case SDFD_ROUTE_BAKE:
-        return sdfd_http_bake(req);
-    case SDFD_ROUTE_VOLUME_OPS:
-        return sdfd_http_volume_ops(req);
-    case SDFD_ROUTE_JOBS:
-        return sdfd_http_jobs(req);
-    case SDFD_ROUTE_JOB:
-        return sdfd_http_job(req);
-    case SDFD_ROUTE_VOLUMES:
-        return sdfd_http_volumes(req);
-    case SDFD_ROUTE_VOLUME:
-        return sdfd_http_volume(req);
-    case SDFD_ROUTE_VOLUME_DATA:
-        return sdfd_http_volume_data(req);
-    case SDFD_ROUTE_VOLUME_QUERY:
+    switch (req->op->id) {
+    case SDFD_OP_QUERY:
+        return sdfd_http_query(req);
+    case SDFD_OP_VOLUME_QUERY:
         return sdfd_http_volume_query(req);
-    case SDFD_ROUTE_SLICE:
-    case SDFD_ROUTE_VOLUME_SLICE:
-        return sdfd_http_slice(req);
-    case SDFD_ROUTE_PAGE:
+    case SDFD_OP_PAGE:
+    case SDFD_OP_STATIC:
         return sdfd_http_page(req);
     default:
-        return sdfd_http_error(req, SDF_ENOTFOUND, "no such route");
+        return run_call(req);
     }
 }
 
@@ -454,8 +169,6 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         req->srv = http->srv;
         req->conn = conn;
         req->method = method;
-        req->route = SDFD_ROUTE_OTHER;
-        snprintf(req->route_text, sizeof req->route_text, "%s", "other");
         req->start = sdfd_now();
         atomic_fetch_add(&http->srv->in_flight, 1);
         *state = req;
@@ -497,19 +210,14 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **state,
     if (!req)
         return;
     sdfd_server *srv = req->srv;
-    double seconds = sdfd_now() - req->start;
     int status = req->answered ? req->status : 499; /* client went away */
-    sdfd_metrics_request(srv->metrics, req->route, status, seconds);
-    if (req->route != SDFD_ROUTE_HEALTH && req->route != SDFD_ROUTE_READY &&
-        req->route != SDFD_ROUTE_METRICS)
-        sdfd_log_request("http", req->method, req->route_text, status, req->points, seconds * 1e6,
-                         req->len, req->bytes_out);
+    sdfd_account(srv, &(sdfd_answered){.op = req->op, .what = req->method, .status = status,
+                                       .points = req->points, .start = req->start,
+                                       .bytes_in = req->len, .bytes_out = req->bytes_out});
     sdfd_query_release(&req->query);
     sdfd_volume_query_release(&req->volume_query);
-    sdf_mesh_release(req->uploaded);
-    sdfd_volume_release(req->stored);
-    free(req->out_body);
-    free(req->route_state);
+    if (req->call.srv)
+        sdfd_call_release(&req->call);
     if (req->points_owned)
         free(req->points_buf);
     free(req->reply.buffer);

@@ -4,7 +4,6 @@
  * worker's resume can never come first). */
 #include "httpreq.h"
 
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,24 +15,6 @@ typedef sdfd_http_request request;
 
 /* ---- responses --------------------------------------------------------------------------- */
 
-const char *sdfd_http_allowed_methods(sdfd_route route)
-{
-    switch (route) {
-    case SDFD_ROUTE_MESH:
-    case SDFD_ROUTE_VOLUME:
-        return "GET, HEAD, PUT, DELETE"; /* HEAD wherever GET: MHD drops the body */
-    case SDFD_ROUTE_QUERY:
-    case SDFD_ROUTE_BAKE:
-    case SDFD_ROUTE_VOLUME_QUERY:
-    case SDFD_ROUTE_VOLUME_OPS:
-        return "POST";
-    case SDFD_ROUTE_JOB:
-        return "GET, HEAD, DELETE";
-    default:
-        return "GET, HEAD";
-    }
-}
-
 /* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
 enum MHD_Result sdfd_http_queue(request *req, int status, const char *type, struct MHD_Response *r,
                                 size_t len, const sdfd_http_header *extra, int n_extra)
@@ -43,8 +24,10 @@ enum MHD_Result sdfd_http_queue(request *req, int status, const char *type, stru
         MHD_add_response_header(r, extra[i].name, extra[i].value);
     if (status == MHD_HTTP_UNAUTHORIZED)
         MHD_add_response_header(r, MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
-    if (status == MHD_HTTP_METHOD_NOT_ALLOWED)
-        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW, sdfd_http_allowed_methods(req->route));
+    char allowed[64];
+    if (status == MHD_HTTP_METHOD_NOT_ALLOWED && req->op)
+        MHD_add_response_header(r, MHD_HTTP_HEADER_ALLOW,
+                                sdfd_op_allowed(req->op, allowed, sizeof allowed));
     if (atomic_load(&req->srv->draining))
         MHD_add_response_header(r, MHD_HTTP_HEADER_CONNECTION, "close");
     enum MHD_Result ok = MHD_queue_response(req->conn, (unsigned)status, r);
@@ -145,7 +128,7 @@ int sdfd_http_check_args(request *req, enum MHD_Result *refused)
     MHD_get_connection_values(req->conn, MHD_GET_ARGUMENT_KIND, collect, &req->args);
     char err[300];
     const char *argument;
-    if (!sdfd_url_args_check(&req->args, req->route, req->method, err, sizeof err, &argument))
+    if (!sdfd_url_args_check(&req->args, req->op, err, sizeof err, &argument))
         return 0;
     *refused = sdfd_http_refuse(req, SDF_EINVAL, argument, "%s", err);
     return -1;
@@ -188,7 +171,7 @@ static int url_param(request *req, const char *key, const char **v, size_t *n,
 /* A body's parameters and the URL's together (the URL's names were checked at admission). */
 static int merge_params(request *req, sdfd_query_params *p, enum MHD_Result *refused)
 {
-    int volume = req->route == SDFD_ROUTE_VOLUME_QUERY;
+    int volume = req->op->id == SDFD_OP_VOLUME_QUERY;
     const char *stray = volume ? (p->sign ? "sign" : p->filter ? "filter" : NULL)
                                : (p->interpolation ? "interpolation" : NULL);
     if (stray) {
@@ -259,23 +242,87 @@ void sdfd_http_resume(request *req)
     MHD_resume_connection(req->conn);
 }
 
-static void run_request(void *arg)
+/* ---- results ----------------------------------------------------------------------------- */
+
+/* A streamed result: a volume's node words as stored (after an npy header for npy), sent
+ * straight from the volume, which the response holds a reference to, instead of a copy the
+ * size of the volume. */
+typedef struct volume_stream {
+    sdfd_stored_volume *stored;
+    char header[512];
+    size_t header_len;
+} volume_stream;
+
+static ssize_t read_volume_stream(void *cls, uint64_t pos, char *buf, size_t max)
 {
-    request *req = arg;
-    req->run(req);
-    sdfd_http_resume(req);
+    volume_stream *s = cls;
+    size_t total = s->header_len + sdf_volume_data_bytes(s->stored->volume), n = 0;
+    if (pos >= total)
+        return MHD_CONTENT_READER_END_OF_STREAM;
+    while (n < max && pos < total) {
+        size_t at = (size_t)pos, chunk;
+        const char *from;
+        if (at < s->header_len)
+            from = s->header + at, chunk = s->header_len - at;
+        else
+            from = (const char *)sdf_volume_data(s->stored->volume) + (at - s->header_len),
+            chunk = total - at;
+        if (chunk > max - n)
+            chunk = max - n;
+        memcpy(buf + n, from, chunk);
+        n += chunk, pos += chunk;
+    }
+    return (ssize_t)n;
 }
 
-/* Suspend the connection and run `run` on a worker thread (workers.h); `respond` answers
- * after the resume. */
-enum MHD_Result sdfd_http_start_thread(request *req, sdfd_http_work run,
-                                       sdfd_http_respond respond)
+static void free_volume_stream(void *cls)
 {
-    req->run = run;
-    sdfd_http_wait(req, respond);
-    if (sdfd_workers_run(req->srv->workers, run_request, req)) {
-        sdfd_http_unwait(req);
-        return sdfd_http_error(req, SDFD_EUNAVAILABLE, "cannot start a worker thread");
+    volume_stream *s = cls;
+    sdfd_volume_release(s->stored);
+    free(s);
+}
+
+static enum MHD_Result stream_volume(request *req, sdfd_result *r)
+{
+    volume_stream *s = calloc(1, sizeof *s);
+    if (!s)
+        return sdfd_http_error(req, SDF_ENOMEM, "out of memory");
+    const sdf_volume *v = r->stream->volume;
+    if (r->file == SDF_VOLUME_NPY) {
+        long len = sdf_volume_npy_header(v, s->header, sizeof s->header);
+        if (len < 0) {
+            free(s);
+            return sdfd_http_error(req, (int)len, "cannot write the npy header");
+        }
+        s->header_len = (size_t)len;
     }
-    return MHD_YES;
+    s->stored = r->stream; /* the stream's own reference: it may outlive the request */
+    r->stream = NULL;
+    size_t total = s->header_len + sdf_volume_data_bytes(v);
+    struct MHD_Response *resp = MHD_create_response_from_callback(
+        total, 1 << 16, read_volume_stream, s, free_volume_stream);
+    if (!resp) {
+        free_volume_stream(s);
+        return MHD_NO;
+    }
+    return sdfd_http_queue(req, r->status, r->type, resp, total, r->fields, r->n_fields);
+}
+
+enum MHD_Result sdfd_http_result(request *req, sdfd_result *r)
+{
+    if (r->code)
+        return sdfd_http_refuse(req, r->code, r->argument, "%s", r->message);
+    if (r->stream)
+        return stream_volume(req, r);
+    char *body = r->bytes;
+    size_t len = r->len;
+    const char *type = r->type ? r->type : "application/json";
+    if (r->json) {
+        body = cJSON_PrintUnformatted(r->json);
+        if (!body)
+            return MHD_NO;
+        len = strlen(body);
+    }
+    r->bytes = NULL; /* MHD frees it */
+    return sdfd_http_send(req, r->status, type, body, len, r->fields, r->n_fields);
 }

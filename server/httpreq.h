@@ -1,7 +1,7 @@
-/* httpreq.h - one HTTP request's state and how to answer it: the responses, the query-body
- * helpers and the wait for work done elsewhere. Used by the route modules (http.c: admission,
- * mesh routes and MHD's callbacks; httpvolumes.c: bakes, jobs and volumes), which call it and
- * never the reverse. */
+/* httpreq.h - one HTTP request's state and how to answer it: the responses (an operation's
+ * result, call.h, in HTTP's spelling), the query-body helpers and the wait for work done
+ * elsewhere. Used by http.c (admission, calls and MHD's callbacks) and httpquery.c (the
+ * queries), which call it and never the reverse. */
 #ifndef SDFD_HTTPREQ_H
 #define SDFD_HTTPREQ_H
 
@@ -10,26 +10,23 @@
 #include <stdatomic.h>
 
 #include "body.h"
+#include "call.h"
+#include "optable.h"
 #include "queries.h"
 #include "server.h"
 #include "urlargs.h"
 
 typedef struct sdfd_http_request sdfd_http_request;
-typedef void (*sdfd_http_work)(sdfd_http_request *req);
 typedef enum MHD_Result (*sdfd_http_respond)(sdfd_http_request *req);
 
-/* A response header beyond the type and count. */
-typedef struct sdfd_http_header {
-    const char *name;
-    char value[300];
-} sdfd_http_header;
+/* A response header beyond the type and count: a result's field. */
+typedef sdfd_field sdfd_http_header;
 
 struct sdfd_http_request {
     sdfd_server *srv;
     struct MHD_Connection *conn;
     const char *method;
-    sdfd_route route;
-    char route_text[96];
+    const sdfd_op *op;            /* what it asks for; NULL until admission matched one */
     char name[SDFD_MAX_NAME + 1]; /* mesh or volume name, or job id, from the URL */
     sdfd_url_args args;           /* the URL's arguments, checked at admission (urlargs.h) */
     double start;
@@ -51,23 +48,10 @@ struct sdfd_http_request {
     int points_owned;
     sdfd_form reply_form;
     sdfd_reply reply;
-    char format[16];              /* ?format= of an upload, copied on the MHD thread */
-    sdf_mesh *uploaded;
-    int work_rc, replaced;        /* a thread's result: 0 or SDF_E* (message in diag) */
-    sdf_diag diag;
-    /* sdfd_http_start_thread: `run` leaves a status (0 or SDF_E*, message in diag), a body */
-    sdfd_http_work run;
-    sdfd_stored_volume *stored;   /* a download's volume */
-    sdf_volume_file file_type;
-    char *out_body;
-    size_t out_len;
-    void *route_state;            /* a route module's own (httpslice.c), freed at completion */
+    sdfd_call call;               /* an operation's other than a query (call.h) */
 };
 
 /* ---- responses ---- */
-
-/* The methods a route takes, as an Allow header lists them. */
-const char *sdfd_http_allowed_methods(sdfd_route route);
 
 /* Queue response r (len bytes) with the type, the extra headers and the route's usual ones. */
 enum MHD_Result sdfd_http_queue(sdfd_http_request *req, int status, const char *type,
@@ -89,6 +73,9 @@ enum MHD_Result sdfd_http_refuse(sdfd_http_request *req, int code, const char *a
                                  const char *fmt, ...) __attribute__((format(printf, 4, 5)));
 /* The filled req->reply in the reply form, with the point count in X-SDF-Count. */
 enum MHD_Result sdfd_http_results(sdfd_http_request *req);
+/* An operation's result: its refusal, or its JSON, bytes (taken over) or streamed volume
+ * with its fields as headers. */
+enum MHD_Result sdfd_http_result(sdfd_http_request *req, sdfd_result *r);
 
 /* ---- URL arguments ---- */
 
@@ -120,8 +107,5 @@ void sdfd_http_wait(sdfd_http_request *req, sdfd_http_respond respond);
 void sdfd_http_unwait(sdfd_http_request *req);
 /* The worker's last word on the request: any thread. */
 void sdfd_http_resume(sdfd_http_request *req);
-/* Suspend the connection and run `run` on a new thread; `respond` answers after the resume. */
-enum MHD_Result sdfd_http_start_thread(sdfd_http_request *req, sdfd_http_work run,
-                                       sdfd_http_respond respond);
 
 #endif

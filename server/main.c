@@ -16,6 +16,7 @@
 #include "binary.h"
 #include "http.h"
 #include "log.h"
+#include "optable.h"
 #include "server.h"
 
 static int load_mesh(sdfd_server *srv, const char *name, const char *path)
@@ -133,6 +134,10 @@ int main(int argc, char **argv)
 {
     static sdfd_server srv;
     fix_malloc_thresholds();
+    if (argc == 2 && !strcmp(argv[1], "--describe-routes")) { /* the table, for the API test */
+        sdfd_op_describe(stdout);
+        return 0;
+    }
     int rc = sdfd_config_parse(&srv.cfg, argc, argv);
     if (rc)
         return rc > 0 ? 0 : 2;
@@ -145,7 +150,10 @@ int main(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
 
     srv.registry = sdfd_registry_create(srv.cfg.max_meshes, srv.cfg.max_total_triangles);
-    srv.metrics = sdfd_metrics_create();
+    const char *labels[SDFD_OP_LABELS];
+    for (size_t i = 0; i < SDFD_OP_LABELS; i++)
+        labels[i] = sdfd_op_label(i);
+    srv.metrics = sdfd_metrics_create(labels, SDFD_OP_LABELS);
     srv.volumes = sdfd_volumes_create(srv.cfg.max_volumes, srv.cfg.max_volume_bytes,
                                       (int)srv.cfg.max_bakes, srv.cfg.max_jobs,
                                       srv.cfg.max_bake_queries, srv.cfg.threads);

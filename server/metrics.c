@@ -10,19 +10,6 @@
 
 static const int statuses[] = {200, 201, 202, 204, 400, 401, 404, 405, 411, 413, 415, 422, 429, 500, 503};
 #define N_STATUS (sizeof statuses / sizeof statuses[0])
-static const char *const route_names[SDFD_ROUTE_COUNT] = {
-    "/healthz", "/readyz", "/metrics", "/v1/meshes", "/v1/meshes/{name}",
-    "/v1/meshes/{name}/query", "/v1/meshes/{name}/bake", "/v1/jobs", "/v1/jobs/{id}",
-    "/v1/volumes", "/v1/volumes/{name}", "/v1/volumes/{name}/data", "/v1/volumes/{name}/query",
-    "bin:query", "bin:volume_query", "bin:other", "other",
-    "/v1/meshes/{name}/slice.png", "/v1/volumes/{name}/slice.png", "page",
-    "/v1/volumes/{name}/ops"};
-
-const char *sdfd_route_name(sdfd_route route)
-{
-    return (unsigned)route < SDFD_ROUTE_COUNT ? route_names[route] : "other";
-}
-
 /* A histogram with fixed upper bounds (+Inf implied). */
 #define MAX_BUCKETS 16
 typedef struct histogram {
@@ -40,7 +27,9 @@ static const double request_bounds[] = {1, 2, 4, 8, 16, 32, 64, 128, 256};
 static const double point_bounds[] = {1, 10, 100, 1000, 10000, 100000, 1000000, 10000000};
 
 struct sdfd_metrics {
-    atomic_ullong requests[SDFD_ROUTE_COUNT][N_STATUS + 1];
+    const char *labels[SDFD_METRICS_MAX_LABELS];
+    size_t n_labels;
+    atomic_ullong requests[SDFD_METRICS_MAX_LABELS][N_STATUS + 1];
     atomic_ullong points;
     atomic_long queue_depth;
     histogram latency, batch_requests, batch_points, batch_seconds, store_load_seconds;
@@ -64,11 +53,14 @@ static void hist_observe(histogram *h, double v)
         ;
 }
 
-sdfd_metrics *sdfd_metrics_create(void)
+sdfd_metrics *sdfd_metrics_create(const char *const *labels, size_t n)
 {
-    sdfd_metrics *m = calloc(1, sizeof *m);
+    sdfd_metrics *m = n <= SDFD_METRICS_MAX_LABELS ? calloc(1, sizeof *m) : NULL;
     if (!m)
         return NULL;
+    if (n)
+        memcpy(m->labels, labels, n * sizeof *labels);
+    m->n_labels = n;
     hist_init(&m->latency, "sdfd_request_seconds", "Request latency, receipt to reply.",
               latency_bounds, 16);
     hist_init(&m->batch_requests, "sdfd_batch_requests", "Requests coalesced into one batch.",
@@ -84,12 +76,13 @@ sdfd_metrics *sdfd_metrics_create(void)
 
 void sdfd_metrics_destroy(sdfd_metrics *m) { free(m); }
 
-void sdfd_metrics_request(sdfd_metrics *m, sdfd_route route, int status, double seconds)
+void sdfd_metrics_request(sdfd_metrics *m, size_t label, int status, double seconds)
 {
     size_t s = 0;
     while (s < N_STATUS && statuses[s] != status)
         s++;
-    atomic_fetch_add(&m->requests[route][s], 1);
+    if (label < m->n_labels)
+        atomic_fetch_add(&m->requests[label][s], 1);
     hist_observe(&m->latency, seconds);
 }
 
@@ -152,20 +145,42 @@ static void render_histogram(out *o, histogram *h)
          (unsigned long long)atomic_load(&h->count));
 }
 
+/* Whether index r is the first with its label text (which reports the label's series). */
+static int first_of_label(const sdfd_metrics *m, size_t r)
+{
+    for (size_t i = 0; i < r; i++)
+        if (m->labels[i] && !strcmp(m->labels[i], m->labels[r]))
+            return 0;
+    return 1;
+}
+
+/* The series of label index r, summed over every index with the same label text. */
+static void render_requests(out *o, sdfd_metrics *m, size_t r)
+{
+    for (size_t s = 0; s <= N_STATUS; s++) {
+        unsigned long long v = 0;
+        for (size_t i = r; i < m->n_labels; i++)
+            if (m->labels[i] && !strcmp(m->labels[i], m->labels[r]))
+                v += atomic_load(&m->requests[i][s]);
+        char status[16];
+        if (s < N_STATUS)
+            snprintf(status, sizeof status, "%d", statuses[s]);
+        else
+            snprintf(status, sizeof status, "other");
+        if (v)
+            emit(o, "sdfd_requests_total{route=\"%s\",status=\"%s\"} %llu\n", m->labels[r],
+                 status, v);
+    }
+}
+
 char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len)
 {
     out o = {0};
     emit(&o, "# HELP sdfd_requests_total Requests answered, by route and status.\n"
              "# TYPE sdfd_requests_total counter\n");
-    for (int r = 0; r < SDFD_ROUTE_COUNT; r++)
-        for (size_t s = 0; s <= N_STATUS; s++) {
-            unsigned long long v = atomic_load(&m->requests[r][s]);
-            char status[16];
-            snprintf(status, sizeof status, s < N_STATUS ? "%d" : "other", s < N_STATUS ? statuses[s] : 0);
-            if (v)
-                emit(&o, "sdfd_requests_total{route=\"%s\",status=\"%s\"} %llu\n",
-                     route_names[r], status, v);
-        }
+    for (size_t r = 0; r < m->n_labels; r++)
+        if (m->labels[r] && first_of_label(m, r))
+            render_requests(&o, m, r);
     emit(&o, "# HELP sdfd_points_total Points queried.\n# TYPE sdfd_points_total counter\n"
              "sdfd_points_total %llu\n", (unsigned long long)atomic_load(&m->points));
     emit(&o, "# HELP sdfd_queue_depth Requests waiting for the batcher.\n"

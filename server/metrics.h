@@ -7,23 +7,14 @@
 
 typedef struct sdfd_metrics sdfd_metrics;
 
-/* Routes the request counter distinguishes. */
-typedef enum sdfd_route {
-    SDFD_ROUTE_HEALTH, SDFD_ROUTE_READY, SDFD_ROUTE_METRICS, SDFD_ROUTE_MESHES,
-    SDFD_ROUTE_MESH, SDFD_ROUTE_QUERY, SDFD_ROUTE_BAKE, SDFD_ROUTE_JOBS, SDFD_ROUTE_JOB,
-    SDFD_ROUTE_VOLUMES, SDFD_ROUTE_VOLUME, SDFD_ROUTE_VOLUME_DATA, SDFD_ROUTE_VOLUME_QUERY,
-    SDFD_ROUTE_BIN_QUERY, SDFD_ROUTE_BIN_VOLUME_QUERY, SDFD_ROUTE_BIN_OTHER, SDFD_ROUTE_OTHER,
-    SDFD_ROUTE_SLICE, SDFD_ROUTE_VOLUME_SLICE, SDFD_ROUTE_PAGE, SDFD_ROUTE_VOLUME_OPS,
-    SDFD_ROUTE_COUNT
-} sdfd_route;
-
-/* The route's label in /metrics and the logs, e.g. "/v1/meshes/{name}/query". */
-const char *sdfd_route_name(sdfd_route route);
-
-sdfd_metrics *sdfd_metrics_create(void);
+/* The request counter is kept per label index, 0..n-1, of the labels given at creation
+ * (at most SDFD_METRICS_MAX_LABELS; NULL entries unused). Indices that share a label text
+ * are reported as one series: "/v1/meshes/{name}" counts its GET, PUT and DELETE. */
+#define SDFD_METRICS_MAX_LABELS 64
+sdfd_metrics *sdfd_metrics_create(const char *const *labels, size_t n);
 void sdfd_metrics_destroy(sdfd_metrics *m);
 
-void sdfd_metrics_request(sdfd_metrics *m, sdfd_route route, int status, double seconds);
+void sdfd_metrics_request(sdfd_metrics *m, size_t label, int status, double seconds);
 void sdfd_metrics_points(sdfd_metrics *m, size_t points);
 void sdfd_metrics_batch(sdfd_metrics *m, size_t requests, size_t points, double seconds);
 void sdfd_metrics_queue_depth(sdfd_metrics *m, long delta);

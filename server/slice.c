@@ -150,8 +150,8 @@ int sdfd_slice_parse(const sdfd_url_args *args, int volume, sdfd_slice_params *o
 {
     parse p = {args, err, cap, argument};
     *out = (sdfd_slice_params){.volume = volume, .size = SDFD_SLICE_DEFAULT_SIZE};
-    int rc = sdfd_url_args_check(args, volume ? SDFD_ROUTE_VOLUME_SLICE : SDFD_ROUTE_SLICE, "GET",
-                                 err, cap, argument);
+    int rc = sdfd_url_args_check(
+        args, sdfd_op_get(volume ? SDFD_OP_VOLUME_SLICE : SDFD_OP_MESH_SLICE), err, cap, argument);
     if (rc || (rc = parse_plane(&p, out)) || (rc = parse_mode(&p, out)) ||
         (rc = parse_filter(&p, out)))
         return rc;

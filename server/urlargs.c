@@ -1,35 +1,15 @@
-/* urlargs.c - each route's URL arguments and the check of a request's (see urlargs.h).
+/* urlargs.c - the check of a request's URL arguments against its operation's (urlargs.h).
  *
- * The tables below are the one list of what every route takes; a route and method without
- * a line takes no arguments at all, so a new route is strict until it says otherwise. A
- * refused name gets the nearest name the route takes when it is a likely misspelling (an
- * edit or two away), because "unknown argument 'sample'" alone sends the client to the docs
- * for what "did you mean 'samples'?" says at once. */
+ * What each operation takes is its line of optable.c. A refused name gets the nearest name
+ * the operation takes when it is a likely misspelling (an edit or two away), because
+ * "unknown argument 'sample'" alone sends the client to the docs for what "did you mean
+ * 'samples'?" says at once. */
 #include "urlargs.h"
 
 #include <stdio.h>
 #include <string.h>
 
 #include "filterparams.h"
-
-#define NAMES_MAX 10
-
-static const struct table {
-    sdfd_route route;
-    const char *method;           /* NULL: every method the route allows (GET and HEAD) */
-    const char *names[NAMES_MAX]; /* NULL after the last, unless full */
-    int filter;                   /* and the filter's arguments (filterparams.h) */
-} tables[] = {
-    {SDFD_ROUTE_QUERY, "POST", {"mode", "sign"}, 1},
-    {SDFD_ROUTE_VOLUME_QUERY, "POST", {"mode", "interpolation"}, 0},
-    {SDFD_ROUTE_MESH, "PUT", {"format"}, 0},
-    {SDFD_ROUTE_VOLUME_DATA, NULL, {"format"}, 0},
-    {SDFD_ROUTE_SLICE, NULL,
-     {"axis", "at", "normal", "origin", "bounds", "size", "mode", "sign", "step", "format"}, 1},
-    {SDFD_ROUTE_VOLUME_SLICE, NULL,
-     {"axis", "at", "normal", "origin", "bounds", "size", "mode", "interpolation", "step",
-      "format"}, 0},
-};
 
 /* Names closer than this many edits (and than half the given name's length) are suggested. */
 #define SUGGEST_EDITS 2
@@ -63,41 +43,6 @@ const char *sdfd_url_first_filter_arg(const sdfd_url_args *args)
     return NULL;
 }
 
-static const struct table *table_of(sdfd_route route, const char *method)
-{
-    const char *m = !strcmp(method, "HEAD") ? "GET" : method;
-    for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++)
-        if (tables[i].route == route && (!tables[i].method || !strcmp(tables[i].method, m)))
-            return &tables[i];
-    return NULL;
-}
-
-/* The i-th name table t takes, from 0; NULL after the last. */
-static const char *name_at(const struct table *t, size_t i)
-{
-    size_t own = 0;
-    while (t && own < NAMES_MAX && t->names[own])
-        own++;
-    if (i < own)
-        return t->names[i];
-    return t && t->filter ? sdfd_filter_url_name(i - own) : NULL;
-}
-
-/* Whether table t (NULL: no arguments) takes `name`; one pass over its names, since every
- * argument of every request is looked up here. */
-static int table_takes(const struct table *t, const char *name)
-{
-    for (size_t i = 0; t && i < NAMES_MAX && t->names[i]; i++)
-        if (!strcmp(t->names[i], name))
-            return 1;
-    return t && t->filter && sdfd_filter_is_url_name(name);
-}
-
-int sdfd_url_route_takes(sdfd_route route, const char *method, const char *name)
-{
-    return table_takes(table_of(route, method), name);
-}
-
 static size_t least(size_t x, size_t y)
 {
     return x < y ? x : y;
@@ -122,12 +67,12 @@ static size_t edits(const char *a, const char *b)
 }
 
 /* The name t takes that `given` is likely a misspelling of, or NULL. */
-static const char *nearest(const struct table *t, const char *given)
+static const char *nearest(const sdfd_op *t, const char *given)
 {
     size_t len = strlen(given), best_edits = SUGGEST_EDITS + 1;
     const char *best = NULL;
-    for (size_t i = 0; len < SUGGEST_LEN && name_at(t, i); i++) {
-        const char *name = name_at(t, i);
+    for (size_t i = 0; len < SUGGEST_LEN && sdfd_op_arg(t, i); i++) {
+        const char *name = sdfd_op_arg(t, i);
         size_t n = strlen(name), apart = n > len ? n - len : len - n; /* edits >= apart */
         size_t e = n < SUGGEST_LEN && apart < best_edits ? edits(given, name) : best_edits;
         if (e < best_edits && 2 * e <= len)
@@ -139,14 +84,14 @@ static const char *nearest(const struct table *t, const char *given)
 /* Whether any route takes `name`: then it is misplaced here, not misspelt. */
 static int known_anywhere(const char *name)
 {
-    for (size_t i = 0; i < sizeof tables / sizeof tables[0]; i++)
-        if (table_takes(&tables[i], name))
+    for (size_t i = 0; i < SDFD_OP_COUNT; i++)
+        if (sdfd_op_takes(sdfd_op_get((sdfd_op_id)i), name))
             return 1;
     return 0;
 }
 
 /* "unknown argument 'sample' (did you mean 'samples'?)", or what the route takes. */
-static int unknown(const struct table *t, const char *name, char *err, size_t cap)
+static int unknown(const sdfd_op *t, const char *name, char *err, size_t cap)
 {
     int elsewhere = known_anywhere(name);
     const char *near = elsewhere ? NULL : nearest(t, name);
@@ -154,27 +99,26 @@ static int unknown(const struct table *t, const char *name, char *err, size_t ca
                                                      : "unknown argument '%.40s'", name);
     if (at < cap && near)
         snprintf(err + at, cap - at, " (did you mean '%s'?)", near);
-    else if (at < cap && !t)
+    else if (at < cap && !sdfd_op_arg(t, 0))
         snprintf(err + at, cap - at, ": this route takes no URL arguments");
-    for (size_t i = 0; !near && t && name_at(t, i) && at < cap; i++)
+    for (size_t i = 0; !near && sdfd_op_arg(t, i) && at < cap; i++)
         at += (size_t)snprintf(err + at, cap - at, "%s %s", i ? "," : ": this route takes",
-                               name_at(t, i));
+                               sdfd_op_arg(t, i));
     return SDF_EINVAL;
 }
 
-int sdfd_url_args_check(const sdfd_url_args *args, sdfd_route route, const char *method,
-                        char *err, size_t cap, const char **argument)
+int sdfd_url_args_check(const sdfd_url_args *args, const sdfd_op *t, char *err, size_t cap,
+                        const char **argument)
 {
     *argument = "";
     if (args->given > SDFD_URL_MAX_ARGS) {
         snprintf(err, cap, "more than %d URL arguments", SDFD_URL_MAX_ARGS);
         return SDF_EINVAL;
     }
-    const struct table *t = table_of(route, method);
     for (size_t i = 0; i < args->n; i++) {
         const sdfd_url_arg *a = &args->arg[i];
         *argument = a->name;
-        if (!table_takes(t, a->name))
+        if (!sdfd_op_takes(t, a->name))
             return unknown(t, a->name, err, cap);
         for (size_t j = 0; j < i; j++)
             if (!strcmp(args->arg[j].name, a->name)) {

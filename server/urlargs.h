@@ -1,10 +1,10 @@
-/* urlargs.h - which URL arguments each HTTP route takes, and the check every request's
- * arguments pass before its route acts (docs/api.md, "URL arguments").
+/* urlargs.h - a request's URL arguments, and the check they pass against what its operation
+ * takes (optable.h) before it acts (docs/api.md, "URL arguments").
  *
  * A server that looks up only the names it knows answers `?smoothness=3`, `?sample=8` or
  * `?samples=8&samples=9` as if they were not there, and the client never learns that its
- * parameter was not applied. So the names live here, one table per route and method, and an
- * argument the route does not take (with the nearest name it does take, when one is close),
+ * parameter was not applied. So every operation lists its names (optable.c), and an
+ * argument the operation does not take (with the nearest name it does take, when one is close),
  * one given twice, or one without a value is refused with SDF_EINVAL before the route runs.
  * Whether a known argument applies to the request (the filter's only with a filtered mode)
  * is the route's own rule, checked where the mode is known.
@@ -16,7 +16,7 @@
 
 #include <stddef.h>
 
-#include "metrics.h"
+#include "optable.h"
 
 #define SDFD_URL_MAX_ARGS 64
 
@@ -43,12 +43,9 @@ const char *sdfd_url_lookup(void *ctx, const char *name);
 /* The first argument given that is one of the filter's (filterparams.h), or NULL. */
 const char *sdfd_url_first_filter_arg(const sdfd_url_args *args);
 
-/* Whether `route` with `method` takes `name` (HEAD takes what GET does). */
-int sdfd_url_route_takes(sdfd_route route, const char *method, const char *name);
-
-/* Every argument known to the route, given once, with a non-empty value. 0, or SDF_EINVAL
- * with a message in err and the argument's name in *argument ("" when none is to blame). */
-int sdfd_url_args_check(const sdfd_url_args *args, sdfd_route route, const char *method,
-                        char *err, size_t cap, const char **argument);
+/* Every argument one `op` takes, given once, with a non-empty value. 0, or SDF_EINVAL with a
+ * message in err and the argument's name in *argument ("" when none is to blame). */
+int sdfd_url_args_check(const sdfd_url_args *args, const sdfd_op *op, char *err, size_t cap,
+                        const char **argument);
 
 #endif

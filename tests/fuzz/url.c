@@ -60,24 +60,21 @@ static int holds(const sdfd_url_args *a, const char *name)
     return 0;
 }
 
-/* Every route and method sdfd answers, checked against its table: a refusal has a message
- * and names an argument the query string holds (or "" when the count is to blame). HEAD is
- * left out: it is looked up as GET (urlargs.c table_of), test_params.py checks that. */
+/* Every operation sdfd answers, checked against its line of the table (optable.c): a
+ * refusal has a message and names an argument the query string holds (or "" when the count
+ * is to blame). */
 static void check_routes(const sdfd_url_args *a)
 {
-    static const char *const methods[] = {"GET", "PUT", "POST", "DELETE"};
-    for (int route = 0; route < SDFD_ROUTE_COUNT; route++)
-        for (size_t m = 0; m < sizeof methods / sizeof methods[0]; m++) {
-            char err[300];
-            const char *argument = NULL;
-            if (!sdfd_url_args_check(a, (sdfd_route)route, methods[m], err, sizeof err,
-                                     &argument)) {
-                FUZZ_CHECK(argument && !argument[0]);
-                continue;
-            }
-            FUZZ_CHECK(err[0] && memchr(err, 0, sizeof err) && argument);
-            FUZZ_CHECK(holds(a, argument) || (!argument[0] && a->given > SDFD_URL_MAX_ARGS));
+    for (int op = 0; op < SDFD_OP_COUNT; op++) {
+        char err[300];
+        const char *argument = NULL;
+        if (!sdfd_url_args_check(a, sdfd_op_get((sdfd_op_id)op), err, sizeof err, &argument)) {
+            FUZZ_CHECK(argument && !argument[0]);
+            continue;
         }
+        FUZZ_CHECK(err[0] && memchr(err, 0, sizeof err) && argument);
+        FUZZ_CHECK(holds(a, argument) || (!argument[0] && a->given > SDFD_URL_MAX_ARGS));
+    }
 }
 
 static void parse_slices(const sdfd_url_args *a)

@@ -133,7 +133,7 @@ static void check_batches(void)
     opts[4].kernel = SDF_KERNEL_BUMP;
     opts[5].a = 4 * 8 / (0.02 * r.diagonal * 0.02 * r.diagonal); /* sigma halved */
 
-    sdfd_metrics *metrics = sdfd_metrics_create();
+    sdfd_metrics *metrics = sdfd_metrics_create(NULL, 0);
     sdfd_batcher *batcher = NULL;
     /* A long window: every job is queued before the first batch is taken. */
     CHECK(sdfd_batcher_create(1, 300000, 1 << 16, 1 << 20, metrics, &batcher) == 0, "batcher");

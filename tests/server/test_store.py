@@ -276,6 +276,26 @@ class Store(unittest.TestCase):
         self.assertGreater(metric(m, "sdfd_store_load_seconds_count"), 20)
         self.assertEqual(len(c.meshes()), 20)  # listed from the store, resident or not
 
+    def test_slice_of_stored_item(self):
+        """A slice of a mesh or volume the store holds but memory does not is loaded, as a
+        query of it is (it once answered 404 while the query answered 200)."""
+        s, c = self.start()
+        c.upload("fandisk", os.path.join(DATA, "fandisk.off"))
+        c.wait(c.bake("fandisk", volume="fv", resolution=16))
+        before = [c.slice("fandisk", format="npy", size=32)["values"],
+                  c.slice("fv", volume=True, format="npy", size=32)["values"]]
+        self.kill(s)
+        s, c = self.start("--max-resident-bytes", "1")  # nothing stays in memory
+        loads = metric(c.metrics(), "sdfd_store_loads_total")
+        after = [c.slice("fandisk", format="npy", size=32)["values"],
+                 c.slice("fv", volume=True, format="npy", size=32)["values"]]
+        for b, a in zip(before, after):
+            self.assertTrue(same_bits(a, b))
+        self.assertGreater(metric(c.metrics(), "sdfd_store_loads_total"), loads)
+        with self.assertRaises(sdfclient.SdfError) as e:
+            c.slice("nothing", format="npy", size=32)
+        self.assertEqual(e.exception.status, 404)
+
     # ---- damage ----
 
     def test_bad_store_content(self):
