@@ -5,16 +5,26 @@ kernel picked ("listening" events); the harness reads them from its JSON log. Th
 drained on a thread (a full pipe would block the server) and kept for assertions.
 Paths come from meson: SDFD (the daemon), SDF_BENCH (sdf-bench), SDF_TEST_DATA. Also the
 two binary-protocol frames tests write by hand (proto/PROTOCOL.md): a QUERY, and reading one
-reply."""
+reply.
+
+Importing it checks every HTTP answer the test then receives through http.client (the Python
+client, urllib, hand-made requests) against docs/openapi.yaml (tests/api/apicheck.py): an
+answer the document does not describe fails the request, and stop() fails as well."""
 import json
 import os
 import signal
 import struct
 import subprocess
+import sys
 import threading
 import time
 
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "api"))
+import apicheck  # noqa: E402
+
+apicheck.install()
 
 SDFD = os.environ.get("SDFD", "build/server/sdfd")
 SDF_BENCH = os.environ.get("SDF_BENCH", "build/tests/bench/sdf-bench")
@@ -55,8 +65,9 @@ class Server:
 
     def stop(self, sig=signal.SIGTERM, timeout=60):
         """Signal the server and wait; returns its exit code. A sanitizer report anywhere in
-        its log (the sanitizer builds: a leak, an overflow, undefined behaviour, a race)
-        fails the test that ran it, whatever the code."""
+        its log (the sanitizer builds: a leak, an overflow, undefined behaviour, a race), or
+        an answer outside docs/openapi.yaml since the last stop, fails the test that ran it,
+        whatever the code."""
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
         try:
@@ -68,6 +79,9 @@ class Server:
         reports = self.sanitizer_reports()
         if reports:
             raise AssertionError("sdfd's sanitizer reported:\n" + "".join(reports[:80]))
+        outside = apicheck.take_violations()
+        if outside:
+            raise AssertionError("answers outside docs/openapi.yaml:\n" + "\n".join(outside))
         return code
 
     def sanitizer_reports(self):
