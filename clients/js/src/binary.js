@@ -18,12 +18,12 @@ import net from 'node:net';
 import tls from 'node:tls';
 import { SdfError } from './errors.js';
 import {
-  INTERPOLATIONS, SIGNS, WORDS, checkFilter, leBytes, leWords, modeCode, signCode, smoothVolume,
-  splitWords, toPoints,
+  FRAMES, INTERPOLATIONS, SIGNS, WORDS, checkFilter, leBytes, leWords, modeCode, signCode,
+  smoothVolume, splitWords, toPoints,
 } from './wire.js';
 
-const HELLO = 0x01, HELLO_OK = 0x81, LIST_MESHES = 0x02, MESHES = 0x82, QUERY = 0x03;
-const VOLUME_QUERY = 0x04, AUTH = 0x05, AUTH_OK = 0x85, RESULT = 0x83, ERROR = 0x7f;
+const { HELLO, HELLO_OK, LIST_MESHES, MESHES, QUERY, VOLUME_QUERY, AUTH, AUTH_OK, RESULT, ERROR } =
+  FRAMES;
 const HEADER = 16;
 const MAGIC = [0x53, 0x44, 0x46, 0x50]; /* "SDFP" */
 /* Largest reply payloads taken before a frame is read: an ERROR holds two strings of u16

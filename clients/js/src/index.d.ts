@@ -103,6 +103,9 @@ export interface MeshReport {
   sign: string;
   index_bytes: number;
   build_seconds: number;
+  /** how many things the parser accepted with doubt; the first one's message in `warning` */
+  warnings: number;
+  warning?: string;
   [key: string]: unknown;
 }
 
@@ -183,10 +186,21 @@ export interface VolumeInfo {
   spacing: [number, number, number];
   order: 0 | 1;
   encoding: 'float32' | 'packed32';
+  packed_center: number;
+  packed_range: number;
+  /** first order's H and delta (0 for zero order) */
+  fine_half: number;
+  fine_spacing: number;
+  normalize: 'plane' | 'gradient';
+  filtered: boolean;
   channels: number;
+  layout: string;
   dtype: string;
   bytes: number;
+  /** the mesh it was baked from and the job that made it ("" for an uploaded volume) */
   mesh: string;
+  job: string;
+  bake_seconds: number;
   [key: string]: unknown;
 }
 
@@ -205,12 +219,18 @@ export interface VolumeDownload {
   shape?: number[];
 }
 
+/** The codes of sdfd's refusals (docs/api.md, "Errors"); an answer that is not an error body
+ * is "EUNKNOWN". */
+export type ErrorCode = 'EINVAL' | 'ENOMEM' | 'EIO' | 'EFORMAT' | 'EPARSE' | 'ETRUNC' | 'ELIMIT'
+  | 'EEMPTY' | 'ENONFINITE' | 'EINDEX' | 'EBVH' | 'ENOTFOUND' | 'ECANCELED' | 'EPROTO'
+  | 'EUNAUTHORIZED' | 'EMETHOD' | 'ELENGTH' | 'EBUSY' | 'EUNAVAILABLE' | 'ESYNTAX';
+
 export declare class SdfError extends Error {
   constructor(status: number, code: string, message: string);
   readonly name: 'SdfError';
   /** The HTTP status (400, 401, 404, 413, 422, 429, 503, ...). */
   status: number;
-  /** The server's error code: "ENOTFOUND", "EINVAL", "ENONFINITE", ... */
+  /** The server's error code (an ErrorCode: "ENOTFOUND", "EINVAL", ...), or "EUNKNOWN". */
   code: string;
 }
 

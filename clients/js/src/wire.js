@@ -1,7 +1,8 @@
 /* wire.js - the bytes both of sdfd's protocols share: points (flat or triples) as
  * little-endian float32, answers as W 32-bit words per point split into Float32Arrays, the
- * names of modes and signs, and the .npy framing the HTTP API also speaks. Kept apart from
- * the transports so the browser entry and the node-only binary client decode one way. */
+ * names of modes, signs and message types, and the .npy framing the HTTP API also speaks.
+ * Kept apart from the transports so the browser entry and the node-only binary client
+ * decode one way. */
 
 export const MODES = Object.freeze({
   signed: 0, distance: 1, gradient: 2, closest: 3, filtered: 4, 'filtered-gradient': 5,
@@ -9,6 +10,11 @@ export const MODES = Object.freeze({
 export const SIGNS = Object.freeze({ auto: 0, pseudonormal: 1, winding: 2, raycast: 3, none: 4 });
 /** Words per point of each mode's answer (docs/api.md, proto/PROTOCOL.md). */
 export const WORDS = Object.freeze([1, 1, 4, 5, 1, 4]);
+/** The binary protocol's message types (proto/PROTOCOL.md). */
+export const FRAMES = Object.freeze({
+  HELLO: 0x01, LIST_MESHES: 0x02, QUERY: 0x03, VOLUME_QUERY: 0x04, AUTH: 0x05, ERROR: 0x7f,
+  HELLO_OK: 0x81, MESHES: 0x82, RESULT: 0x83, AUTH_OK: 0x85,
+});
 /** A volume query's interpolations and their VOLUME_QUERY codes (proto/PROTOCOL.md);
  * "default" is hermite on first-order volumes and trilinear on zero-order ones. */
 export const INTERPOLATIONS = Object.freeze({ trilinear: 0, nearest: 1, hermite: 2, default: 3 });

@@ -26,17 +26,17 @@ closest). Errors raise SdfError with the HTTP status, the error code (e.g. "ENOT
 the server's message.
 
 The package ships its type hints (py.typed); Mode, Sign, Form, Interpolation, Op and Result
-name the types of the arguments and answers.
+name the types of the arguments and answers, ErrorCode the codes SdfError carries.
 """
 from ._binary import BinaryClient
 from ._http import Client
-from ._wire import (FILTER_KEYS, INTERPOLATIONS, MODES, SIGNS, Form, Interpolation, Mode, Op,
-                    Result, SdfError, Sign)
+from ._wire import (FILTER_KEYS, INTERPOLATIONS, MODES, SIGNS, ErrorCode, Form, Interpolation,
+                    Mode, Op, Result, SdfError, Sign)
 
 __version__ = "0.1.0"
 
 __all__ = ["Client", "BinaryClient", "SdfError", "Mode", "Sign", "Form", "Interpolation", "Op",
-           "Result", "MODES", "SIGNS", "INTERPOLATIONS", "FILTER_KEYS", "__version__"]
+           "Result", "ErrorCode", "MODES", "SIGNS", "INTERPOLATIONS", "FILTER_KEYS", "__version__"]
 
 # The classes are used as sdfclient.X: say so in their reprs, help() and tracebacks.
 for _cls in (Client, BinaryClient, SdfError):

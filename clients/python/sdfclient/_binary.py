@@ -18,8 +18,8 @@ from typing import (Any, ClassVar, Deque, Dict, Iterable, List, Mapping, Optiona
 import numpy as np
 import numpy.typing as npt
 
-from ._wire import (INTERPOLATIONS, KERNELS, MODES, SIGNS, VOLUMES, Interpolation, Mode, Result,
-                    SdfError, Sign, _filter, _points, _split_words, _volume)
+from ._wire import (FRAMES, INTERPOLATIONS, KERNELS, MODES, SIGNS, VOLUMES, Interpolation, Mode,
+                    Result, SdfError, Sign, _filter, _points, _split_words, _volume)
 
 
 class _BrokenStream(ConnectionError):
@@ -102,7 +102,7 @@ class BinaryClient:
                 self.sock = self._connect()
                 self._dead = False
                 if self._token is not None:
-                    self._call(0x05, self._token.encode())
+                    self._call(FRAMES["AUTH"], self._token.encode())
                 self.hello()
                 self.connects += 1
                 return
@@ -120,7 +120,7 @@ class BinaryClient:
     def auth(self, token: str) -> None:
         """AUTH: present the server's --token (a wrong one closes the connection); new
         connections present it too."""
-        self._call(0x05, token.encode())
+        self._call(FRAMES["AUTH"], token.encode())
         self._token = token
 
     def close(self) -> None:
@@ -151,7 +151,7 @@ class BinaryClient:
         if magic != b"SDFP" or version != 1:
             raise _BrokenStream("not an sdfd binary protocol reply")
         payload = self._recv_exact(length)
-        if type_ == 0x7F:
+        if type_ == FRAMES["ERROR"]:
             status, n = struct.unpack_from("<HH", payload)
             code = payload[4:4 + n].decode()
             (m,) = struct.unpack_from("<H", payload, 4 + n)
@@ -240,14 +240,14 @@ class BinaryClient:
 
     def hello(self) -> Dict[str, Any]:
         """HELLO: the server's protocol "version", "max_payload", "max_points" and "server"."""
-        _, p = self._call(0x01, b"sdfclient.py")
+        _, p = self._call(FRAMES["HELLO"], b"sdfclient.py")
         version, _, max_payload, max_points, n = struct.unpack_from("<HHIIH", p)
         return {"version": version, "max_payload": max_payload, "max_points": max_points,
                 "server": p[14:14 + n].decode()}
 
     def meshes(self) -> List[Dict[str, Any]]:
         """LIST_MESHES: [{"name", "triangles", "closed", "sign"}, ...]."""
-        _, p = self._call(0x02)
+        _, p = self._call(FRAMES["LIST_MESHES"])
         (count,), off, out = struct.unpack_from("<I", p), 4, []
         for _ in range(count):
             (n,) = struct.unpack_from("<H", p, off)
@@ -302,7 +302,7 @@ class BinaryClient:
     def query(self, name: str, points: npt.ArrayLike, mode: Mode = "signed", sign: Sign = "auto",
               filter: Optional[Mapping[str, Any]] = None) -> Result:
         """QUERY: points ((N, 3) array-like) against mesh `name`; `filter` as Client.query's."""
-        p = self._ask(0x03, self._query_payload(name, points, mode, sign, filter))
+        p = self._ask(FRAMES["QUERY"], self._query_payload(name, points, mode, sign, filter))
         return self._result(p, mode)
 
     def query_volume(self, name: str, points: npt.ArrayLike,
@@ -317,7 +317,7 @@ class BinaryClient:
         payload = struct.pack("<BBHI", 1 if gradient else 0, INTERPOLATIONS[interpolation],
                               len(nb), len(p)) \
             + nb + b"\0" * ((-len(nb)) % 4) + p.tobytes()
-        r = self._ask(0x04, payload)
+        r = self._ask(FRAMES["VOLUME_QUERY"], payload)
         return self._result(r, "gradient" if gradient else "signed")
 
     def query_many(self, requests: Iterable[Tuple[str, npt.ArrayLike]], mode: Mode = "signed",
@@ -326,7 +326,7 @@ class BinaryClient:
         """Pipeline [(name, points), ...] with up to `window` requests in flight; replies may
         arrive in any order. Returns results (or SdfError objects) in request order. Each
         request is sent once more if its connection dies first (see the class)."""
-        frames = [(0x03, self._query_payload(name, points, mode, sign, filter))
+        frames = [(FRAMES["QUERY"], self._query_payload(name, points, mode, sign, filter))
                   for name, points in requests]
         return [p if isinstance(p, SdfError) else self._result(p, mode)
                 for p in self._exchange(frames, window)]

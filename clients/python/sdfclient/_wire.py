@@ -1,5 +1,5 @@
-"""What the HTTP and the binary client share: SdfError, the tables that name modes, signs and
-filter parameters on the wire, and the checks that turn a caller's points and filter
+"""What the HTTP and the binary client share: SdfError, the tables that name modes, signs,
+filter parameters and message types on the wire, and the checks that turn a caller's points and filter
 parameters into what both protocols carry (docs/api.md, proto/PROTOCOL.md)."""
 from __future__ import annotations
 
@@ -18,6 +18,11 @@ Interpolation = Literal["default", "trilinear", "nearest", "hermite"]
 """How a volume query reads between a baked volume's nodes (docs/volumes.md, "Evaluation"):
 "default" is "hermite" on first-order volumes and "trilinear" on zero-order ones; "hermite"
 on a zero-order volume is refused (422)."""
+ErrorCode = Literal["EINVAL", "ENOMEM", "EIO", "EFORMAT", "EPARSE", "ETRUNC", "ELIMIT", "EEMPTY",
+                   "ENONFINITE", "EINDEX", "EBVH", "ENOTFOUND", "ECANCELED", "EPROTO",
+                   "EUNAUTHORIZED", "EMETHOD", "ELENGTH", "EBUSY", "EUNAVAILABLE", "ESYNTAX"]
+"""The codes of sdfd's refusals (SdfError.code; docs/api.md, "Errors"); the HTTP client adds
+"EUNKNOWN" for an answer that is not an error body."""
 Op = Union[Mapping[str, float], Tuple[str, float]]
 """One field operation (docs/api.md): {"round": 0.05} or ("round", 0.05); the names are
 redistance, offset, round, fillet and smooth."""
@@ -33,6 +38,9 @@ INTERPOLATIONS = {"trilinear": 0, "nearest": 1, "hermite": 2, "default": 3}
 FILTER_KEYS = ("kernel", "cap", "a", "b", "samples", "min_samples", "medial", "grid", "unsigned",
                "allow_wide_bump", "sample_gradient", "seed", "smooth")
 KERNELS = {"gaussian": 0, "bump": 1}
+FRAMES = {"HELLO": 0x01, "LIST_MESHES": 0x02, "QUERY": 0x03, "VOLUME_QUERY": 0x04, "AUTH": 0x05,
+          "ERROR": 0x7F, "HELLO_OK": 0x81, "MESHES": 0x82, "RESULT": 0x83, "AUTH_OK": 0x85}
+"""The binary protocol's message types (proto/PROTOCOL.md)."""
 VOLUMES = {"sphere": 1, "box": 2, "mesh": 3}
 
 
