@@ -15,41 +15,25 @@
 #include "admission.h"
 #include "queries.h"
 
-/* ---- queries ----------------------------------------------------------------------------- */
+/* ---- queries: QUERY and VOLUME_QUERY, each one job answered in a frame built in place ---- */
 
 typedef struct bin_job {
-    sdfd_query query;
+    sdfd_query query;               /* a QUERY's */
+    sdfd_volume_query volume_query; /* a VOLUME_QUERY's */
+    const sdfd_op *op;
     sdfd_binary *b;
     connection *conn;
     uint32_t request_id;
     char *frame;  /* header + result prefix + words */
+    size_t frame_len;
     float *points;
     double start;
     size_t bytes_in;
 } bin_job;
 
-static void query_done(sdfd_job *job)
+static const char *frame_name(const sdfd_op *op)
 {
-    bin_job *bj = job->user;
-    connection *c = bj->conn;
-    sdfd_binary *b = bj->b;
-    int status = job->status ? sdfd_http_status(job->status) : 200;
-    size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
-                 4 * sdf_proto_words(job->mode) * job->count;
-    int refused = bj->query.refused; /* by admission, after a load */
-    if (job->status) {
-        sdfd_bin_send_error(c, bj->request_id, job->status,
-                            refused ? bj->query.refusal : job->message);
-        free(bj->frame);
-    } else {
-        sdfd_bin_enqueue(c, bj->frame, len);
-    }
-    sdfd_bin_account(b, sdfd_op_get(SDFD_OP_QUERY), "QUERY", status, refused ? 0 : job->count,
-                     bj->start, bj->bytes_in, job->status ? 0 : len);
-    sdfd_query_release(&bj->query);
-    free(bj->points);
-    free(bj);
-    sdfd_bin_request_finished(b, c); /* wakes the loop; b may be freed once it returns */
+    return op->id == SDFD_OP_QUERY ? "QUERY" : "VOLUME_QUERY";
 }
 
 /* Refuse a request: ERROR frame, metrics, log. */
@@ -60,6 +44,38 @@ static void refuse(sdfd_binary *b, connection *c, const sdfd_op *op, const char 
     sdfd_bin_account(b, op, what, sdfd_http_status(err), 0, start, bytes_in, 0);
 }
 
+/* The job's answer (status 0: its frame; else an ERROR frame with message) and its end. */
+static void finish(bin_job *bj, int status, int refused, const char *message, size_t count)
+{
+    connection *c = bj->conn;
+    sdfd_binary *b = bj->b;
+    if (status) {
+        sdfd_bin_send_error(c, bj->request_id, status, message);
+        free(bj->frame);
+    } else {
+        sdfd_bin_enqueue(c, bj->frame, bj->frame_len);
+    }
+    sdfd_bin_account(b, bj->op, frame_name(bj->op), status ? sdfd_http_status(status) : 200,
+                     refused ? 0 : count, bj->start, bj->bytes_in, status ? 0 : bj->frame_len);
+    sdfd_query_release(&bj->query);
+    sdfd_volume_query_release(&bj->volume_query);
+    free(bj->points);
+    free(bj);
+    sdfd_bin_request_finished(b, c); /* wakes the loop; b may be freed once it returns */
+}
+
+static void query_done(sdfd_job *job)
+{
+    bin_job *bj = job->user;
+    int refused = bj->query.refused; /* by admission, after a load */
+    finish(bj, job->status, refused, refused ? bj->query.refusal : job->message, job->count);
+}
+
+static void volume_query_done(sdfd_volume_query *vq)
+{
+    finish(vq->user, vq->status, vq->refused, vq->message, vq->count);
+}
+
 static void count_in_flight(sdfd_binary *b, connection *c)
 {
     pthread_mutex_lock(&c->lock);
@@ -68,144 +84,95 @@ static void count_in_flight(sdfd_binary *b, connection *c)
     atomic_fetch_add(&b->srv->in_flight, 1);
 }
 
-/* The frame's spelling of a query into the handler's terms (queries.h). */
-static void handle_query(sdfd_binary *b, connection *c, uint32_t id, const unsigned char *payload,
-                         size_t len)
+/* A job for `count` decoded points (copied: the input buffer moves on) of a payload of
+ * `len` bytes, with its reply frame for `mode`'s words; NULL (and refused) when out of
+ * memory. */
+static bin_job *new_job(sdfd_binary *b, connection *c, const sdfd_op *op, uint32_t id,
+                        size_t len, const float *points, uint32_t count, sdf_proto_mode mode,
+                        double start)
 {
-    sdfd_server *srv = b->srv;
-    double start = sdfd_now();
-    size_t bytes_in = SDF_PROTO_HEADER_SIZE + len;
-    sdf_proto_query d;
-    const char *why;
-    char message[300];
-#define REFUSE(err, text) \
-    refuse(b, c, sdfd_op_get(SDFD_OP_QUERY), "QUERY", id, err, text, start, bytes_in)
-    int rc = sdf_proto_decode_query(payload, len, (uint32_t)srv->cfg.max_points, &d, &why);
-    if (rc) {
-        REFUSE(rc, why);
-        return;
-    }
+    size_t bytes_in = SDF_PROTO_HEADER_SIZE + len, words = (size_t)sdf_proto_words(mode) * count;
     bin_job *bj = calloc(1, sizeof *bj);
-    size_t words = (size_t)sdf_proto_words(d.mode) * d.count;
     if (bj) {
-        bj->frame = malloc(SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX + 4 * words);
-        bj->points = malloc(12 * (size_t)d.count + 4);
+        bj->frame_len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX + 4 * words;
+        bj->frame = malloc(bj->frame_len);
+        bj->points = malloc(12 * (size_t)count + 4);
     }
     if (!bj || !bj->frame || !bj->points) {
         if (bj)
             free(bj->frame), free(bj->points);
         free(bj);
-        REFUSE(SDF_ENOMEM, "out of memory");
+        refuse(b, c, op, frame_name(op), id, SDF_ENOMEM, "out of memory", start, bytes_in);
+        return NULL;
+    }
+    memcpy(bj->points, points, 12 * (size_t)count);
+    *bj = (bin_job){.op = op, .b = b, .conn = c, .request_id = id, .frame = bj->frame,
+                    .frame_len = bj->frame_len, .points = bj->points, .start = start,
+                    .bytes_in = bytes_in};
+    return bj;
+}
+
+/* Hand the job to its handler: its words sit right after the frame's header. */
+static void admit(bin_job *bj, sdf_proto_mode mode, uint32_t count)
+{
+    size_t head = sdf_proto_encode_result_head(bj->frame, bj->request_id, mode, count);
+    uint32_t *words = (uint32_t *)(bj->frame + head);
+    char message[SDFD_QUERY_MESSAGE_MAX];
+    count_in_flight(bj->b, bj->conn); /* admission may end on a loader's thread */
+    int rc;
+    if (bj->op->id == SDFD_OP_QUERY) {
+        bj->query.job.words = words;
+        rc = sdfd_query_admit(bj->b->srv, &bj->query, message, sizeof message);
+    } else {
+        bj->volume_query.words = words;
+        rc = sdfd_volume_query_admit(bj->b->srv, &bj->volume_query, message, sizeof message);
+    }
+    if (rc) /* nothing held after a refused admission */
+        finish(bj, rc, 1, message, 0);
+}
+
+/* The frame's spelling of a query into the handler's terms (queries.h). */
+static void handle_query(sdfd_binary *b, connection *c, const sdfd_op *op, uint32_t id,
+                         const unsigned char *payload, size_t len, double start)
+{
+    sdf_proto_query d;
+    const char *why;
+    int rc = sdf_proto_decode_query(payload, len, (uint32_t)b->srv->cfg.max_points, &d, &why);
+    if (rc) {
+        refuse(b, c, op, "QUERY", id, rc, why, start, SDF_PROTO_HEADER_SIZE + len);
         return;
     }
-    memcpy(bj->points, d.points, 12 * (size_t)d.count); /* the input buffer will move on */
-    size_t head = sdf_proto_encode_result_head(bj->frame, id, d.mode, d.count);
+    bin_job *bj = new_job(b, c, op, id, len, d.points, d.count, d.mode, start);
+    if (!bj)
+        return;
     bj->query = (sdfd_query){
         .mesh_name = d.name, .mesh_name_len = d.name_len, .smoothing_name = d.volume_name,
         .smoothing_name_len = d.volume_name_len,
         .job = {.mode = d.mode, .sign = d.sign, .filter = d.filter, .points = bj->points,
-                .count = d.count, .words = (uint32_t *)(bj->frame + head), .done = query_done,
-                .user = bj}};
-    bj->b = b;
-    bj->conn = c;
-    bj->request_id = id;
-    bj->start = start;
-    bj->bytes_in = bytes_in;
-    count_in_flight(b, c); /* admission may end on a loader's thread */
-    if ((rc = sdfd_query_admit(srv, &bj->query, message, sizeof message))) {
-        REFUSE(rc, message);
-        free(bj->frame), free(bj->points), free(bj);
-        sdfd_bin_request_finished(b, c);
-    }
-#undef REFUSE
+                .count = d.count, .done = query_done, .user = bj}};
+    admit(bj, d.mode, d.count);
 }
 
-/* ---- volume queries (the handler runs them on a thread of their own), answered like
- * queries ---------------------------------------------------------------------------------- */
-
-typedef struct volume_job {
-    sdfd_volume_query query;
-    sdfd_binary *b;
-    connection *conn;
-    uint32_t request_id;
-    float *points;
-    char *frame;
-    double start;
-    size_t bytes_in;
-} volume_job;
-
-static void volume_query_done(sdfd_volume_query *vq)
+static void handle_volume_query(sdfd_binary *b, connection *c, const sdfd_op *op, uint32_t id,
+                                const unsigned char *payload, size_t len, double start)
 {
-    volume_job *vj = vq->user;
-    connection *c = vj->conn;
-    sdfd_binary *b = vj->b;
-    size_t len = SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
-                 4 * (vq->gradient ? 4 : 1) * vq->count;
-    if (vq->status) {
-        sdfd_bin_send_error(c, vj->request_id, vq->status, vq->message);
-        free(vj->frame);
-    } else {
-        sdfd_bin_enqueue(c, vj->frame, len);
-    }
-    sdfd_bin_account(b, sdfd_op_get(SDFD_OP_VOLUME_QUERY), "VOLUME_QUERY",
-                     vq->status ? sdfd_http_status(vq->status) : 200,
-                     vq->refused ? 0 : vq->count, vj->start, vj->bytes_in,
-                     vq->status ? 0 : len);
-    sdfd_volume_query_release(vq);
-    free(vj->points);
-    free(vj);
-    sdfd_bin_request_finished(b, c); /* wakes the loop; b may be freed once it returns */
-}
-
-static void handle_volume_query(sdfd_binary *b, connection *c, uint32_t id,
-                                const unsigned char *payload, size_t len)
-{
-    sdfd_server *srv = b->srv;
-    double start = sdfd_now();
-    size_t bytes_in = SDF_PROTO_HEADER_SIZE + len;
     sdf_proto_volume_query d;
     const char *why;
-    char message[300];
-#define REFUSE(err, text) \
-    refuse(b, c, sdfd_op_get(SDFD_OP_VOLUME_QUERY), "VOLUME_QUERY", id, err, text, start, \
-           bytes_in)
-    int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)srv->cfg.max_points, &d, &why);
+    int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)b->srv->cfg.max_points, &d,
+                                           &why);
     if (rc) {
-        REFUSE(rc, why);
+        refuse(b, c, op, "VOLUME_QUERY", id, rc, why, start, SDF_PROTO_HEADER_SIZE + len);
         return;
     }
-    volume_job *vj = calloc(1, sizeof *vj);
-    if (vj) {
-        vj->frame = malloc(SDF_PROTO_HEADER_SIZE + SDF_PROTO_RESULT_PREFIX +
-                           4 * (d.gradient ? 4 : 1) * (size_t)d.count);
-        vj->points = malloc(12 * (size_t)d.count + 4);
-    }
-    if (!vj || !vj->frame || !vj->points) {
-        if (vj)
-            free(vj->frame), free(vj->points);
-        free(vj);
-        REFUSE(SDF_ENOMEM, "out of memory");
+    sdf_proto_mode mode = d.gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED;
+    bin_job *bj = new_job(b, c, op, id, len, d.points, d.count, mode, start);
+    if (!bj)
         return;
-    }
-    memcpy(vj->points, d.points, 12 * (size_t)d.count); /* the input buffer moves on */
-    size_t head = sdf_proto_encode_result_head(
-        vj->frame, id, d.gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, d.count);
-    vj->query = (sdfd_volume_query){
+    bj->volume_query = (sdfd_volume_query){
         .volume_name = d.name, .volume_name_len = d.name_len, .interpolation = d.interpolation,
-        .gradient = d.gradient, .points = vj->points, .count = d.count,
-        .words = (uint32_t *)(vj->frame + head), .done = volume_query_done, .user = vj};
-    vj->b = b;
-    vj->conn = c;
-    vj->request_id = id;
-    vj->start = start;
-    vj->bytes_in = bytes_in;
-    count_in_flight(b, c); /* admission may end on a loader's thread */
-    if ((rc = sdfd_volume_query_admit(srv, &vj->query, message, sizeof message))) {
-        REFUSE(rc, message);
-        free(vj->frame), free(vj->points), free(vj);
-        sdfd_bin_request_finished(b, c);
-    }
-#undef REFUSE
+        .gradient = d.gradient, .points = bj->points, .count = d.count,
+        .done = volume_query_done, .user = bj};
+    admit(bj, mode, d.count);
 }
 
 static void handle_list(sdfd_binary *b, connection *c, uint32_t id)
@@ -282,10 +249,10 @@ void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header
     int status = 200;
     switch (op->id) {
     case SDFD_OP_QUERY:
-        handle_query(b, c, h->request_id, payload, h->length);
+        handle_query(b, c, op, h->request_id, payload, h->length, start);
         return;
     case SDFD_OP_VOLUME_QUERY:
-        handle_volume_query(b, c, h->request_id, payload, h->length);
+        handle_volume_query(b, c, op, h->request_id, payload, h->length, start);
         return;
     case SDFD_OP_HELLO:
         handle_hello(b, c, h->request_id);

@@ -72,9 +72,8 @@ int sdfd_cache_lookup(sdfd_cache *c, sdfd_lookup *l)
     return l->status;
 }
 
-/* A lookup that waits for a load on the calling thread. */
-static int lookup_wait(sdfd_cache *c, sdfd_item_kind kind, const char *name, size_t n,
-                       void **out, char *msg, size_t cap)
+int sdfd_cache_get(sdfd_cache *c, sdfd_item_kind kind, const char *name, size_t n, void **out,
+                   char *msg, size_t cap)
 {
     sdfd_lookup l = {.kind = kind};
     snprintf(l.name, sizeof l.name, "%.*s", (int)n, name);
@@ -85,24 +84,6 @@ static int lookup_wait(sdfd_cache *c, sdfd_item_kind kind, const char *name, siz
         msg[len] = '\0';
     }
     *out = l.item;
-    return rc;
-}
-
-int sdfd_cache_mesh(sdfd_cache *c, const char *name, size_t n, sdf_mesh **out, char *msg,
-                    size_t cap)
-{
-    void *item;
-    int rc = lookup_wait(c, SDFD_ITEM_MESH, name, n, &item, msg, cap);
-    *out = item;
-    return rc;
-}
-
-int sdfd_cache_volume(sdfd_cache *c, const char *name, size_t n, sdfd_stored_volume **out,
-                      char *msg, size_t cap)
-{
-    void *item;
-    int rc = lookup_wait(c, SDFD_ITEM_VOLUME, name, n, &item, msg, cap);
-    *out = item;
     return rc;
 }
 
@@ -184,8 +165,8 @@ static int put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
     return rc;
 }
 
-int sdfd_cache_put_mesh(sdfd_cache *c, const char *name, sdf_mesh *mesh, const void *file,
-                        size_t n, int *replaced, char *msg, size_t cap)
+static int put_mesh(sdfd_cache *c, const char *name, sdf_mesh *mesh, const void *file,
+                    size_t n, int *replaced, char *msg, size_t cap)
 {
     if (!c->store) {
         int rc = sdfd_registry_put(c->registry, name, mesh, replaced);
@@ -201,8 +182,8 @@ int sdfd_cache_put_mesh(sdfd_cache *c, const char *name, sdf_mesh *mesh, const v
     return rc;
 }
 
-int sdfd_cache_put_volume(sdfd_cache *c, const char *name, sdf_volume *volume,
-                          const void *file, size_t n, int *replaced, char *msg, size_t cap)
+static int put_volume(sdfd_cache *c, const char *name, sdf_volume *volume, const void *file,
+                      size_t n, int *replaced, char *msg, size_t cap)
 {
     if (!c->store) {
         int rc = sdfd_volumes_put(c->volumes, name, volume, "", replaced);
@@ -225,6 +206,13 @@ int sdfd_cache_put_volume(sdfd_cache *c, const char *name, sdf_volume *volume,
     int rc = put(c, SDFD_ITEM_VOLUME, name, s, file, n, "exr", info, replaced, msg, cap, 0);
     sdfd_volume_release(s);
     return rc;
+}
+
+int sdfd_cache_put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
+                   const void *file, size_t n, int *replaced, char *msg, size_t cap)
+{
+    return kind == SDFD_ITEM_MESH ? put_mesh(c, name, item, file, n, replaced, msg, cap)
+                                  : put_volume(c, name, item, file, n, replaced, msg, cap);
 }
 
 static int remove_item(sdfd_cache *c, sdfd_item_kind kind, const char *name, char *msg,
@@ -254,26 +242,16 @@ static int remove_item(sdfd_cache *c, sdfd_item_kind kind, const char *name, cha
     return rc;
 }
 
-int sdfd_cache_remove_mesh(sdfd_cache *c, const char *name, char *msg, size_t cap)
+int sdfd_cache_remove(sdfd_cache *c, sdfd_item_kind kind, const char *name, char *msg,
+                      size_t cap)
 {
-    if (!c->store) {
-        int rc = sdfd_registry_remove(c->registry, name);
-        if (rc)
-            snprintf(msg, cap, "no mesh named '%s'", name);
-        return rc;
-    }
-    return remove_item(c, SDFD_ITEM_MESH, name, msg, cap);
-}
-
-int sdfd_cache_remove_volume(sdfd_cache *c, const char *name, char *msg, size_t cap)
-{
-    if (!c->store) {
-        int rc = sdfd_volumes_remove(c->volumes, name);
-        if (rc)
-            snprintf(msg, cap, "no volume named '%s'", name);
-        return rc;
-    }
-    return remove_item(c, SDFD_ITEM_VOLUME, name, msg, cap);
+    if (c->store)
+        return remove_item(c, kind, name, msg, cap);
+    int rc = kind == SDFD_ITEM_MESH ? sdfd_registry_remove(c->registry, name)
+                                    : sdfd_volumes_remove(c->volumes, name);
+    if (rc)
+        snprintf(msg, cap, "no %s named '%s'", sdfd_kind_name(kind), name);
+    return rc;
 }
 
 /* ---- bake jobs --------------------------------------------------------------------------- */
@@ -352,7 +330,7 @@ void sdfd_cache_start(sdfd_cache *c)
                 free(meta.info);
                 continue;
             }
-            if (!lookup_wait(c, kind, names[i], strlen(names[i]), &item, msg, sizeof msg))
+            if (!sdfd_cache_get(c, kind, names[i], strlen(names[i]), &item, msg, sizeof msg))
                 sdfd_item_release(kind, item);
             else
                 sdfd_log("error", "store_load", "%s", msg);

@@ -15,7 +15,7 @@
  * - uploads and deletes go to the store first, and are answered once it has them.
  * Meshes named by --mesh/--mesh-dir are pinned: in memory only, never checked or dropped.
  * Thread-safe. sdfd_cache_lookup never waits for a load (the query handlers use it, on the
- * front ends' threads); sdfd_cache_mesh and sdfd_cache_volume wait on their caller's. */
+ * front ends' threads); sdfd_cache_get waits on its caller's. */
 #ifndef SDFD_CACHE_H
 #define SDFD_CACHE_H
 
@@ -47,29 +47,27 @@ void sdfd_cache_pin(sdfd_cache *c, const char *name);
  * hooks, and load what the store holds (while under the budget; the rest when first used). */
 void sdfd_cache_start(sdfd_cache *c);
 
-/* Lookups: a retained reference in *out and 0; SDF_ENOTFOUND; SDFD_EUNAVAILABLE (the store
- * is unreadable, and the item not in memory); SDF_ELIMIT (it does not fit --max-meshes /
- * --max-triangles / --max-volumes / --max-volume-bytes). msg says why. A load of the item
- * runs on a loader thread while the caller waits. */
-int sdfd_cache_mesh(sdfd_cache *c, const char *name, size_t n, sdf_mesh **out, char *msg,
-                    size_t cap);
-int sdfd_cache_volume(sdfd_cache *c, const char *name, size_t n, sdfd_stored_volume **out,
-                      char *msg, size_t cap);
+/* Lookups of a `kind` (SDFD_ITEM_MESH: an sdf_mesh *, SDFD_ITEM_VOLUME: an
+ * sdfd_stored_volume *): a retained reference in *out and 0; SDF_ENOTFOUND;
+ * SDFD_EUNAVAILABLE (the store is unreadable, and the item not in memory); SDF_ELIMIT (it
+ * does not fit --max-meshes / --max-triangles / --max-volumes / --max-volume-bytes). msg
+ * says why. A load of the item runs on a loader thread while the caller waits. */
+int sdfd_cache_get(sdfd_cache *c, sdfd_item_kind kind, const char *name, size_t n, void **out,
+                   char *msg, size_t cap);
 
 /* The same lookup without waiting: l->kind and l->name set, 0 (l->item), an error
  * (l->message), or SDFD_LOOKUP_PENDING and l->done will be called with the answer
  * (sdfd_loader_lookup). */
 int sdfd_cache_lookup(sdfd_cache *c, sdfd_lookup *l);
 
-/* Uploads: `mesh` / `volume` taken over; `file` is the bytes as uploaded (a volume: its EXR).
- * 0 (*replaced set) or an error with msg. */
-int sdfd_cache_put_mesh(sdfd_cache *c, const char *name, sdf_mesh *mesh, const void *file,
-                        size_t n, int *replaced, char *msg, size_t cap);
-int sdfd_cache_put_volume(sdfd_cache *c, const char *name, sdf_volume *volume,
-                          const void *file, size_t n, int *replaced, char *msg, size_t cap);
+/* Uploads: `item` (an sdf_mesh *, or an sdf_volume * for SDFD_ITEM_VOLUME) taken over;
+ * `file` is the bytes as uploaded (a volume: its EXR). 0 (*replaced set) or an error with
+ * msg. */
+int sdfd_cache_put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
+                   const void *file, size_t n, int *replaced, char *msg, size_t cap);
 /* Deletes: 0, SDF_ENOTFOUND, or SDFD_EUNAVAILABLE. */
-int sdfd_cache_remove_mesh(sdfd_cache *c, const char *name, char *msg, size_t cap);
-int sdfd_cache_remove_volume(sdfd_cache *c, const char *name, char *msg, size_t cap);
+int sdfd_cache_remove(sdfd_cache *c, sdfd_item_kind kind, const char *name, char *msg,
+                      size_t cap);
 
 /* Listings of everything served (with a store: its sidecars, and the pinned meshes). */
 typedef struct sdfd_mesh_summary {

@@ -2,6 +2,7 @@
 #include "dispatch.h"
 
 #include "errors.h"
+#include "opitems.h"
 #include "opjobs.h"
 #include "opmeshes.h"
 #include "opslice.h"
@@ -15,7 +16,7 @@ static int (*const handlers[SDFD_OP_COUNT])(sdfd_call *call) = {
     [SDFD_OP_MESH_LIST] = sdfd_op_mesh_list,
     [SDFD_OP_MESH_GET] = sdfd_op_mesh_get,
     [SDFD_OP_MESH_PUT] = sdfd_op_mesh_put,
-    [SDFD_OP_MESH_DELETE] = sdfd_op_mesh_delete,
+    [SDFD_OP_MESH_DELETE] = sdfd_op_delete,
     [SDFD_OP_BAKE] = sdfd_op_bake,
     [SDFD_OP_MESH_SLICE] = sdfd_op_slice,
     [SDFD_OP_JOB_LIST] = sdfd_op_job_list,
@@ -24,7 +25,7 @@ static int (*const handlers[SDFD_OP_COUNT])(sdfd_call *call) = {
     [SDFD_OP_VOLUME_LIST] = sdfd_op_volume_list,
     [SDFD_OP_VOLUME_GET] = sdfd_op_volume_get,
     [SDFD_OP_VOLUME_PUT] = sdfd_op_volume_put,
-    [SDFD_OP_VOLUME_DELETE] = sdfd_op_volume_delete,
+    [SDFD_OP_VOLUME_DELETE] = sdfd_op_delete,
     [SDFD_OP_VOLUME_DATA] = sdfd_op_volume_data,
     [SDFD_OP_VOLUME_OPS] = sdfd_op_volume_ops,
     [SDFD_OP_VOLUME_SLICE] = sdfd_op_slice,

@@ -13,7 +13,35 @@
 
 typedef sdfd_http_request request;
 
+/* What both queries do once their arguments are read: room for the answer in the reply
+ * form, the connection suspended (admission may end on a loader's thread), then the
+ * handler's admission; a refusal resumes it and answers at once. */
+static enum MHD_Result submit(request *req, sdfd_form form, sdf_proto_mode mode, size_t count,
+                              sdfd_http_respond respond,
+                              int (*admit)(request *req, char *err, size_t cap))
+{
+    req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
+    if (sdfd_reply_init(&req->reply, req->reply_form, mode, count))
+        return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
+    req->points = count;
+    sdfd_http_wait(req, respond);
+    char err[SDFD_QUERY_MESSAGE_MAX];
+    int rc = admit(req, err, sizeof err);
+    if (rc) {
+        sdfd_http_unwait(req);
+        req->points = 0;
+        return sdfd_http_error(req, rc, "%s", err);
+    }
+    return MHD_YES;
+}
+
 /* ---- mesh queries ------------------------------------------------------------------------ */
+
+static int admit_query(request *req, char *err, size_t cap)
+{
+    req->query.job.words = req->reply.words;
+    return sdfd_query_admit(req->srv, &req->query, err, cap);
+}
 
 static void query_done(sdfd_job *job)
 {
@@ -51,7 +79,6 @@ static int filter_misplaced(request *req, const sdfd_query_params *params, const
 /* The HTTP spelling of a query (body, URL arguments, Accept) into the handler's terms. */
 enum MHD_Result sdfd_http_query(request *req)
 {
-    sdfd_server *srv = req->srv;
     sdfd_form form;
     sdfd_query_params params;
     size_t count;
@@ -91,21 +118,16 @@ enum MHD_Result sdfd_http_query(request *req)
         if (volume_name[0])
             q->smoothing_name = volume_name, q->smoothing_name_len = strlen(volume_name);
     }
-    req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
-    if (sdfd_reply_init(&req->reply, req->reply_form, m, count))
-        return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
-    q->job.words = req->reply.words;
-    req->points = count;
-    sdfd_http_wait(req, reply_query); /* admission may end on a loader's thread */
-    if ((rc = sdfd_query_admit(srv, q, err, sizeof err))) {
-        sdfd_http_unwait(req);
-        req->points = 0;
-        return sdfd_http_error(req, rc, "%s", err);
-    }
-    return MHD_YES;
+    return submit(req, form, m, count, reply_query, admit_query);
 }
 
 /* ---- volume queries ---------------------------------------------------------------------- */
+
+static int admit_volume_query(request *req, char *err, size_t cap)
+{
+    req->volume_query.words = req->reply.words;
+    return sdfd_volume_query_admit(req->srv, &req->volume_query, err, cap);
+}
 
 static void volume_query_done(sdfd_volume_query *vq)
 {
@@ -123,18 +145,17 @@ static enum MHD_Result reply_volume_query(request *req)
 
 enum MHD_Result sdfd_http_volume_query(request *req)
 {
-    sdfd_server *srv = req->srv;
     sdfd_form form;
     sdfd_query_params params;
     size_t count;
     enum MHD_Result refused;
     if (sdfd_http_read_points(req, &form, &params, &count, &refused))
         return refused;
-    char err[300], mode_buf[32], interp_buf[32];
+    char mode_buf[32], interp_buf[32];
     const char *mode = sdfd_http_param(params.mode, params.mode_len, mode_buf, sizeof mode_buf);
     const char *interp = sdfd_http_param(params.interpolation, params.interpolation_len,
                                          interp_buf, sizeof interp_buf);
-    int gradient = 0, rc;
+    int gradient = 0;
     if (mode && strcmp(mode, "value") && !(gradient = !strcmp(mode, "gradient")))
         return sdfd_http_error(req, SDF_EINVAL, "unknown volume mode '%s' (value, gradient)", mode);
     sdfd_volume_query *vq = &req->volume_query;
@@ -145,17 +166,6 @@ enum MHD_Result sdfd_http_volume_query(request *req)
     if (interp && sdf_volume_filter_from_name(interp, &vq->interpolation))
         return sdfd_http_error(req, SDF_EINVAL, "unknown interpolation '%s' (default, trilinear, "
                                "nearest, hermite)", interp);
-    req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
-    if (sdfd_reply_init(&req->reply, req->reply_form,
-                        gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count))
-        return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
-    vq->words = req->reply.words;
-    req->points = count;
-    sdfd_http_wait(req, reply_volume_query); /* admission may end on a loader's thread */
-    if ((rc = sdfd_volume_query_admit(srv, vq, err, sizeof err))) {
-        sdfd_http_unwait(req);
-        req->points = 0;
-        return sdfd_http_error(req, rc, "%s", err);
-    }
-    return MHD_YES;
+    return submit(req, form, gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count,
+                  reply_volume_query, admit_volume_query);
 }

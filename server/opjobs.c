@@ -71,13 +71,15 @@ int sdfd_op_bake(sdfd_call *call)
     int rc = sdfd_bake_from_json(call->body, call->len, &bake, &names, err, sizeof err);
     if (rc)
         return sdfd_call_fail(call, rc, "%s", err);
-    sdf_mesh *mesh;
-    if ((rc = sdfd_cache_mesh(srv->cache, call->name, strlen(call->name), &mesh, err,
-                              sizeof err)))
+    void *item;
+    if ((rc = sdfd_cache_get(srv->cache, SDFD_ITEM_MESH, call->name, strlen(call->name), &item,
+                             err, sizeof err)))
         return sdfd_call_fail(call, rc, "%s", err);
+    sdf_mesh *mesh = item;
     if (names.smoothing_mesh[0]) {
-        rc = sdfd_cache_mesh(srv->cache, names.smoothing_mesh, strlen(names.smoothing_mesh),
-                             &bake.smoothing_mesh, err, sizeof err);
+        rc = sdfd_cache_get(srv->cache, SDFD_ITEM_MESH, names.smoothing_mesh,
+                            strlen(names.smoothing_mesh), &item, err, sizeof err);
+        bake.smoothing_mesh = rc ? NULL : item;
         if (rc) {
             sdf_mesh_release(mesh);
             if (rc == SDF_ENOTFOUND)
@@ -109,9 +111,9 @@ int sdfd_op_volume_ops(sdfd_call *call)
     int rc = sdfd_ops_from_json(call->body, call->len, &ops, volume, err, sizeof err);
     if (rc)
         return sdfd_call_fail(call, rc, "%s", err);
-    sdfd_stored_volume *source;
-    if ((rc = sdfd_cache_volume(srv->cache, call->name, strlen(call->name), &source, err,
-                                sizeof err)))
+    void *source;
+    if ((rc = sdfd_cache_get(srv->cache, SDFD_ITEM_VOLUME, call->name, strlen(call->name),
+                             &source, err, sizeof err)))
         return sdfd_call_fail(call, rc, "%s", err);
     char id[24];
     /* The job takes over the source's reference, also when it fails to start. */

@@ -59,10 +59,10 @@ int sdfd_op_mesh_list(sdfd_call *call)
 
 int sdfd_op_mesh_get(sdfd_call *call)
 {
-    sdf_mesh *mesh;
+    void *mesh;
     char msg[512];
-    int rc = sdfd_cache_mesh(call->srv->cache, call->name, strlen(call->name), &mesh, msg,
-                             sizeof msg);
+    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_MESH, call->name, strlen(call->name),
+                            &mesh, msg, sizeof msg);
     if (rc)
         return sdfd_call_fail(call, rc, "%s", msg);
     cJSON *json = report_json(call->name, mesh);
@@ -85,8 +85,8 @@ static void load_upload(sdfd_call *call)
     }
     rc = sdf_mesh_load_memory(call->body, call->len, &opts, &mesh, &diag);
     if (!rc)
-        rc = sdfd_cache_put_mesh(srv->cache, call->name, sdf_mesh_retain(mesh), call->body,
-                                 call->len, &replaced, diag.message, sizeof diag.message);
+        rc = sdfd_cache_put(srv->cache, SDFD_ITEM_MESH, call->name, sdf_mesh_retain(mesh),
+                            call->body, call->len, &replaced, diag.message, sizeof diag.message);
     if (rc) {
         sdf_mesh_release(mesh);
         sdfd_call_fail(call, rc, "%s", diag.message);
@@ -101,15 +101,4 @@ static void load_upload(sdfd_call *call)
 int sdfd_op_mesh_put(sdfd_call *call)
 {
     return sdfd_call_defer(call, load_upload);
-}
-
-int sdfd_op_mesh_delete(sdfd_call *call)
-{
-    char msg[512];
-    int rc = sdfd_cache_remove_mesh(call->srv->cache, call->name, msg, sizeof msg);
-    if (rc)
-        return sdfd_call_fail(call, rc, "%s", msg);
-    sdfd_log("info", "mesh_deleted", "%s", call->name);
-    call->result.status = 204;
-    return SDFD_CALL_READY;
 }

@@ -9,6 +9,5 @@
 int sdfd_op_mesh_list(sdfd_call *call);   /* GET /v1/meshes */
 int sdfd_op_mesh_get(sdfd_call *call);    /* GET /v1/meshes/{name} */
 int sdfd_op_mesh_put(sdfd_call *call);    /* PUT /v1/meshes/{name}: asynchronous */
-int sdfd_op_mesh_delete(sdfd_call *call); /* DELETE /v1/meshes/{name} */
 
 #endif

@@ -202,10 +202,10 @@ static int subject_box(sdfd_call *call, sdfd_stored_volume *s, double lo[3], dou
             lo[a] = in.origin[a], hi[a] = in.origin[a] + (double)(in.dims[a] - 1) * in.spacing[a];
         return 0;
     }
-    sdf_mesh *mesh;
+    void *mesh;
     char msg[300];
-    int rc = sdfd_cache_mesh(call->srv->cache, call->name, strlen(call->name), &mesh, msg,
-                             sizeof msg);
+    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_MESH, call->name, strlen(call->name),
+                            &mesh, msg, sizeof msg);
     if (rc)
         return fail(call, rc, "%s", msg);
     sdf_mesh_report r;
@@ -239,11 +239,12 @@ static int reserve(sdfd_call *call, size_t n)
 static void run_slice(sdfd_call *call)
 {
     slice_work *w = call->state;
-    sdfd_stored_volume *s = NULL;
+    void *item = NULL;
     char msg[300];
-    int rc = w->params.volume ? sdfd_cache_volume(call->srv->cache, call->name,
-                                                  strlen(call->name), &s, msg, sizeof msg)
+    int rc = w->params.volume ? sdfd_cache_get(call->srv->cache, SDFD_ITEM_VOLUME, call->name,
+                                               strlen(call->name), &item, msg, sizeof msg)
                               : 0;
+    sdfd_stored_volume *s = item;
     double lo[3], hi[3];
     if (rc) {
         fail(call, rc, "%s", msg);

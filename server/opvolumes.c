@@ -27,10 +27,10 @@ int sdfd_op_volume_list(sdfd_call *call)
 /* The volume of the call's name as GET describes it, with `status`. */
 static int describe(sdfd_call *call, int status)
 {
-    sdfd_stored_volume *s;
+    void *s;
     char msg[512];
-    int rc = sdfd_cache_volume(call->srv->cache, call->name, strlen(call->name), &s, msg,
-                               sizeof msg);
+    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_VOLUME, call->name, strlen(call->name),
+                            &s, msg, sizeof msg);
     if (rc)
         return sdfd_call_fail(call, rc, "%s", msg);
     cJSON *json = sdfd_cache_volume_json(s);
@@ -66,8 +66,8 @@ static void load_volume(sdfd_call *call)
         return;
     }
     if (!rc)
-        rc = sdfd_cache_put_volume(call->srv->cache, call->name, volume, call->body, call->len,
-                                   &replaced, diag.message, sizeof diag.message);
+        rc = sdfd_cache_put(call->srv->cache, SDFD_ITEM_VOLUME, call->name, volume, call->body,
+                            call->len, &replaced, diag.message, sizeof diag.message);
     if (rc) {
         sdfd_call_fail(call, rc, "%s", diag.message);
         return;
@@ -80,17 +80,6 @@ static void load_volume(sdfd_call *call)
 int sdfd_op_volume_put(sdfd_call *call)
 {
     return sdfd_call_defer(call, load_volume);
-}
-
-int sdfd_op_volume_delete(sdfd_call *call)
-{
-    char msg[512];
-    int rc = sdfd_cache_remove_volume(call->srv->cache, call->name, msg, sizeof msg);
-    if (rc)
-        return sdfd_call_fail(call, rc, "%s", msg);
-    sdfd_log("info", "volume_deleted", "%s", call->name);
-    call->result.status = 204;
-    return SDFD_CALL_READY;
 }
 
 /* ---- downloads --------------------------------------------------------------------------- */
@@ -142,12 +131,13 @@ int sdfd_op_volume_data(sdfd_call *call)
     sdf_volume_file type;
     if (sdf_volume_file_from_name(format ? format : "exr", &type))
         return sdfd_call_fail(call, SDF_EINVAL, "unknown format '%s' (exr, npy, raw)", format);
-    sdfd_stored_volume *s;
+    void *item;
     char msg[512];
-    int rc = sdfd_cache_volume(call->srv->cache, call->name, strlen(call->name), &s, msg,
-                               sizeof msg);
+    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_VOLUME, call->name, strlen(call->name),
+                            &item, msg, sizeof msg);
     if (rc)
         return sdfd_call_fail(call, rc, "%s", msg);
+    sdfd_stored_volume *s = item;
     describe_file(call, s, type);
     call->result.stream = s;
     call->result.file = type;
