@@ -378,6 +378,8 @@ def main():
             print(f"workspaces kept in {root}")
         else:
             shutil.rmtree(root, ignore_errors=True)
+    if not passed and not failed:
+        print("FAIL no example ran: the files mark none (or --only names none)")
     print(f"examples: {passed} passed, {failed} failed")
     return 1 if failed or not passed else 0
 
