@@ -355,7 +355,8 @@ def write_regions(path, sections):
         return m.group(0) if body is None else \
             m.group(1) + "\n" + "\n".join(body) + "\n<!-- /report -->"
     text = Path(path).read_text()
-    Path(path).write_text(re.sub(r"(?s)(<!-- report: ([\w-]+) -->).*?<!-- /report -->", fill, text))
+    Path(path).write_text(re.sub(r"(?ms)^(<!-- report: ([\w-]+) -->)$.*?^<!-- /report -->$", fill,
+                                 text))
 
 
 def main():
@@ -399,7 +400,7 @@ def main():
         bodies["targets"] = [f"{stamp}", "", "| target | measured | holds |",
                              "| --- | --- | --- |", *(f"| {t} | {m} | {h} |" for t, m, h in rows_)]
         print("\n## targets\n\n" + "\n".join(bodies["targets"]))
-    bodies["environment"] = env_lines
+    bodies["environment"] = env_lines[1:]  # the tables name their commits
     if a.write:
         write_regions(a.write, bodies)
     return 1 if failed else 0
