@@ -12,7 +12,7 @@ The full run takes about 10-15 minutes of both cores. --quick shrinks every size
 points instead of a million, one mesh, 24^3 bakes, one round each) so that the whole report
 runs in about 30 s: a smoke run of every benchmark's path, whose figures mean nothing. --write replaces each region of the file that sits between
 `<!-- report: SECTION -->` and `<!-- /report -->` with that section's fresh table (refused with
---quick). Progress goes to standard error. A section whose benchmark fails prints why in its
+--quick); the targets' table only after a run of every section. Progress goes to standard error. A section whose benchmark fails prints why in its
 place and the script exits 1 after the rest.
 
 Run it on a quiet machine, from the repository root, after `meson setup build
@@ -401,6 +401,8 @@ def main():
                              "| --- | --- | --- |", *(f"| {t} | {m} | {h} |" for t, m, h in rows_)]
         print("\n## targets\n\n" + "\n".join(bodies["targets"]))
     bodies["environment"] = env_lines[1:]  # the tables name their commits
+    if a.only:  # a part's targets would stand for all of them
+        bodies.pop("targets", None)
     if a.write:
         write_regions(a.write, bodies)
     return 1 if failed else 0
