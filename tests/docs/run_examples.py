@@ -45,6 +45,9 @@ MARKER = re.compile(r"^\s*<!--\s*(example|output|not-run)\s*(?::\s*(.*?))?\s*-->
 FENCE = re.compile(r"^( {0,3})(`{3,}|~{3,})\s*([\w+-]*)")  # 4 spaces: indented code
 NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 MASK = re.compile(r"\{\{(any|num|~" + NUMBER + r")\}\}")
+# Sanitizer builds (meson's b_sanitize, which the test passes) run everything several times
+# slower: the examples' timeouts stretch with them.
+SLOWER = 1 if os.environ.get("SDF_SANITIZE", "none") in ("", "none") else 5
 
 
 class DocError(Exception):
@@ -194,7 +197,7 @@ class Sdfd:
                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         self.log, self.ports, self.ready = [], {}, threading.Event()
         threading.Thread(target=self._read, daemon=True).start()
-        if not self.ready.wait(60):
+        if not self.ready.wait(60 * SLOWER):
             self.stop()
             raise RuntimeError("sdfd did not become ready:\n" + "".join(self.log[-20:]))
 
@@ -210,6 +213,13 @@ class Sdfd:
                 self.ports[entry["proto"]] = entry["port"]
             elif entry.get("event") == "ready":
                 self.ready.set()
+
+    def sanitizer_report(self):
+        """The log from a sanitizer's first report on (its lines are not JSON), or ''."""
+        for i, line in enumerate(self.log):
+            if "Sanitizer" in line or "runtime error" in line:
+                return "".join(self.log[i:i + 40])
+        return ""
 
     def stop(self):
         """SIGTERM, then the exit code (0 after a clean drain)."""
@@ -287,11 +297,11 @@ def run_example(example, work, tools, env, ports):
     p = subprocess.Popen(argv, cwd=work, env=env, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, start_new_session=True)
     try:
-        stdout, stderr = p.communicate(timeout=example.timeout)
+        stdout, stderr = p.communicate(timeout=example.timeout * SLOWER)
     except subprocess.TimeoutExpired:
         os.killpg(p.pid, signal.SIGKILL)
         p.communicate()
-        return f"did not finish within {example.timeout:g} s"
+        return f"did not finish within {example.timeout * SLOWER:g} s"
     out = normalize(from_test_server(stdout.decode(errors="replace"), ports))
     err = from_test_server(stderr.decode(errors="replace"), ports)
     problems = []
@@ -335,9 +345,11 @@ def run_file(path, examples, source, build, root, only):
                 print(f"ok   {where} ({time.monotonic() - t:.1f} s)", flush=True)
     finally:
         code = server.stop()
-    if code != 0:
+    report = server.sanitizer_report()
+    if code != 0 or report:
         failed += 1
-        print(f"FAIL {shown(path, source)}: sdfd exited {code}:\n" + "".join(server.log[-20:]))
+        print(f"FAIL {shown(path, source)}: sdfd exited {code}:\n" +
+              (report or "".join(server.log[-20:])))
     return passed, failed
 
 
