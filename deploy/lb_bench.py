@@ -14,7 +14,7 @@ rounds per row, so a row and its direct base see the same moments of a shared ma
     /usr/bin/python3 deploy/lb_bench.py [--mesh tests/data/refined_elephant.off] [--n 1000000]
                                         [--rounds 3]
 
-Needs build/ (release) with sdfd and sdfd-bench, haproxy and nginx (Debian's haproxy,
+Needs build/ (release; or the build directory BUILD names) with sdfd and sdfd-bench, haproxy and nginx (Debian's haproxy,
 nginx-light, libnginx-mod-stream).
 """
 import argparse
@@ -26,6 +26,7 @@ import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
+BUILD = os.environ.get("BUILD", os.path.join(ROOT, "build"))
 sys.path.insert(0, HERE)
 import failover  # noqa: E402
 
@@ -55,7 +56,7 @@ def start_balancers(tmp, backend):
 
 
 def bench(a, http, binary, form, clients):
-    cmd = [os.path.join(ROOT, "build", "tests", "bench", "sdfd-bench"), a.mesh, "--name", "m",
+    cmd = [os.path.join(BUILD, "tests", "bench", "sdfd-bench"), a.mesh, "--name", "m",
            "--http", f"127.0.0.1:{http}", "--bin", f"127.0.0.1:{binary}", "--form", form,
            "--n", str(a.n), "--clients", str(clients)]
     if clients == 1:
@@ -78,7 +79,7 @@ def main():
         if not shutil.which(tool):
             sys.exit(f"lb_bench.py: {tool} is not installed")
     tmp = tempfile.mkdtemp(prefix="sdfd-lb-bench-")
-    sdfd = failover.Sdfd(os.path.join(ROOT, "build", "server", "sdfd"), "sdfd",
+    sdfd = failover.Sdfd(os.path.join(BUILD, "server", "sdfd"), "sdfd",
                          ["--mesh", f"m={a.mesh}", "--threads", "0"], tmp)
     procs = []
     try:

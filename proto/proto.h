@@ -138,7 +138,7 @@ typedef struct sdf_proto_error {
     size_t message_len;
 } sdf_proto_error;
 
-/* The status and code name are the sender's (sdfd's error table: server/errors.h); returns 0
+/* The status and code name are the sender's (sdfd's error table: server/core/errors.h); returns 0
  * when `cap` cannot hold the frame with the code name. */
 size_t sdf_proto_encode_error(void *dst, size_t cap, uint32_t request_id, uint16_t status,
                               const char *code, const char *message);

@@ -13,11 +13,12 @@
 #include <string.h>
 #include <time.h>
 
-#include "binary.h"
-#include "http.h"
-#include "log.h"
-#include "optable.h"
-#include "server.h"
+#include "core/log.h"
+#include "ops/optable.h"
+#include "state/server.h"
+#include "transport/binary.h"
+#include "transport/http.h"
+#include "transport/tls.h"
 
 static int load_mesh(sdfd_server *srv, const char *name, const char *path)
 {

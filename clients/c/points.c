@@ -300,7 +300,7 @@ sdfq_out_format sdfq_out_format_of(const char *path)
     return ends_with(path, ".npy") ? SDFQ_OUT_NPY : SDFQ_OUT_CSV;
 }
 
-/* The npy header the server writes for the same answer (server/body.c). */
+/* The npy header the server writes for the same answer (server/transport/body.c). */
 static size_t npy_result_header(char *dst, size_t cap, int closest, unsigned words, size_t n)
 {
     char dict[256];

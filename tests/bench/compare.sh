@@ -4,7 +4,7 @@
 # Open3D's throughput, sdfd's with packet traversal (the default), the same with one
 # sdf_workspace kept across the timed calls (--workspace 1, as sdfd's batcher runs them), and
 # with one query at a time (--traversal single), and the ratios. Needs python3-open3d (apt)
-# and a release build in build/.
+# and a release build in build/ (or BUILD, a build directory).
 #
 #   tests/bench/compare.sh [MESH...]        (default: fandisk and refined_elephant)
 # Environment: WORKLOADS (default "box band"), N (default 1000000), THREADS (default 2),
@@ -12,7 +12,7 @@
 set -eu
 cd "$(dirname "$0")/../.."
 peer=tests/bench/peer_bench.py
-bench=build/tests/bench/sdf-bench
+bench=${BUILD:-build}/tests/bench/sdf-bench
 [ "$#" -gt 0 ] || set -- tests/data/fandisk.off tests/data/refined_elephant.off
 workloads=${WORKLOADS:-box band}
 n=${N:-1000000}

@@ -1,26 +1,29 @@
 #!/bin/sh
-# The packet issue's scale check: refined_elephant.off (88,928 triangles) against the same
-# surface subdivided twice (1,422,848 triangles, tests/bench/subdivide.py): index build
-# time, index bytes per triangle (from the mesh report) and band throughput, and the ratio
-# of the two throughputs. Prints a Markdown table. Needs a release build in build/.
+# The scale check: refined_elephant.off (88,928 triangles) against the same surface
+# subdivided twice (1,422,848 triangles, tests/bench/subdivide.py): index build time, index
+# bytes per triangle (from the mesh report) and band throughput, and the ratio of the two
+# throughputs. Prints a Markdown table. Needs a release build in build/ (or BUILD).
 #
 #   tests/bench/scale.sh            Environment: N (default 1000000), THREADS (default 2),
-#                                   WORK (scratch dir for the big mesh, default /tmp/sdfd-scale)
+#                                   WORK (scratch dir for the big mesh, default /tmp/sdfd-scale),
+#                                   MESH (an OFF file, default refined_elephant), TIMES (2)
 set -eu
 cd "$(dirname "$0")/../.."
 n=${N:-1000000}
 threads=${THREADS:-2}
 work=${WORK:-/tmp/sdfd-scale}
-src=tests/data/refined_elephant.off
-big=$work/refined_elephant_x16.off
+src=${MESH:-tests/data/refined_elephant.off}
+times=${TIMES:-2}
+builddir=${BUILD:-build}
+big=$work/$(basename "$src" .off)_x$((1 << (2 * times))).off
 mkdir -p "$work"
-[ -s "$big" ] || /usr/bin/python3 tests/bench/subdivide.py "$src" "$big" --times 2 >&2
+[ -s "$big" ] || /usr/bin/python3 tests/bench/subdivide.py "$src" "$big" --times "$times" >&2
 
 echo "| mesh | triangles | build s | index B/triangle | band Mq/s | band vs original |"
 echo "| --- | ---: | ---: | ---: | ---: | ---: |"
 base=""
 for mesh in "$src" "$big"; do
-    out=$(build/tests/bench/sdf-bench "$mesh" --workload band --n "$n" --threads "$threads")
+    out=$("$builddir/tests/bench/sdf-bench" "$mesh" --workload band --n "$n" --threads "$threads")
     tris=$(echo "$out" | sed -n 's/.* triangles: \([0-9]*\) .*/\1/p')
     bpt=$(echo "$out" | sed -n 's/.* (\([0-9.]*\) B\/triangle).*/\1/p')
     build=$(echo "$out" | sed -n 's/.* build: \([0-9.]*\) s.*/\1/p')

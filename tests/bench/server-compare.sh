@@ -27,7 +27,7 @@
 # points). These rows' ratios are against the first in-process run.
 #
 # Environment: N points (default 1000000), R rounds per 1 x N row (default 3), NODE (node).
-# Needs a release build in build/, node and /usr/bin/python3 with numpy.
+# Needs a release build in build/ (or BUILD), node and /usr/bin/python3 with numpy.
 #
 #   tests/bench/server-compare.sh [MESH...]     (default: fandisk, refined_elephant)
 set -eu
@@ -36,6 +36,7 @@ cd "$(dirname "$0")/../.."
 n=${N:-1000000}
 r=${R:-3}
 node=${NODE:-node}
+build=${BUILD:-build}
 tmp=$(mktemp -d)
 log=$tmp/log
 pid=
@@ -49,21 +50,21 @@ echo "| mesh | path | clients x points | Mq/s | in-process Mq/s | vs in-process 
     "same bits |"
 echo "| --- | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- |"
 for mesh in "$@"; do
-    build/server/sdfd --http 127.0.0.1:0 --bin 127.0.0.1:0 --mesh "m=$mesh" 2>"$log" &
+    "$build"/server/sdfd --http 127.0.0.1:0 --bin 127.0.0.1:0 --mesh "m=$mesh" 2>"$log" &
     pid=$!
     until grep -q '"event":"ready"' "$log"; do sleep 0.1; done
     http=$(grep '"proto":"http"' "$log" | sed 's/.*"port":\([0-9]*\).*/\1/')
     bin=$(grep '"proto":"binary"' "$log" | sed 's/.*"port":\([0-9]*\).*/\1/')
     name=$(basename "$mesh")
-    base=$(build/tests/bench/sdf-bench "$mesh" --workload band --n "$n" --threads 2 \
+    base=$("$build"/tests/bench/sdf-bench "$mesh" --workload band --n "$n" --threads 2 \
         --repeat "$r" --points-out "$tmp/points.npy" --out "$tmp/expect.npy" | mqs)
     tail -c $((4 * n)) "$tmp/expect.npy" >"$tmp/expect.f32"
     echo "| $name | in-process sdf-bench | 1 x $n | $base | $base | 1.00 | | | | | |"
-    small=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 64000 --threads 2 \
+    small=$("$build"/tests/bench/sdf-bench "$mesh" --workload band --n 64000 --threads 2 \
         --repeat 20 | mqs)
     echo "| $name | in-process sdf-bench | 1 x 64000 | $small | $base |" \
         "$(ratio "$small" "$base") | | 1.00 | | | |"
-    request=$(build/tests/bench/sdf-bench "$mesh" --workload band --n 1000 --threads 2 \
+    request=$("$build"/tests/bench/sdf-bench "$mesh" --workload band --n 1000 --threads 2 \
         --repeat 200 | mqs)
     echo "| $name | in-process sdf-bench | 1 x 1000 | $request | $base |" \
         "$(ratio "$request" "$base") | | | 1.00 | | |"
@@ -75,7 +76,7 @@ for mesh in "$@"; do
         shift 2
         pair=0 v=0 cpus=
         for _ in $(seq "$r"); do
-            pair=$(max "$pair" "$(build/tests/bench/sdf-bench "$mesh" "$tmp/points.npy" \
+            pair=$(max "$pair" "$("$build"/tests/bench/sdf-bench "$mesh" "$tmp/points.npy" \
                 --threads 2 --repeat 2 | mqs)")
             rm -f "$tmp/got.f32"
             out=$("$@" --repeat 2)
@@ -92,10 +93,10 @@ for mesh in "$@"; do
             "$same |"
     }
     for form in binary octet json; do
-        one "sdfd-bench $form" - build/tests/bench/sdfd-bench "$mesh" "$tmp/points.npy" \
+        one "sdfd-bench $form" - "$build"/tests/bench/sdfd-bench "$mesh" "$tmp/points.npy" \
             --name m --http "127.0.0.1:$http" --bin "127.0.0.1:$bin" --form "$form"
     done
-    one "C client binary" check build/tests/bench/sdfc-bench "$tmp/points.npy" \
+    one "C client binary" check "$build"/tests/bench/sdfc-bench "$tmp/points.npy" \
         --bin "127.0.0.1:$bin" --name m --out "$tmp/got.f32"
     for form in binary octet json; do
         one "JS client $form" check "$node" clients/js/bench/client-bench.js \
@@ -110,7 +111,7 @@ for mesh in "$@"; do
 
     # 64 clients of 1,000 points.
     for form in binary octet; do
-        out=$(build/tests/bench/sdfd-bench "$mesh" --name m --http "127.0.0.1:$http" \
+        out=$("$build"/tests/bench/sdfd-bench "$mesh" --name m --http "127.0.0.1:$http" \
             --bin "127.0.0.1:$bin" --n "$n" --form "$form" --clients 64 --per-request 1000)
         v=$(echo "$out" | mqs)
         lat=$(echo "$out" | awk '/^latency/ {print $4 " / " $6}')

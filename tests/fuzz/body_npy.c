@@ -1,8 +1,8 @@
-/* body_npy.c - fuzzes sdfd's binary query bodies (server/body.c): the same bytes as an
+/* body_npy.c - fuzzes sdfd's binary query bodies (server/transport/body.c): the same bytes as an
  * application/x-npy body and as an application/octet-stream body. An accepted body must
  * give at most max_points points, every coordinate readable, and as npy the file's numbers
  * wherever the header leaves them. */
-#include "body.h"
+#include "transport/body.h"
 #include "fuzz.h"
 
 #define MAX_POINTS 4096

@@ -1,7 +1,7 @@
-/* json_bake.c - fuzzes sdfd's bake request body (server/bakeparams.c, sdfd_bake_from_json),
+/* json_bake.c - fuzzes sdfd's bake request body (server/ops/bakeparams.c, sdfd_bake_from_json),
  * then hands what it accepts to the library's checks on the demo mesh as sdfd does before it
  * admits a bake (sdf_volume_plan, sdf_volume_bake_scratch): the plan only, never a bake. */
-#include "bakeparams.h"
+#include "ops/bakeparams.h"
 #include "fuzz.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)

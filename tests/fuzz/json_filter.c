@@ -1,8 +1,8 @@
 /* json_filter.c - fuzzes the "filter" object of sdfd's JSON query bodies
- * (server/filterparams.c, sdfd_filter_from_json), then hands what it accepts to the
+ * (server/ops/filterparams.c, sdfd_filter_from_json), then hands what it accepts to the
  * library's checks (sdf_query_filtered with no points, as sdfd_filter_validate does), with
  * the demo mesh standing in for a named smoothing mesh. */
-#include "filterparams.h"
+#include "ops/filterparams.h"
 #include "fuzz.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)

@@ -1,8 +1,8 @@
-/* json_query.c - fuzzes sdfd's JSON query body (server/body.c's hand-written reader,
+/* json_query.c - fuzzes sdfd's JSON query body (server/transport/body.c's hand-written reader,
  * sdfd_parse_points), then the parameters it found as sdfd reads them: mode, sign and
- * interpolation names, and the "filter" object (server/filterparams.c). */
-#include "body.h"
-#include "filterparams.h"
+ * interpolation names, and the "filter" object (server/ops/filterparams.c). */
+#include "transport/body.h"
+#include "ops/filterparams.h"
 #include "fuzz.h"
 
 #define MAX_POINTS 4096

@@ -1,18 +1,18 @@
 /* url.c - fuzzes the parsers of sdfd's URL arguments: the input is a query string
  * ("mode=filtered&cap=0.1&smooth_sphere=0,0,0,1"), split and unescaped as libmicrohttpd does
  * ('+' is a space, %XX a byte, repeated keys all kept, a key without '=' has no value), then
- * read as sdfd reads it: the check of every route's table (server/urlargs.c), a slice's
- * parameters of both kinds (server/slice.c), the filter's parameters (server/filterparams.c,
+ * read as sdfd reads it: the check of every route's table (server/ops/urlargs.c), a slice's
+ * parameters of both kinds (server/ops/slice.c), the filter's parameters (server/ops/filterparams.c,
  * sdfd_filter_from_strings, then the library's checks on the demo mesh) and the names of a
  * query's mode, sign and interpolation and an upload's or a download's format. A bake takes
  * no URL arguments (its body is JSON: json_bake). */
 #include <ctype.h>
 
-#include "filterparams.h"
+#include "ops/filterparams.h"
 #include "fuzz.h"
 #include "proto.h"
-#include "slice.h"
-#include "urlargs.h"
+#include "ops/slice.h"
+#include "ops/urlargs.h"
 
 static int hex(int c) { return isdigit(c) ? c - '0' : tolower(c) - 'a' + 10; }
 

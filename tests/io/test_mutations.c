@@ -17,7 +17,7 @@
 #include "../common/check.h"
 #include "../common/files.h"
 #include "../common/workload.h"
-#include "../server/body.h"
+#include "transport/body.h"
 #include "proto.h"
 
 #define DEFAULT_ROUNDS 300

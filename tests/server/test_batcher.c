@@ -1,4 +1,4 @@
-/* test_batcher.c - which queries server/batcher.c lets share a batch. Requests whose answers
+/* test_batcher.c - which queries server/state/batcher.c lets share a batch. Requests whose answers
  * differ must never be run as one library call, or one of them gets the other's answer:
  *  - two jobs that differ in the mesh, the mode, the sign or any one field of the filter
  *    options (every field of sdf_filter_options and its smoothing volume, changed one at a
@@ -17,7 +17,7 @@
 #include <time.h>
 
 #include "../common/check.h"
-#include "../../server/batcher.h"
+#include "state/batcher.h"
 
 static int dummy_meshes[2]; /* distinct addresses: the key compares mesh pointers */
 

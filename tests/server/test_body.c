@@ -1,4 +1,4 @@
-/* test_body.c - JSON query bodies of a megabyte and more, which server/body.c parses in two
+/* test_body.c - JSON query bodies of a megabyte and more, which server/transport/body.c parses in two
  * halves on two threads, against what one sequential parse must give:
  *  - nested [[x, y, z], ...] and flat [x, y, z, ...] arrays (with uneven whitespace) give
  *    exactly the floats strtod gives for every number, in order;
@@ -15,9 +15,9 @@
 #include <string.h>
 
 #include "../common/check.h"
-#include "../../server/body.h"
-#include "../../server/errors.h"
-#include "../../server/numtext.h"
+#include "transport/body.h"
+#include "core/errors.h"
+#include "transport/numtext.h"
 
 static unsigned long long rng = 0x2545f4914f6cdd1dull;
 static double next_value(void)

@@ -1,4 +1,4 @@
-/* test_errors.c - sdfd's error table (server/errors.h), which clients see as the `code` and
+/* test_errors.c - sdfd's error table (server/core/errors.h), which clients see as the `code` and
  * status of every HTTP error body and binary ERROR frame:
  *  - every code of both tables, the library's and the server's, has the name, HTTP status
  *    and message pinned below (docs/api.md and proto/PROTOCOL.md promise the names and
@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "../common/check.h"
-#include "../../server/errors.h"
+#include "core/errors.h"
 
 static const struct {
     int code;

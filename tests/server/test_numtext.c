@@ -1,4 +1,4 @@
-/* test_numtext.c - the JSON number fast paths (server/numtext.c) against the C library:
+/* test_numtext.c - the JSON number fast paths (server/transport/numtext.c) against the C library:
  *  - every printed float reads back as the same float, through strtof and through strtod
  *    and a cast (as Python's json + numpy do), for 2,000,000 random bit patterns and the
  *    edge values; the text is valid JSON and within SDFD_FLOAT_TEXT_MAX;
@@ -12,7 +12,7 @@
 #include <string.h>
 
 #include "../common/check.h"
-#include "../../server/numtext.h"
+#include "transport/numtext.h"
 
 static uint64_t rng = 0x9e3779b97f4a7c15u;
 static uint64_t next(void)

@@ -1,4 +1,4 @@
-"""Every HTTP route takes only the URL arguments docs/api.md lists for it (server/urlargs.c).
+"""Every HTTP route takes only the URL arguments docs/api.md lists for it (server/ops/urlargs.c).
 
 For each route and method: every argument it takes is accepted with a good value; an unknown
 one, one given twice and a misspelt one (answered with the nearest name it takes) are 422

@@ -1,4 +1,4 @@
-/* test_workers.c - server/workers.c, the threads uploads, slices and volume queries run on:
+/* test_workers.c - server/state/workers.c, the threads uploads, slices and volume queries run on:
  *  - tasks run one after another reuse one thread (a thread per task is what it replaces:
  *    Embree keeps memory for every thread that has built an index);
  *  - tasks that block until all of them run at once each get a thread at once: none waits
@@ -11,7 +11,7 @@
 #include <unistd.h>
 
 #include "../common/check.h"
-#include "../../server/workers.h"
+#include "state/workers.h"
 
 static atomic_int ran;
 

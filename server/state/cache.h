@@ -1,0 +1,98 @@
+/* cache.h - the meshes and volumes in memory as a cache of the store (--data-dir), and the
+ * one place that reads, writes and checks the store for them.
+ *
+ * Without a store it passes every call straight to the registry and the volumes: memory
+ * only, as if it were not there. With one:
+ * - a lookup of a name not in memory loads it from the store on a loader thread (loader.h:
+ *   one load at a time per name; the lookups of that name wait for it), so an item another
+ *   replica wrote is found;
+ * - a lookup of a name in memory checks the sidecar's stamp at most once a second
+ *   (SDFD_LOADER_RECHECK_SECONDS) and drops the item another replica deleted, or reloads the
+ *   one it replaced (serving the old version until the new one is in);
+ * - with a byte budget, the items used least recently are dropped from memory once the
+ *   resident bytes pass it (and reloaded on their next use);
+ * - an item whose files fail their checks is logged and quarantined, never served;
+ * - uploads and deletes go to the store first, and are answered once it has them.
+ * Meshes named by --mesh/--mesh-dir are pinned: in memory only, never checked or dropped.
+ * Thread-safe. sdfd_cache_lookup never waits for a load (the query handlers use it, on the
+ * front ends' threads); sdfd_cache_get waits on its caller's. */
+#ifndef SDFD_CACHE_H
+#define SDFD_CACHE_H
+
+#include <cjson/cJSON.h>
+#include <stddef.h>
+
+#include "core/metrics.h"
+#include "state/loader.h"
+#include "state/registry.h"
+#include "state/store.h"
+#include "state/volumes.h"
+
+typedef struct sdfd_cache sdfd_cache;
+
+/* `store` may be NULL (memory only); the cache owns it. max_resident_bytes 0: no budget.
+ * max_triangles: the loader's limit for one mesh. */
+sdfd_cache *sdfd_cache_create(sdfd_store *store, sdfd_registry *registry,
+                              sdfd_volumes *volumes, sdfd_metrics *metrics,
+                              size_t max_resident_bytes, size_t max_triangles);
+void sdfd_cache_destroy(sdfd_cache *c); /* NULL is a no-op */
+/* Shutdown: finish the loads under way and answer their lookups (before the batcher they
+ * submit to stops); lookups that would load answer SDFD_EUNAVAILABLE from then on. */
+void sdfd_cache_stop_loads(sdfd_cache *c);
+int sdfd_cache_has_store(const sdfd_cache *c);
+
+/* A mesh put in the registry at start from the flags: kept in memory, never from the store. */
+void sdfd_cache_pin(sdfd_cache *c, const char *name);
+/* With a store: restore the jobs a restart interrupted (as failed), install the volumes'
+ * hooks, and load what the store holds (while under the budget; the rest when first used). */
+void sdfd_cache_start(sdfd_cache *c);
+
+/* Lookups of a `kind` (SDFD_ITEM_MESH: an sdf_mesh *, SDFD_ITEM_VOLUME: an
+ * sdfd_stored_volume *): a retained reference in *out and 0; SDF_ENOTFOUND;
+ * SDFD_EUNAVAILABLE (the store is unreadable, and the item not in memory); SDF_ELIMIT (it
+ * does not fit --max-meshes / --max-triangles / --max-volumes / --max-volume-bytes). msg
+ * says why. A load of the item runs on a loader thread while the caller waits. */
+int sdfd_cache_get(sdfd_cache *c, sdfd_item_kind kind, const char *name, size_t n, void **out,
+                   char *msg, size_t cap);
+
+/* The same lookup without waiting: l->kind and l->name set, 0 (l->item), an error
+ * (l->message), or SDFD_LOOKUP_PENDING and l->done will be called with the answer
+ * (sdfd_loader_lookup). */
+int sdfd_cache_lookup(sdfd_cache *c, sdfd_lookup *l);
+
+/* Uploads: `item` (an sdf_mesh *, or an sdf_volume * for SDFD_ITEM_VOLUME) taken over;
+ * `file` is the bytes as uploaded (a volume: its EXR). 0 (*replaced set) or an error with
+ * msg. */
+int sdfd_cache_put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
+                   const void *file, size_t n, int *replaced, char *msg, size_t cap);
+/* Deletes: 0, SDF_ENOTFOUND, or SDFD_EUNAVAILABLE. */
+int sdfd_cache_remove(sdfd_cache *c, sdfd_item_kind kind, const char *name, char *msg,
+                      size_t cap);
+
+/* Listings of everything served (with a store: its sidecars, and the pinned meshes). */
+typedef struct sdfd_mesh_summary {
+    char name[SDFD_MAX_NAME + 1];
+    size_t triangles;
+    int closed;
+    sdf_sign_method sign;
+} sdfd_mesh_summary;
+size_t sdfd_cache_list_meshes(sdfd_cache *c, sdfd_mesh_summary **out); /* free *out */
+/* With a store, the volumes' descriptions (an array to delete); without, NULL. */
+cJSON *sdfd_cache_list_volumes(sdfd_cache *c);
+/* Describe a stored volume as GET /v1/volumes/{name} does (a new object). */
+cJSON *sdfd_cache_volume_json(const sdfd_stored_volume *s);
+
+/* A job no longer (or never) in this process's memory, from its record in the store:
+ * 0 or SDF_ENOTFOUND. */
+int sdfd_cache_job(sdfd_cache *c, const char *id, sdfd_job_status *out);
+
+/* 0 when the store (if any) is readable, else an errno value. */
+int sdfd_cache_probe(sdfd_cache *c);
+
+typedef struct sdfd_cache_stats {
+    size_t resident_bytes, budget;
+    unsigned long long loads, evictions, quarantined;
+} sdfd_cache_stats;
+void sdfd_cache_stats_get(sdfd_cache *c, sdfd_cache_stats *out);
+
+#endif

@@ -1,0 +1,631 @@
+/* store.c - the files of --data-dir (see store.h): atomic writes, sidecars, quarantine and
+ * job records. Every path is built from the directory given at open, so a store that
+ * disappears (an unmounted volume) reads as unreadable, not as empty. */
+#include "state/store.h"
+
+#include <cjson/cJSON.h>
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "core/errors.h"
+#include "core/log.h"
+
+#define MAX_SIDECAR_BYTES (1 << 16)
+#define MAX_DATA_BYTES ((size_t)1 << 34)
+/* A file's path: the directory's (under 4096) and a name. */
+#define FILE_PATH 4608
+#define MARKER "sdfd-store.json"
+
+struct sdfd_store {
+    char dir[3072];
+    atomic_ulong quarantined; /* makes quarantine names unique within the process */
+};
+
+static const char *const kind_dirs[] = {"meshes", "volumes"};
+
+uint64_t sdfd_fnv1a64(const void *data, size_t n)
+{
+    const unsigned char *p = data;
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ p[i]) * 0x100000001b3ull;
+    return h;
+}
+
+static void path_of(const sdfd_store *s, char *out, size_t cap, const char *sub, const char *file)
+{
+    snprintf(out, cap, "%s/%s%s%s", s->dir, sub, file ? "/" : "", file ? file : "");
+}
+
+static int fsync_dir(const char *dir)
+{
+    int fd = open(dir, O_RDONLY | O_DIRECTORY);
+    if (fd < 0)
+        return -1;
+    int rc = fsync(fd);
+    close(fd);
+    return rc;
+}
+
+static int write_all(int fd, const void *data, size_t n)
+{
+    const char *p = data;
+    while (n) {
+        ssize_t w = write(fd, p, n > (1u << 30) ? (1u << 30) : n);
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w <= 0)
+            return -1;
+        p += w, n -= (size_t)w;
+    }
+    return 0;
+}
+
+/* Write `file` in `dir` so a reader sees the old or the new bytes, never a part. */
+static int write_atomic(const char *dir, const char *file, const void *data, size_t n,
+                        char *err, size_t cap)
+{
+    char tmp[FILE_PATH], final[FILE_PATH];
+    snprintf(tmp, sizeof tmp, "%s/.tmp-XXXXXX", dir);
+    snprintf(final, sizeof final, "%s/%s", dir, file);
+    int fd = mkstemp(tmp);
+    if (fd < 0) {
+        snprintf(err, cap, "cannot create a file in %s: %s", dir, strerror(errno));
+        return SDFD_EUNAVAILABLE;
+    }
+    int bad = fchmod(fd, 0644) || write_all(fd, data, n) || fsync(fd);
+    int saved = errno;
+    bad |= close(fd) != 0;
+    if (!bad && rename(tmp, final))
+        bad = 1, saved = errno;
+    if (!bad && fsync_dir(dir))
+        bad = 1, saved = errno;
+    if (bad) {
+        unlink(tmp);
+        snprintf(err, cap, "cannot write %s: %s", final, strerror(saved));
+        return SDFD_EUNAVAILABLE;
+    }
+    return 0;
+}
+
+int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
+{
+    *out = NULL;
+    sdfd_store *s = calloc(1, sizeof *s);
+    if (!s || strlen(dir) >= sizeof s->dir - 512) {
+        snprintf(err, cap, "the --data-dir path is too long");
+        free(s);
+        return -1;
+    }
+    snprintf(s->dir, sizeof s->dir, "%s", dir);
+    static const char *const subs[] = {"", "meshes", "volumes", "jobs", "quarantine"};
+    for (size_t i = 0; i < sizeof subs / sizeof subs[0]; i++) {
+        char p[4096];
+        path_of(s, p, sizeof p, subs[i], NULL);
+        if (mkdir(p, 0755) && errno != EEXIST) {
+            snprintf(err, cap, "cannot create %s: %s", p, strerror(errno));
+            free(s);
+            return -1;
+        }
+    }
+    char marker[4096];
+    path_of(s, marker, sizeof marker, MARKER, NULL);
+    if (access(marker, R_OK)) {
+        static const char text[] = "{\"store\":\"sdfd\",\"layout\":1}\n";
+        if (write_atomic(s->dir, MARKER, text, sizeof text - 1, err, cap)) {
+            free(s);
+            return -1;
+        }
+    }
+    *out = s;
+    return 0;
+}
+
+void sdfd_store_close(sdfd_store *s) { free(s); }
+
+int sdfd_store_probe(sdfd_store *s)
+{
+    char p[4096];
+    struct stat st;
+    path_of(s, p, sizeof p, MARKER, NULL);
+    if (stat(p, &st))
+        return errno;
+    for (int k = 0; k < 2; k++) {
+        path_of(s, p, sizeof p, kind_dirs[k], NULL);
+        DIR *d = opendir(p);
+        if (!d)
+            return errno;
+        closedir(d);
+    }
+    return 0;
+}
+
+/* ---- sidecars ---------------------------------------------------------------------------- */
+
+static void sidecar_name(char *out, size_t cap, const char *name)
+{
+    snprintf(out, cap, "%s.json", name);
+}
+
+static char *sidecar_text(const sdfd_sidecar *m)
+{
+    char hash[17];
+    snprintf(hash, sizeof hash, "%016" PRIx64, m->hash);
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "name", m->name);
+    cJSON_AddStringToObject(o, "file", m->file);
+    cJSON_AddStringToObject(o, "format", m->format);
+    cJSON_AddNumberToObject(o, "bytes", (double)m->bytes);
+    cJSON_AddStringToObject(o, "fnv1a64", hash);
+    cJSON *info = m->info ? cJSON_Parse(m->info) : NULL;
+    cJSON_AddItemToObject(o, "info", info ? info : cJSON_CreateObject());
+    char *text = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return text;
+}
+
+/* Parse a sidecar's text into m; 0 or -1 with why set. */
+static int parse_sidecar(const char *text, const char *name, sdfd_sidecar *m, char *why,
+                         size_t cap)
+{
+    cJSON *o = cJSON_Parse(text);
+    const cJSON *n = cJSON_GetObjectItemCaseSensitive(o, "name"),
+                *f = cJSON_GetObjectItemCaseSensitive(o, "file"),
+                *fmt = cJSON_GetObjectItemCaseSensitive(o, "format"),
+                *b = cJSON_GetObjectItemCaseSensitive(o, "bytes"),
+                *h = cJSON_GetObjectItemCaseSensitive(o, "fnv1a64"),
+                *info = cJSON_GetObjectItemCaseSensitive(o, "info");
+    int ok = cJSON_IsString(n) && !strcmp(n->valuestring, name) && cJSON_IsString(f) &&
+             strlen(f->valuestring) < sizeof m->file && !strchr(f->valuestring, '/') &&
+             f->valuestring[0] != '.' && cJSON_IsString(fmt) &&
+             strlen(fmt->valuestring) < sizeof m->format && cJSON_IsNumber(b) &&
+             b->valuedouble >= 0 && b->valuedouble <= (double)MAX_DATA_BYTES &&
+             cJSON_IsString(h) && strlen(h->valuestring) == 16 && cJSON_IsObject(info);
+    if (ok) {
+        char *end;
+        m->hash = strtoull(h->valuestring, &end, 16);
+        ok = *end == '\0';
+        snprintf(m->name, sizeof m->name, "%s", name);
+        snprintf(m->file, sizeof m->file, "%s", f->valuestring);
+        snprintf(m->format, sizeof m->format, "%s", fmt->valuestring);
+        m->bytes = (size_t)b->valuedouble;
+        m->info = cJSON_PrintUnformatted(info);
+    }
+    cJSON_Delete(o);
+    if (!ok)
+        snprintf(why, cap, "the sidecar is not a JSON object with name, file, format, bytes, "
+                 "fnv1a64 and info");
+    return ok ? 0 : -1;
+}
+
+static void stamp_of(const struct stat *st, sdfd_stamp *out)
+{
+    *out = (sdfd_stamp){(unsigned long long)st->st_dev, (unsigned long long)st->st_ino,
+                        (unsigned long long)st->st_size,
+                        (long long)st->st_mtim.tv_sec * 1000000000ll + st->st_mtim.tv_nsec};
+}
+
+/* ENOENT is "no such item" only while the store itself is there. */
+static int missing_or_unreadable(sdfd_store *s, int e, const char *path, char *err, size_t cap)
+{
+    int probe = e == ENOENT ? sdfd_store_probe(s) : e;
+    if (!probe)
+        return SDF_ENOTFOUND;
+    snprintf(err, cap, "the store is unreadable: %s: %s", path, strerror(probe));
+    return SDFD_EUNAVAILABLE;
+}
+
+int sdfd_store_stat(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_stamp *stamp,
+                    char *err, size_t cap)
+{
+    char file[SDFD_MAX_NAME + 8], path[FILE_PATH];
+    sidecar_name(file, sizeof file, name);
+    path_of(s, path, sizeof path, kind_dirs[kind], file);
+    struct stat st;
+    if (stat(path, &st))
+        return missing_or_unreadable(s, errno, path, err, cap);
+    stamp_of(&st, stamp);
+    return 0;
+}
+
+/* Read a whole regular file of at most `max` bytes (and exactly `expect`, unless SIZE_MAX).
+ * 0, or an errno value (EFBIG: the size is wrong). */
+static int read_file(const char *path, size_t max, size_t expect, char **out, size_t *n,
+                     struct stat *st)
+{
+    *out = NULL;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return errno;
+    int e = 0;
+    if (fstat(fd, st))
+        e = errno;
+    else if (!S_ISREG(st->st_mode))
+        e = EISDIR;
+    else if ((size_t)st->st_size > max || (expect != SIZE_MAX && (size_t)st->st_size != expect))
+        e = EFBIG;
+    char *buf = e ? NULL : malloc((size_t)st->st_size + 1);
+    if (!e && !buf)
+        e = ENOMEM;
+    size_t got = 0;
+    while (!e && got < (size_t)st->st_size) {
+        ssize_t r = read(fd, buf + got, (size_t)st->st_size - got);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            e = r < 0 ? errno : EFBIG;
+        else
+            got += (size_t)r;
+    }
+    close(fd);
+    if (e) {
+        free(buf);
+        return e;
+    }
+    buf[got] = '\0';
+    *out = buf, *n = got;
+    return 0;
+}
+
+int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_sidecar *meta,
+                    void **data, sdfd_stamp *stamp, char *err, size_t cap)
+{
+    char file[SDFD_MAX_NAME + 8], path[FILE_PATH], dir[4096], *text;
+    size_t n;
+    struct stat st;
+    memset(meta, 0, sizeof *meta);
+    if (data)
+        *data = NULL;
+    sidecar_name(file, sizeof file, name);
+    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    path_of(s, path, sizeof path, kind_dirs[kind], file);
+    int e = read_file(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st);
+    if (e == ENOENT || (e && e != EFBIG && e != EISDIR))
+        return missing_or_unreadable(s, e, path, err, cap);
+    if (e) {
+        snprintf(err, cap, "the sidecar %s is %s", file,
+                 e == EISDIR ? "not a regular file" : "too large");
+        return SDF_EFORMAT;
+    }
+    stamp_of(&st, stamp);
+    int bad = parse_sidecar(text, name, meta, err, cap);
+    free(text);
+    if (bad)
+        return SDF_EFORMAT;
+    if (!data)
+        return 0;
+    char *bytes;
+    snprintf(path, sizeof path, "%s/%s", dir, meta->file);
+    e = read_file(path, MAX_DATA_BYTES, meta->bytes, &bytes, &n, &st);
+    if (e == ENOENT && !sdfd_store_probe(s))
+        snprintf(err, cap, "its data file %s is missing", meta->file);
+    else if (e == EFBIG)
+        snprintf(err, cap, "its data file %s is not %zu bytes long, as the sidecar says (a "
+                 "partial or foreign file)", meta->file, meta->bytes);
+    else if (e == EISDIR)
+        snprintf(err, cap, "its data file %s is not a regular file", meta->file);
+    else if (e) {
+        free(meta->info), meta->info = NULL;
+        return missing_or_unreadable(s, e, path, err, cap);
+    }
+    if (!e && sdfd_fnv1a64(bytes, n) != meta->hash) {
+        snprintf(err, cap, "its data file %s does not have the sidecar's FNV-1a hash", meta->file);
+        e = EINVAL;
+    }
+    if (e) {
+        free(bytes);
+        free(meta->info), meta->info = NULL;
+        return SDF_EFORMAT;
+    }
+    *data = bytes;
+    return 0;
+}
+
+/* ---- writes and deletes ------------------------------------------------------------------ */
+
+int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, const void *data,
+                     size_t n, int *existed, sdfd_stamp *stamp, char *err, size_t cap)
+{
+    char dir[4096], file[SDFD_MAX_NAME + 8];
+    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    sidecar_name(file, sizeof file, meta->name);
+    meta->hash = sdfd_fnv1a64(data, n);
+    meta->bytes = n;
+    snprintf(meta->file, sizeof meta->file, "%s.%016" PRIx64 ".%s", meta->name, meta->hash,
+             meta->format);
+    sdfd_sidecar old;
+    sdfd_stamp ignored;
+    char why[256];
+    int had = sdfd_store_read(s, kind, meta->name, &old, NULL, &ignored, why, sizeof why) == 0;
+    free(old.info);
+    *existed = had || sdfd_store_stat(s, kind, meta->name, &ignored, why, sizeof why) == 0;
+    int rc = write_atomic(dir, meta->file, data, n, err, cap);
+    char *text = rc ? NULL : sidecar_text(meta);
+    if (!rc && !text)
+        rc = SDF_ENOMEM, snprintf(err, cap, "out of memory");
+    if (!rc)
+        rc = write_atomic(dir, file, text, strlen(text), err, cap);
+    free(text);
+    if (rc)
+        return rc;
+    if (had && strcmp(old.file, meta->file)) { /* the old version's data, now unreferenced */
+        char path[FILE_PATH];
+        snprintf(path, sizeof path, "%s/%s", dir, old.file);
+        unlink(path);
+    }
+    return sdfd_store_stat(s, kind, meta->name, stamp, err, cap);
+}
+
+int sdfd_store_remove(sdfd_store *s, sdfd_item_kind kind, const char *name, char *err,
+                      size_t cap)
+{
+    char dir[4096], file[SDFD_MAX_NAME + 8], path[FILE_PATH];
+    sdfd_sidecar meta;
+    sdfd_stamp stamp;
+    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    sidecar_name(file, sizeof file, name);
+    int rc = sdfd_store_read(s, kind, name, &meta, NULL, &stamp, err, cap);
+    free(meta.info);
+    if (rc == SDF_ENOTFOUND || rc == SDFD_EUNAVAILABLE)
+        return rc;
+    snprintf(path, sizeof path, "%s/%s", dir, file);
+    if (unlink(path)) {
+        int e = errno;
+        if (e == ENOENT)
+            return SDF_ENOTFOUND;
+        snprintf(err, cap, "cannot delete %s: %s", path, strerror(e));
+        return SDFD_EUNAVAILABLE;
+    }
+    fsync_dir(dir); /* the delete is the sidecar's: durable before the data goes */
+    if (!rc) {
+        snprintf(path, sizeof path, "%s/%s", dir, meta.file);
+        unlink(path);
+    }
+    return 0;
+}
+
+/* ---- quarantine -------------------------------------------------------------------------- */
+
+/* Move DIR/sub/file into DIR/quarantine (with a note saying why). */
+static void quarantine_file(sdfd_store *s, const char *sub, const char *file, const char *why)
+{
+    char from[FILE_PATH], to[FILE_PATH], name[300];
+    unsigned long k = atomic_fetch_add(&s->quarantined, 1);
+    snprintf(name, sizeof name, "%s-%lld-%d-%lu-%.200s", sub, (long long)time(NULL),
+             (int)getpid(), k, file);
+    path_of(s, from, sizeof from, sub, file);
+    snprintf(to, sizeof to, "%s/quarantine/%s", s->dir, name);
+    if (rename(from, to)) {
+        if (errno != ENOENT)
+            sdfd_log("error", "store_quarantine", "cannot move %s aside: %s", from,
+                     strerror(errno));
+        return;
+    }
+    sdfd_log("warn", "store_quarantine", "%s/%s moved to quarantine/%s: %s", sub, file, name, why);
+    char note[sizeof name + 8], dir[4096], err[128];
+    snprintf(note, sizeof note, "%s.why", name);
+    path_of(s, dir, sizeof dir, "quarantine", NULL);
+    char text[1024];
+    int len = snprintf(text, sizeof text, "%s\n", why);
+    write_atomic(dir, note, text, (size_t)len < sizeof text ? (size_t)len : sizeof text - 1, err,
+                 sizeof err);
+}
+
+void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
+                           const char *why)
+{
+    char file[SDFD_MAX_NAME + 8], err[64];
+    sdfd_sidecar meta;
+    sdfd_stamp stamp;
+    int rc = sdfd_store_read(s, kind, name, &meta, NULL, &stamp, err, sizeof err);
+    free(meta.info);
+    sidecar_name(file, sizeof file, name);
+    quarantine_file(s, kind_dirs[kind], file, why);
+    if (!rc)
+        quarantine_file(s, kind_dirs[kind], meta.file, why);
+}
+
+/* ---- the start's scan -------------------------------------------------------------------- */
+
+static int by_text(const void *a, const void *b) { return strcmp(a, b); }
+
+/* Is `file` NAME.<16 hex>.<ext> with a valid NAME? */
+static int data_file_name(const char *file)
+{
+    const char *ext = strrchr(file, '.');
+    if (!ext || ext - file < 18 || ext[-17] != '.')
+        return 0;
+    for (const char *h = ext - 16; h < ext; h++)
+        if (!strchr("0123456789abcdef", *h))
+            return 0;
+    return sdfd_valid_name(file, (size_t)(ext - 17 - file)) && strlen(ext + 1) < 8;
+}
+
+static int old_enough(const char *path)
+{
+    struct stat st;
+    return !lstat(path, &st) && time(NULL) - st.st_mtime > SDFD_STORE_GRACE_SECONDS;
+}
+
+size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+{
+    char dir[4096], path[FILE_PATH];
+    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    size_t n = 0, cap = 16;
+    char(*list)[SDFD_MAX_NAME + 1] = malloc(cap * sizeof *list);
+    char(*files)[SDFD_MAX_NAME + 64] = NULL; /* the data files the sidecars name */
+    size_t nfiles = 0;
+    DIR *d = opendir(dir);
+    for (struct dirent *e; list && d && (e = readdir(d));) {
+        const char *f = e->d_name;
+        size_t len = strlen(f);
+        /* Dot files are never items: temporaries (below), and NFS's .nfsXXXX stand-ins
+         * for files unlinked while open, which must stay where they are. */
+        if (f[0] == '.' || data_file_name(f))
+            continue;
+        int sidecar = len > 5 && !strcmp(f + len - 5, ".json");
+        if (!sidecar || len - 5 > SDFD_STORE_MAX_NAME || !sdfd_valid_name(f, len - 5)) {
+            quarantine_file(s, kind_dirs[kind], f,
+                            sidecar ? "not a valid item name (1-200 of A-Z a-z 0-9 . _ -, not "
+                                      "starting with '.')"
+                                    : "not a file sdfd writes (NAME.json or NAME.<hash>.<ext>)");
+            continue;
+        }
+        if (n == cap) {
+            void *grown = realloc(list, (cap *= 2) * sizeof *list);
+            if (!grown)
+                break;
+            list = grown;
+        }
+        snprintf(list[n++], sizeof *list, "%.*s", (int)(len - 5), f);
+        sdfd_sidecar meta;
+        sdfd_stamp stamp;
+        char why[64];
+        if (!sdfd_store_read(s, kind, list[n - 1], &meta, NULL, &stamp, why, sizeof why)) {
+            void *grown = realloc(files, (nfiles + 1) * sizeof *files);
+            if (grown)
+                files = grown, memcpy(files[nfiles++], meta.file, sizeof meta.file);
+            free(meta.info);
+        }
+    }
+    /* Second pass: temporaries and orphans left by a crash, once surely not in progress. */
+    if (d)
+        rewinddir(d);
+    for (struct dirent *e; d && (e = readdir(d));) {
+        const char *f = e->d_name;
+        int temp = !strncmp(f, ".tmp-", 5), orphan = !temp && data_file_name(f);
+        for (size_t i = 0; orphan && i < nfiles; i++)
+            orphan = strcmp(files[i], f) != 0;
+        snprintf(path, sizeof path, "%s/%s", dir, f);
+        if ((temp || orphan) && old_enough(path) && !unlink(path))
+            sdfd_log("info", "store_cleanup", "deleted %s, left by an interrupted %s", path,
+                     temp ? "write" : "write or delete");
+    }
+    if (d)
+        closedir(d);
+    free(files);
+    if (list)
+        qsort(list, n, sizeof *list, by_text);
+    *names = list;
+    return list ? n : 0;
+}
+
+/* The stems of DIR's "*.json" files (sidecars, job records) that `accept` takes, each shorter
+ * than `width`, as rows of `width` bytes in *out (NULL when there are none). */
+static size_t json_stems(const char *dir, size_t width, int (*accept)(const char *, size_t),
+                         char **out)
+{
+    size_t n = 0;
+    char *rows = NULL;
+    DIR *d = opendir(dir);
+    for (struct dirent *e; d && (e = readdir(d));) {
+        size_t len = strlen(e->d_name);
+        if (len <= 5 || strcmp(e->d_name + len - 5, ".json") || len - 5 >= width ||
+            !accept(e->d_name, len - 5))
+            continue;
+        void *grown = realloc(rows, (n + 1) * width);
+        if (!grown)
+            break;
+        rows = grown;
+        snprintf(rows + n++ * width, width, "%.*s", (int)(len - 5), e->d_name);
+    }
+    if (d)
+        closedir(d);
+    *out = rows;
+    return n;
+}
+
+static int item_stem(const char *stem, size_t len)
+{
+    return len <= SDFD_STORE_MAX_NAME && sdfd_valid_name(stem, len);
+}
+
+size_t sdfd_store_names(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+{
+    char dir[4096], *rows;
+    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    size_t n = json_stems(dir, sizeof **names, item_stem, &rows);
+    if (rows)
+        qsort(rows, n, sizeof **names, by_text);
+    *names = (char(*)[SDFD_MAX_NAME + 1])rows;
+    return n;
+}
+
+/* ---- job records ------------------------------------------------------------------------- */
+
+int sdfd_store_write_job(sdfd_store *s, const char *id, const char *json)
+{
+    char dir[4096], file[96], err[256];
+    path_of(s, dir, sizeof dir, "jobs", NULL);
+    snprintf(file, sizeof file, "%.64s.json", id);
+    int rc = write_atomic(dir, file, json, strlen(json), err, sizeof err);
+    if (rc)
+        sdfd_log("error", "store_job", "%s", err);
+    return rc;
+}
+
+char *sdfd_store_read_job(sdfd_store *s, const char *id)
+{
+    char file[96], path[FILE_PATH], *text;
+    size_t n;
+    struct stat st;
+    snprintf(file, sizeof file, "%.64s.json", id);
+    path_of(s, path, sizeof path, "jobs", file);
+    return read_file(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st) ? NULL : text;
+}
+
+void sdfd_store_remove_job(sdfd_store *s, const char *id)
+{
+    char file[96], path[FILE_PATH];
+    snprintf(file, sizeof file, "%.64s.json", id);
+    path_of(s, path, sizeof path, "jobs", file);
+    unlink(path);
+}
+
+int sdfd_store_lock_job(sdfd_store *s, const char *id)
+{
+    char file[96], path[FILE_PATH];
+    snprintf(file, sizeof file, "%.64s.lock", id);
+    path_of(s, path, sizeof path, "jobs", file);
+    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    struct flock l = {.l_type = F_WRLCK, .l_whence = SEEK_SET};
+    if (fd >= 0 && fcntl(fd, F_SETLK, &l)) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+void sdfd_store_unlock_job(sdfd_store *s, const char *id, int fd)
+{
+    char file[96], path[FILE_PATH];
+    snprintf(file, sizeof file, "%.64s.lock", id);
+    path_of(s, path, sizeof path, "jobs", file);
+    unlink(path); /* before the lock goes, so no one takes a lock on a file about to vanish */
+    if (fd >= 0)
+        close(fd);
+}
+
+static int job_stem(const char *stem, size_t len)
+{
+    (void)len;
+    return stem[0] != '.';
+}
+
+size_t sdfd_store_job_ids(sdfd_store *s, char (**ids)[64])
+{
+    char dir[4096], *rows;
+    path_of(s, dir, sizeof dir, "jobs", NULL);
+    size_t n = json_stems(dir, sizeof **ids, job_stem, &rows);
+    *ids = (char(*)[64])rows;
+    return n;
+}
