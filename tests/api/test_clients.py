@@ -37,6 +37,16 @@ def read(*path):
         return f.read()
 
 
+def server_file(name):
+    """server/'s file `name`, in whichever of its folders it is."""
+    found = [os.path.join(d, name) for d, _, files in os.walk(os.path.join(ROOT, "server"))
+             if name in files]
+    if len(found) != 1:
+        raise AssertionError(f"server/ holds {len(found)} files named {name}")
+    with open(found[0], encoding="utf-8") as f:
+        return f.read()
+
+
 def c_block(text, start):
     """The text between `start` and the next '}' (an enum's or an array's body)."""
     at = text.index(start) + len(start)
@@ -85,7 +95,7 @@ class Sources:
     protocol = read("proto", "PROTOCOL.md")
     sdf_h = read("lib", "include", "sdf", "sdf.h")
     names_c = read("lib", "core", "names.c")
-    errors_h = read("server", "errors.h")
+    errors_h = server_file("errors.h")
     doc = yaml.safe_load(read("docs", "openapi.yaml"))
 
     frames = c_enum(proto_h, "enum sdf_proto_type {", "SDF_PROTO_")
