@@ -13,6 +13,7 @@ static int (*const handlers[SDFD_OP_COUNT])(sdfd_call *call) = {
     [SDFD_OP_HEALTH] = sdfd_op_health,
     [SDFD_OP_READY] = sdfd_op_ready,
     [SDFD_OP_METRICS] = sdfd_op_metrics,
+    [SDFD_OP_OPENAPI] = sdfd_op_openapi,
     [SDFD_OP_MESH_LIST] = sdfd_op_mesh_list,
     [SDFD_OP_MESH_GET] = sdfd_op_mesh_get,
     [SDFD_OP_MESH_PUT] = sdfd_op_mesh_put,

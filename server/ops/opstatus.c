@@ -1,7 +1,11 @@
-/* opstatus.c - liveness, readiness and metrics (opstatus.h). */
+/* opstatus.c - liveness, readiness, metrics and the API document (opstatus.h). */
 #include "ops/opstatus.h"
 
+#include <stdlib.h>
+#include <string.h>
+
 #include "core/errors.h"
+#include "ops/apidoc.h"
 
 static int status(sdfd_call *call, int code, const char *state)
 {
@@ -47,5 +51,18 @@ int sdfd_op_metrics(sdfd_call *call)
         return sdfd_call_fail(call, SDF_ENOMEM, "out of memory");
     r->status = 200;
     r->type = "text/plain; version=0.0.4";
+    return SDFD_CALL_READY;
+}
+
+int sdfd_op_openapi(sdfd_call *call)
+{
+    sdfd_result *r = &call->result;
+    r->bytes = malloc(sdfd_openapi_json_size);
+    if (!r->bytes)
+        return sdfd_call_fail(call, SDF_ENOMEM, "out of memory");
+    memcpy(r->bytes, sdfd_openapi_json, sdfd_openapi_json_size);
+    r->len = sdfd_openapi_json_size;
+    r->status = 200;
+    r->type = "application/json";
     return SDFD_CALL_READY;
 }
