@@ -7,16 +7,21 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "core/utf8.h"
+
 size_t sdfd_json_escape(char *dst, size_t cap, size_t len, const char *s)
 {
     for (; s && *s && len + 7 < cap; s++) {
         unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\')
+        size_t n = c >= 0x80 ? sdfd_utf8_sequence((const unsigned char *)s) : 1;
+        if (c == '"' || c == '\\') {
             len += (size_t)snprintf(dst + len, cap - len, "\\%c", c);
-        else if (c < 0x20)
-            len += (size_t)snprintf(dst + len, cap - len, "\\u%04x", c);
-        else
-            dst[len++] = (char)c;
+        } else if (c < 0x20 || !n) { /* a byte of no UTF-8 character: U+FFFD */
+            len += (size_t)snprintf(dst + len, cap - len, "\\u%04x", c < 0x20 ? c : 0xFFFD);
+        } else {
+            memcpy(dst + len, s, n);
+            len += n, s += n - 1;
+        }
     }
     if (len < cap)
         dst[len] = '\0';

@@ -13,6 +13,7 @@
 
 #include "core/errors.h"
 #include "core/log.h"
+#include "core/utf8.h"
 #include "ops/admission.h"
 
 void sdfd_bin_wake(sdfd_binary *b)
@@ -42,11 +43,12 @@ void sdfd_bin_enqueue(connection *c, char *data, size_t len)
 
 void sdfd_bin_send_error(connection *c, uint32_t id, int err, const char *message)
 {
-    char *frame = malloc(512);
+    char *frame = malloc(512), text[400];
     if (!frame)
         return;
+    sdfd_utf8_clean(text, sizeof text, message); /* it may quote the client's bytes */
     size_t n = sdf_proto_encode_error(frame, 512, id, (uint16_t)sdfd_http_status(err),
-                                      sdfd_errname(err), message);
+                                      sdfd_errname(err), text);
     sdfd_bin_enqueue(c, frame, n);
 }
 

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "core/errors.h"
+#include "core/utf8.h"
 
 typedef sdfd_http_request request;
 
@@ -67,14 +68,19 @@ enum MHD_Result sdfd_http_json(request *req, int status, cJSON *json)
     return sdfd_http_buffer(req, status, "application/json", text, strlen(text), NULL);
 }
 
+/* The message and argument often quote the client's bytes: cleaned to UTF-8 (utf8.h). */
 static enum MHD_Result error_body(request *req, int code, const char *argument,
                                   const char *message)
 {
+    char text[768], name[256];
     cJSON *root = cJSON_CreateObject(), *err = cJSON_AddObjectToObject(root, "error");
     cJSON_AddStringToObject(err, "code", sdfd_errname(code));
-    cJSON_AddStringToObject(err, "message", message);
-    if (argument && argument[0])
-        cJSON_AddStringToObject(err, "argument", argument);
+    sdfd_utf8_clean(text, sizeof text, message);
+    cJSON_AddStringToObject(err, "message", text);
+    if (argument && argument[0]) {
+        sdfd_utf8_clean(name, sizeof name, argument);
+        cJSON_AddStringToObject(err, "argument", name);
+    }
     return sdfd_http_json(req, sdfd_http_status(code), root);
 }
 

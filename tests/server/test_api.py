@@ -364,6 +364,32 @@ class Meshes(unittest.TestCase):
         self.assertIn(b"--batch-window-us", r.stdout)
 
 
+class ClientText(unittest.TestCase):
+    """Error messages that quote a client's bytes stay UTF-8: a byte of no UTF-8 character
+    becomes U+FFFD, so the JSON body and the binary ERROR frame stay readable."""
+
+    def test_invalid_utf8_is_replaced(self):
+        with Server() as s:
+            conn = http.client.HTTPConnection("127.0.0.1", s.ports["http"], timeout=30)
+            conn.request("POST", "/v1/meshes/demo/bake", b'{"\xffrder": 1}',
+                         {"Content-Type": "application/json"})
+            r = conn.getresponse()
+            body = json.loads(r.read().decode("utf-8"))  # strict: fails on a stray byte
+            conn.close()
+            self.assertEqual(r.status, 422)
+            self.assertIn("\ufffdrder", body["error"]["message"])
+            with socket.create_connection(("127.0.0.1", s.bin_port), timeout=30) as sock:
+                sock.sendall(harness.bin_query(7, np.zeros((1, 3), np.float32),
+                                               name=b"\xe9t\xe9"))
+                type_, rid, payload = harness.recv_frame(sock)
+            self.assertEqual((type_, rid), (0x7F, 7))  # ERROR
+            n = int.from_bytes(payload[2:4], "little")  # status, code, message
+            message = payload[6 + n:].decode("utf-8")  # strict
+            self.assertEqual(int.from_bytes(payload[4 + n:6 + n], "little"), len(message.encode()))
+            self.assertIn("\ufffdt\ufffd", message)
+            self.assertEqual([e for e in s.logs if "unparsed" in e], [])  # every line JSON
+
+
 class ClientConnections(unittest.TestCase):
     """The Python client's kept-alive connection: reopened once the server closes it, and a
     request whose answer was lost sent again only where that does no harm."""
