@@ -36,9 +36,11 @@ double percentile(double *v, size_t n, double p);
 /* A hash as hex for SQL: "\\x...". */
 void hash_literal(const unsigned char hash[SDFD_CATALOG_HASH_BYTES], char out[70]);
 
-/* The sections of the test (test_catalog.c, test_catalog_blobs.c). */
+/* The sections of the test (test_catalog.c, test_catalog_blobs.c, test_catalog_listen.c). */
 void test_blobs(sdfd_catalog *c, const char *db);
 void test_sweeper(sdfd_catalog *c, const char *db);
 void test_put_delete_sweep_race(sdfd_catalog *c);
+void test_listener(sdfd_catalog *c);
+void test_outage(sdfd_catalog *c, const char *db);
 
 #endif

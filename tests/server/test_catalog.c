@@ -8,8 +8,8 @@
  *  - versions only grow; remove leaves a tombstone; the version list;
  *  - two threads writing one name: the write committed last (the largest version) is what
  *    the name holds;
- * and in test_catalog_blobs.c: shared blobs, the sweeper, and the put-versus-delete-and-sweep
- * race. */
+ * and in test_catalog_blobs.c and test_catalog_listen.c: shared blobs, the sweeper, the
+ * put-versus-delete-and-sweep race, the listener, and PostgreSQL going away and coming back. */
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -395,6 +395,8 @@ int main(void)
     test_blobs(c, db);
     test_sweeper(c, db);
     test_put_delete_sweep_race(c);
+    test_listener(c);
+    test_outage(c, db);
     unsigned long long trips = atomic_load(&metrics.round_trips);
     printf("round trips: %llu, %.3f ms mean\n", trips,
            (double)atomic_load(&metrics.round_trip_ns) / 1e6 / (double)(trips ? trips : 1));
