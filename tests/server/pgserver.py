@@ -12,6 +12,8 @@ server program runs as that user through `setpriv`; otherwise it runs as the cal
         pg.stop(); pg.start()     # fast shutdown; the same data directory and port
         pg.kill()                 # SIGKILL the postmaster (start() recovers from it)
 
+PgServer(tls=(cert, key)) also serves TLS with that certificate (plain connections too).
+
 Missing binaries raise PgServerError naming the package, so the test fails (never skips).
 Python's standard library only."""
 import atexit
@@ -80,21 +82,24 @@ def alive(pid):
 
 
 class PgServer:
-    def __init__(self, port=None, log_statements=False):
+    def __init__(self, port=None, log_statements=False, tls=None):
         self.bindir = find_bindir()
         self.port = port or free_port()
         self.dir = tempfile.mkdtemp(prefix="sdfd-pg-")
         self.data = os.path.join(self.dir, "data")
         self.log_path = os.path.join(self.dir, "postgres.log")
         self.proc = None
-        self._prefix = []
+        self._prefix, self._owner = [], None
         if os.geteuid() == 0:
             user = pwd.getpwnam("nobody")
-            os.chown(self.dir, user.pw_uid, user.pw_gid)
+            self._owner = (user.pw_uid, user.pw_gid)
+            os.chown(self.dir, *self._owner)
             self._prefix = ["setpriv", "--reuid=%d" % user.pw_uid, "--regid=%d" % user.pw_gid,
                             "--clear-groups", "--"]
         try:
             self._initdb(log_statements)
+            if tls:
+                self._install_tls(*tls)
         except BaseException:
             shutil.rmtree(self.dir, ignore_errors=True)
             raise
@@ -123,6 +128,18 @@ class PgServer:
                 "log_statement = '%s'" % ("all" if log_statements else "none")]
         with open(os.path.join(self.data, "postgresql.conf"), "a") as fh:
             fh.write("\n".join(conf) + "\n")
+
+    def _install_tls(self, cert, key):
+        """Serve TLS (still accepting plain connections) with this certificate and key, copied
+        into the data directory: PostgreSQL wants the key private to the server's user."""
+        for src, name in ((cert, "server.crt"), (key, "server.key")):
+            dst = os.path.join(self.data, name)
+            shutil.copyfile(src, dst)
+            os.chmod(dst, 0o600)
+            if self._owner:
+                os.chown(dst, *self._owner)
+        with open(os.path.join(self.data, "postgresql.conf"), "a") as fh:
+            fh.write("ssl = on\n")
 
     def start(self, timeout=30):
         """Start the postmaster and wait until it accepts connections."""

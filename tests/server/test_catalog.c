@@ -1,8 +1,9 @@
 /* test_catalog.c - server/state/catalog.c and its modules against a real PostgreSQL, which
  * run_catalog.py starts (tests/server/pgserver.py) and can stop, start and kill on request:
  *  - the schema: opening twice migrates once; four processes opening a fresh database at
- *    once migrate once between them; a schema newer than ours is refused; bad strings and
- *    TLS the server lacks are refused with a message;
+ *    once migrate once between them; a schema newer than ours is refused; a bad string is
+ *    refused with a message; TLS through sslmode, the server's certificate verified against
+ *    the CA that signed it and refused against another;
  *  - items: put and read round trips (bytes, SHA-256 as PostgreSQL computes it, format,
  *    info), arguments refused, limits, damage found on read;
  *  - versions only grow; remove leaves a tombstone; the version list;
@@ -112,11 +113,24 @@ static void test_open_refusals(void)
     int rc = sdfd_catalog_open("postgresql://[bad", NULL, &c, err, sizeof err);
     CHECK(rc == SDF_EINVAL && !c && strstr(err, "connection string"), "bad URI: %d %s", rc,
           err);
-    char tls[512];
-    snprintf(tls, sizeof tls, "%s?sslmode=require", pg_uri("mig_twice"));
+    /* TLS through the string: the server's certificate verified against the CA that signed
+     * it, and refused against another. */
+    char tls[1024];
+    snprintf(tls, sizeof tls, "%s?sslmode=verify-full&sslrootcert=%s", pg_uri("mig_twice"),
+             getenv("SDFD_TEST_PG_CA") ? getenv("SDFD_TEST_PG_CA") : "");
     rc = sdfd_catalog_open(tls, NULL, &c, err, sizeof err);
-    CHECK(rc == SDFD_EUNAVAILABLE && strstr(err, "SSL"), "sslmode=require without TLS: %d %s",
-          rc, err);
+    CHECK(rc == 0, "sslmode=verify-full: %d %s", rc, err);
+    CHECK(pg_number("postgres", "SELECT count(*) FROM pg_stat_ssl s JOIN pg_stat_activity a"
+                                " USING (pid) WHERE s.ssl AND a.application_name = 'sdfd'") == 1,
+          "the catalog's connection is encrypted");
+    sdfd_catalog_close(c);
+    snprintf(tls, sizeof tls, "%s?sslmode=verify-full&sslrootcert=%s", pg_uri("mig_twice"),
+             getenv("SDFD_TEST_PG_OTHER_CA") ? getenv("SDFD_TEST_PG_OTHER_CA") : "");
+    c = NULL;
+    rc = sdfd_catalog_open(tls, NULL, &c, err, sizeof err);
+    CHECK(rc == SDFD_EUNAVAILABLE && !c && strstr(err, "certificate"),
+          "a certificate from another CA: %d %s", rc, err);
+    printf("another CA: %s\n", err);
     CHECK(pg_create_db("mig_newer") == 0, "create database");
     sdfd_catalog_close(open_db("mig_newer", NULL));
     free(pg_value("mig_newer", "UPDATE sdfd_schema SET version = 99"));
