@@ -13,7 +13,7 @@
  * Calls come from any thread, each on a connection of its own from a small pool; a call that
  * finds PostgreSQL unreachable or going away answers SDFD_EUNAVAILABLE with libpq's message,
  * and a later call connects again: nothing needs reopening after the server comes back.
- * Errors are sdfd's codes with a message in err (cap bytes; messages fit in 256). Buffers are
+ * Errors are sdfd's codes with a message in err (cut to fit its cap bytes). Buffers are
  * the caller's, except the bytes and info a read returns (malloc'd: free them). */
 #ifndef SDFD_CATALOG_H
 #define SDFD_CATALOG_H
