@@ -1,5 +1,6 @@
-/* store.c - the files of --data-dir (see store.h): atomic writes, sidecars, quarantine and
- * job records. Every path is built from the directory given at open, so a store that
+/* store.c - the files of --data-dir (see store.h): the lock, the layout, sidecars and data
+ * files, quarantine, the start's scan and job records, on storefile.h's atomic writes and
+ * checked reads. Every path is built from the directory given at open, so a store that
  * disappears (an unmounted volume) reads as unreadable, not as empty. */
 #include "state/store.h"
 
@@ -19,6 +20,7 @@
 
 #include "core/errors.h"
 #include "core/log.h"
+#include "state/storefile.h"
 
 #define MAX_SIDECAR_BYTES (1 << 16)
 #define MAX_DATA_BYTES ((size_t)1 << 34)
@@ -26,6 +28,9 @@
 #define FILE_PATH 4608
 #define MARKER "sdfd-store.json"
 #define LOCK_FILE "sdfd-store.lock"
+/* The layout this sdfd writes (docs/api.md, "Data directory"): 2 keeps the data files in
+ * KIND/data/, apart from the sidecars; 1 kept them beside the sidecars, and is moved at open. */
+#define LAYOUT 2
 
 struct sdfd_store {
     char dir[3072];
@@ -34,6 +39,9 @@ struct sdfd_store {
 };
 
 static const char *const kind_dirs[] = {"meshes", "volumes"};
+/* The data files, in a directory of their own: no item name can reach them, whatever it
+ * spells (a sidecar is always KIND/NAME.json). */
+static const char *const data_dirs[] = {"meshes/data", "volumes/data"};
 
 uint64_t sdfd_fnv1a64(const void *data, size_t n)
 {
@@ -49,55 +57,11 @@ static void path_of(const sdfd_store *s, char *out, size_t cap, const char *sub,
     snprintf(out, cap, "%s/%s%s%s", s->dir, sub, file ? "/" : "", file ? file : "");
 }
 
-static int fsync_dir(const char *dir)
-{
-    int fd = open(dir, O_RDONLY | O_DIRECTORY);
-    if (fd < 0)
-        return -1;
-    int rc = fsync(fd);
-    close(fd);
-    return rc;
-}
-
-static int write_all(int fd, const void *data, size_t n)
-{
-    const char *p = data;
-    while (n) {
-        ssize_t w = write(fd, p, n > (1u << 30) ? (1u << 30) : n);
-        if (w < 0 && errno == EINTR)
-            continue;
-        if (w <= 0)
-            return -1;
-        p += w, n -= (size_t)w;
-    }
-    return 0;
-}
-
-/* Write `file` in `dir` so a reader sees the old or the new bytes, never a part. */
+/* Write `file` in `dir` atomically (storefile.h). 0, or SDFD_EUNAVAILABLE with err set. */
 static int write_atomic(const char *dir, const char *file, const void *data, size_t n,
                         char *err, size_t cap)
 {
-    char tmp[FILE_PATH], final[FILE_PATH];
-    snprintf(tmp, sizeof tmp, "%s/.tmp-XXXXXX", dir);
-    snprintf(final, sizeof final, "%s/%s", dir, file);
-    int fd = mkstemp(tmp);
-    if (fd < 0) {
-        snprintf(err, cap, "cannot create a file in %s: %s", dir, strerror(errno));
-        return SDFD_EUNAVAILABLE;
-    }
-    int bad = fchmod(fd, 0644) || write_all(fd, data, n) || fsync(fd);
-    int saved = errno;
-    bad |= close(fd) != 0;
-    if (!bad && rename(tmp, final))
-        bad = 1, saved = errno;
-    if (!bad && fsync_dir(dir))
-        bad = 1, saved = errno;
-    if (bad) {
-        unlink(tmp);
-        snprintf(err, cap, "cannot write %s: %s", final, strerror(saved));
-        return SDFD_EUNAVAILABLE;
-    }
-    return 0;
+    return sdfd_storefile_write_atomic(dir, file, data, n, err, cap) ? SDFD_EUNAVAILABLE : 0;
 }
 
 /* Take DIR's lock for the life of the process (a flock, which the kernel drops with the
@@ -138,6 +102,108 @@ static int lock_store(sdfd_store *s, char *err, size_t cap)
     return -1;
 }
 
+/* The layout the marker records: 0 when there is no marker (or it says none), -1 when it
+ * cannot be read. */
+static int marker_layout(sdfd_store *s)
+{
+    char path[FILE_PATH], text[256];
+    path_of(s, path, sizeof path, MARKER, NULL);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return errno == ENOENT ? 0 : -1;
+    ssize_t n = read(fd, text, sizeof text - 1);
+    close(fd);
+    if (n < 0)
+        return -1;
+    text[n] = '\0';
+    cJSON *o = cJSON_Parse(text);
+    const cJSON *l = cJSON_GetObjectItemCaseSensitive(o, "layout");
+    int layout = cJSON_IsNumber(l) && l->valuedouble >= 0 && l->valuedouble < 1000
+                     ? (int)l->valuedouble
+                     : 0;
+    cJSON_Delete(o);
+    return layout;
+}
+
+/* Is `file` a data file layout 1 wrote beside the sidecars, NAME.<16 hex>.<ext> with one of
+ * the five extensions it wrote? No sidecar (NAME.json) is. */
+static int layout1_data_name(const char *file)
+{
+    static const char *const exts[] = {"obj", "ply", "stl", "off", "exr"};
+    const char *ext = strrchr(file, '.');
+    if (!ext || ext - file < 18 || ext[-17] != '.' ||
+        !sdfd_valid_name(file, (size_t)(ext - 17 - file)))
+        return 0;
+    for (const char *h = ext - 16; h < ext; h++)
+        if (!strchr("0123456789abcdef", *h))
+            return 0;
+    for (size_t i = 0; i < sizeof exts / sizeof exts[0]; i++)
+        if (!strcmp(ext + 1, exts[i]))
+            return 1;
+    return 0;
+}
+
+/* Move layout 1's data files into KIND/data/. Each rename is atomic, so a crash midway
+ * leaves every file in one place or the other, and the next open moves the rest. 0, or -1
+ * with err set. */
+static int migrate_layout1(sdfd_store *s, char *err, size_t cap)
+{
+    for (int k = 0; k < 2; k++) {
+        char dir[4096], data[4096], from[FILE_PATH], to[FILE_PATH];
+        path_of(s, dir, sizeof dir, kind_dirs[k], NULL);
+        path_of(s, data, sizeof data, data_dirs[k], NULL);
+        DIR *d = opendir(dir);
+        if (!d) {
+            snprintf(err, cap, "cannot read %s: %s", dir, strerror(errno));
+            return -1;
+        }
+        size_t moved = 0;
+        struct stat st;
+        for (struct dirent *e; (e = readdir(d));) {
+            if (!layout1_data_name(e->d_name))
+                continue;
+            snprintf(from, sizeof from, "%s/%s", dir, e->d_name);
+            snprintf(to, sizeof to, "%s/%s", data, e->d_name);
+            if (!lstat(to, &st))
+                continue; /* a second copy: the scan quarantines it */
+            if (rename(from, to)) {
+                snprintf(err, cap, "cannot move %s to %s: %s", from, to, strerror(errno));
+                closedir(d);
+                return -1;
+            }
+            moved++;
+        }
+        closedir(d);
+        if (moved && (sdfd_storefile_sync_dir(data) || sdfd_storefile_sync_dir(dir))) {
+            snprintf(err, cap, "cannot sync %s: %s", dir, strerror(errno));
+            return -1;
+        }
+        if (moved)
+            sdfd_log("info", "store_migrate", "moved %zu data files from %s/ to %s/ (store "
+                     "layout 1 to %d)", moved, kind_dirs[k], data_dirs[k], LAYOUT);
+    }
+    return 0;
+}
+
+/* Bring the store to LAYOUT (a new one, or one of layout 1) and record it in the marker;
+ * refuse a layout this sdfd does not know. 0, or -1 with err set. */
+static int settle_layout(sdfd_store *s, char *err, size_t cap)
+{
+    int layout = marker_layout(s);
+    if (layout > LAYOUT) {
+        snprintf(err, cap, "%s holds a store of layout %d, newer than this sdfd's (%d)", s->dir,
+                 layout, LAYOUT);
+        return -1;
+    }
+    if (migrate_layout1(s, err, cap)) /* also after a crash in a migration */
+        return -1;
+    if (layout == LAYOUT)
+        return 0;
+    char text[64];
+    int n = snprintf(text, sizeof text, "{\"store\":\"sdfd\",\"layout\":%d}\n", LAYOUT);
+    return write_atomic(s->dir, MARKER, text, (size_t)n, err, cap) ? -1 : 0;
+}
+
 int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
 {
     *out = NULL;
@@ -149,7 +215,8 @@ int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
     }
     snprintf(s->dir, sizeof s->dir, "%s", dir);
     s->lock_fd = -1;
-    static const char *const subs[] = {"", "meshes", "volumes", "jobs", "quarantine"};
+    static const char *const subs[] = {"",     "meshes",     "volumes",   "meshes/data",
+                                       "volumes/data", "jobs", "quarantine"};
     for (size_t i = 0; i < sizeof subs / sizeof subs[0]; i++) {
         char p[4096];
         path_of(s, p, sizeof p, subs[i], NULL);
@@ -163,14 +230,9 @@ int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
             return -1;
         }
     }
-    char marker[4096];
-    path_of(s, marker, sizeof marker, MARKER, NULL);
-    if (access(marker, R_OK)) {
-        static const char text[] = "{\"store\":\"sdfd\",\"layout\":1}\n";
-        if (write_atomic(s->dir, MARKER, text, sizeof text - 1, err, cap)) {
-            sdfd_store_close(s);
-            return -1;
-        }
+    if (settle_layout(s, err, cap)) {
+        sdfd_store_close(s);
+        return -1;
     }
     *out = s;
     return 0;
@@ -190,8 +252,8 @@ int sdfd_store_probe(sdfd_store *s)
     path_of(s, p, sizeof p, MARKER, NULL);
     if (stat(p, &st))
         return errno;
-    for (int k = 0; k < 2; k++) {
-        path_of(s, p, sizeof p, kind_dirs[k], NULL);
+    for (int k = 0; k < 4; k++) {
+        path_of(s, p, sizeof p, k < 2 ? kind_dirs[k] : data_dirs[k - 2], NULL);
         DIR *d = opendir(p);
         if (!d)
             return errno;
@@ -288,45 +350,6 @@ int sdfd_store_stat(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
     return 0;
 }
 
-/* Read a whole regular file of at most `max` bytes (and exactly `expect`, unless SIZE_MAX).
- * 0, or an errno value (EFBIG: the size is wrong). */
-static int read_file(const char *path, size_t max, size_t expect, char **out, size_t *n,
-                     struct stat *st)
-{
-    *out = NULL;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-        return errno;
-    int e = 0;
-    if (fstat(fd, st))
-        e = errno;
-    else if (!S_ISREG(st->st_mode))
-        e = EISDIR;
-    else if ((size_t)st->st_size > max || (expect != SIZE_MAX && (size_t)st->st_size != expect))
-        e = EFBIG;
-    char *buf = e ? NULL : malloc((size_t)st->st_size + 1);
-    if (!e && !buf)
-        e = ENOMEM;
-    size_t got = 0;
-    while (!e && got < (size_t)st->st_size) {
-        ssize_t r = read(fd, buf + got, (size_t)st->st_size - got);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0)
-            e = r < 0 ? errno : EFBIG;
-        else
-            got += (size_t)r;
-    }
-    close(fd);
-    if (e) {
-        free(buf);
-        return e;
-    }
-    buf[got] = '\0';
-    *out = buf, *n = got;
-    return 0;
-}
-
 int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_sidecar *meta,
                     void **data, sdfd_stamp *stamp, char *err, size_t cap)
 {
@@ -337,9 +360,9 @@ int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
     if (data)
         *data = NULL;
     sidecar_name(file, sizeof file, name);
-    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
     path_of(s, path, sizeof path, kind_dirs[kind], file);
-    int e = read_file(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st);
+    int e = sdfd_storefile_read(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st);
     if (e == ENOENT || (e && e != EFBIG && e != EISDIR))
         return missing_or_unreadable(s, e, path, err, cap);
     if (e) {
@@ -356,7 +379,7 @@ int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
         return 0;
     char *bytes;
     snprintf(path, sizeof path, "%s/%s", dir, meta->file);
-    e = read_file(path, MAX_DATA_BYTES, meta->bytes, &bytes, &n, &st);
+    e = sdfd_storefile_read(path, MAX_DATA_BYTES, meta->bytes, &bytes, &n, &st);
     if (e == ENOENT && !sdfd_store_probe(s))
         snprintf(err, cap, "its data file %s is missing", meta->file);
     else if (e == EFBIG)
@@ -386,8 +409,9 @@ int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
 int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, const void *data,
                      size_t n, int *existed, sdfd_stamp *stamp, char *err, size_t cap)
 {
-    char dir[4096], file[SDFD_MAX_NAME + 8];
+    char dir[4096], data_dir[4096], file[SDFD_MAX_NAME + 8];
     path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    path_of(s, data_dir, sizeof data_dir, data_dirs[kind], NULL);
     sidecar_name(file, sizeof file, meta->name);
     meta->hash = sdfd_fnv1a64(data, n);
     meta->bytes = n;
@@ -399,7 +423,7 @@ int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, con
     int had = sdfd_store_read(s, kind, meta->name, &old, NULL, &ignored, why, sizeof why) == 0;
     free(old.info);
     *existed = had || sdfd_store_stat(s, kind, meta->name, &ignored, why, sizeof why) == 0;
-    int rc = write_atomic(dir, meta->file, data, n, err, cap);
+    int rc = write_atomic(data_dir, meta->file, data, n, err, cap);
     char *text = rc ? NULL : sidecar_text(meta);
     if (!rc && !text)
         rc = SDF_ENOMEM, snprintf(err, cap, "out of memory");
@@ -410,7 +434,7 @@ int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, con
         return rc;
     if (had && strcmp(old.file, meta->file)) { /* the old version's data, now unreferenced */
         char path[FILE_PATH];
-        snprintf(path, sizeof path, "%s/%s", dir, old.file);
+        snprintf(path, sizeof path, "%s/%s", data_dir, old.file);
         unlink(path);
     }
     return sdfd_store_stat(s, kind, meta->name, stamp, err, cap);
@@ -436,8 +460,9 @@ int sdfd_store_remove(sdfd_store *s, sdfd_item_kind kind, const char *name, char
         snprintf(err, cap, "cannot delete %s: %s", path, strerror(e));
         return SDFD_EUNAVAILABLE;
     }
-    fsync_dir(dir); /* the delete is the sidecar's: durable before the data goes */
+    sdfd_storefile_sync_dir(dir); /* the delete is the sidecar's: durable before the data goes */
     if (!rc) {
+        path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
         snprintf(path, sizeof path, "%s/%s", dir, meta.file);
         unlink(path);
     }
@@ -453,6 +478,9 @@ static void quarantine_file(sdfd_store *s, const char *sub, const char *file, co
     unsigned long k = atomic_fetch_add(&s->quarantined, 1);
     snprintf(name, sizeof name, "%s-%lld-%d-%lu-%.200s", sub, (long long)time(NULL),
              (int)getpid(), k, file);
+    for (char *c = name; *c; c++) /* meshes/data -> meshes-data */
+        if (*c == '/')
+            *c = '-';
     path_of(s, from, sizeof from, sub, file);
     snprintf(to, sizeof to, "%s/quarantine/%s", s->dir, name);
     if (rename(from, to)) {
@@ -482,23 +510,27 @@ void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
     sidecar_name(file, sizeof file, name);
     quarantine_file(s, kind_dirs[kind], file, why);
     if (!rc)
-        quarantine_file(s, kind_dirs[kind], meta.file, why);
+        quarantine_file(s, data_dirs[kind], meta.file, why);
 }
 
 /* ---- the start's scan -------------------------------------------------------------------- */
 
 static int by_text(const void *a, const void *b) { return strcmp(a, b); }
 
-/* Is `file` NAME.<16 hex>.<ext> with a valid NAME? */
+/* Is `file` NAME.<16 hex>.<ext> with a valid NAME and an ext of 1..7 lowercase letters or
+ * digits (a format's name)? */
 static int data_file_name(const char *file)
 {
     const char *ext = strrchr(file, '.');
-    if (!ext || ext - file < 18 || ext[-17] != '.')
+    if (!ext || ext - file < 18 || ext[-17] != '.' || !ext[1] || strlen(ext + 1) > 7)
         return 0;
     for (const char *h = ext - 16; h < ext; h++)
         if (!strchr("0123456789abcdef", *h))
             return 0;
-    return sdfd_valid_name(file, (size_t)(ext - 17 - file)) && strlen(ext + 1) < 8;
+    for (const char *c = ext + 1; *c; c++)
+        if (!strchr("abcdefghijklmnopqrstuvwxyz0123456789", *c))
+            return 0;
+    return sdfd_valid_name(file, (size_t)(ext - 17 - file));
 }
 
 static int old_enough(const char *path)
@@ -507,67 +539,114 @@ static int old_enough(const char *path)
     return !lstat(path, &st) && time(NULL) - st.st_mtime > SDFD_STORE_GRACE_SECONDS;
 }
 
-size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+/* A file list: names of up to SDFD_MAX_NAME + 63 bytes. */
+typedef struct file_list {
+    char (*rows)[SDFD_MAX_NAME + 64];
+    size_t n;
+} file_list;
+
+static int file_list_add(file_list *l, const char *file)
+{
+    void *grown = realloc(l->rows, (l->n + 1) * sizeof *l->rows);
+    if (!grown)
+        return -1;
+    l->rows = grown;
+    snprintf(l->rows[l->n++], sizeof *l->rows, "%s", file);
+    return 0;
+}
+
+static int file_list_has(const file_list *l, const char *file)
+{
+    for (size_t i = 0; i < l->n; i++)
+        if (!strcmp(l->rows[i], file))
+            return 1;
+    return 0;
+}
+
+/* Delete `path` (a temporary or an orphan) once it is old enough. */
+static void clean_up(const char *path, int temp)
+{
+    if (old_enough(path) && !unlink(path))
+        sdfd_log("info", "store_cleanup", "deleted %s, left by an interrupted %s", path,
+                 temp ? "write" : "write or delete");
+}
+
+/* KIND/: the sidecars, listed in `names` (their data files in `used`); strangers go to
+ * quarantine, old temporaries are deleted. Dot files are never items: temporaries, and NFS's
+ * .nfsXXXX stand-ins for files unlinked while open, which must stay where they are. */
+static void scan_sidecars(sdfd_store *s, sdfd_item_kind kind, file_list *names, file_list *used)
 {
     char dir[4096], path[FILE_PATH];
     path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
-    size_t n = 0, cap = 16;
-    char(*list)[SDFD_MAX_NAME + 1] = malloc(cap * sizeof *list);
-    char(*files)[SDFD_MAX_NAME + 64] = NULL; /* the data files the sidecars name */
-    size_t nfiles = 0;
     DIR *d = opendir(dir);
-    for (struct dirent *e; list && d && (e = readdir(d));) {
+    for (struct dirent *e; d && (e = readdir(d));) {
         const char *f = e->d_name;
         size_t len = strlen(f);
-        /* Dot files are never items: temporaries (below), and NFS's .nfsXXXX stand-ins
-         * for files unlinked while open, which must stay where they are. */
-        if (f[0] == '.' || data_file_name(f))
+        snprintf(path, sizeof path, "%s/%s", dir, f);
+        if (!strncmp(f, ".tmp-", 5))
+            clean_up(path, 1);
+        if (f[0] == '.' || !strcmp(f, "data"))
             continue;
         int sidecar = len > 5 && !strcmp(f + len - 5, ".json");
         if (!sidecar || len - 5 > SDFD_STORE_MAX_NAME || !sdfd_valid_name(f, len - 5)) {
             quarantine_file(s, kind_dirs[kind], f,
                             sidecar ? "not a valid item name (1-200 of A-Z a-z 0-9 . _ -, not "
                                       "starting with '.')"
-                                    : "not a file sdfd writes (NAME.json or NAME.<hash>.<ext>)");
+                                    : "not a file sdfd writes (NAME.json, or data/)");
             continue;
         }
-        if (n == cap) {
-            void *grown = realloc(list, (cap *= 2) * sizeof *list);
-            if (!grown)
-                break;
-            list = grown;
-        }
-        snprintf(list[n++], sizeof *list, "%.*s", (int)(len - 5), f);
+        char name[SDFD_MAX_NAME + 1];
+        snprintf(name, sizeof name, "%.*s", (int)(len - 5), f);
+        if (file_list_add(names, name))
+            break;
         sdfd_sidecar meta;
         sdfd_stamp stamp;
         char why[64];
-        if (!sdfd_store_read(s, kind, list[n - 1], &meta, NULL, &stamp, why, sizeof why)) {
-            void *grown = realloc(files, (nfiles + 1) * sizeof *files);
-            if (grown)
-                files = grown, memcpy(files[nfiles++], meta.file, sizeof meta.file);
-            free(meta.info);
-        }
-    }
-    /* Second pass: temporaries and orphans left by a crash, once surely not in progress. */
-    if (d)
-        rewinddir(d);
-    for (struct dirent *e; d && (e = readdir(d));) {
-        const char *f = e->d_name;
-        int temp = !strncmp(f, ".tmp-", 5), orphan = !temp && data_file_name(f);
-        for (size_t i = 0; orphan && i < nfiles; i++)
-            orphan = strcmp(files[i], f) != 0;
-        snprintf(path, sizeof path, "%s/%s", dir, f);
-        if ((temp || orphan) && old_enough(path) && !unlink(path))
-            sdfd_log("info", "store_cleanup", "deleted %s, left by an interrupted %s", path,
-                     temp ? "write" : "write or delete");
+        if (!sdfd_store_read(s, kind, name, &meta, NULL, &stamp, why, sizeof why))
+            file_list_add(used, meta.file);
+        free(meta.info);
     }
     if (d)
         closedir(d);
-    free(files);
+}
+
+/* KIND/data/: strangers go to quarantine; old temporaries, and old data files no sidecar
+ * names (orphans, left by a crash), are deleted. */
+static void scan_data(sdfd_store *s, sdfd_item_kind kind, const file_list *used)
+{
+    char dir[4096], path[FILE_PATH];
+    path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
+    DIR *d = opendir(dir);
+    for (struct dirent *e; d && (e = readdir(d));) {
+        const char *f = e->d_name;
+        snprintf(path, sizeof path, "%s/%s", dir, f);
+        if (f[0] == '.') {
+            if (!strncmp(f, ".tmp-", 5))
+                clean_up(path, 1);
+        } else if (!data_file_name(f)) {
+            quarantine_file(s, data_dirs[kind], f, "not a file sdfd writes (NAME.<hash>.<ext>)");
+        } else if (!file_list_has(used, f)) {
+            clean_up(path, 0);
+        }
+    }
+    if (d)
+        closedir(d);
+}
+
+size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+{
+    file_list found = {0}, used = {0};
+    scan_sidecars(s, kind, &found, &used);
+    scan_data(s, kind, &used);
+    free(used.rows);
+    char(*list)[SDFD_MAX_NAME + 1] = found.n ? malloc(found.n * sizeof *list) : NULL;
+    for (size_t i = 0; list && i < found.n; i++)
+        snprintf(list[i], sizeof *list, "%s", found.rows[i]);
+    free(found.rows);
     if (list)
-        qsort(list, n, sizeof *list, by_text);
+        qsort(list, found.n, sizeof *list, by_text);
     *names = list;
-    return list ? n : 0;
+    return list ? found.n : 0;
 }
 
 /* The stems of DIR's "*.json" files (sidecars, job records) that `accept` takes, each shorter
@@ -631,7 +710,7 @@ char *sdfd_store_read_job(sdfd_store *s, const char *id)
     struct stat st;
     snprintf(file, sizeof file, "%.64s.json", id);
     path_of(s, path, sizeof path, "jobs", file);
-    return read_file(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st) ? NULL : text;
+    return sdfd_storefile_read(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st) ? NULL : text;
 }
 
 void sdfd_store_remove_job(sdfd_store *s, const char *id)

@@ -3,10 +3,12 @@
  * second one refuses to start, since nothing here coordinates writers. Replicas that share
  * their state are to use PostgreSQL (--catalog), not a shared directory.
  *
- * Layout (docs/api.md, "Data directory"): DIR/sdfd-store.json marks the store;
- * DIR/meshes/NAME.json and DIR/volumes/NAME.json are the sidecars, each naming its data file
- * DIR/KIND/NAME.<hash>.<ext> (the bytes as uploaded, or the volume's EXR); DIR/jobs/ID.json
- * are bake job records; DIR/quarantine/ holds what failed its checks.
+ * Layout 2 (docs/api.md, "Data directory"): DIR/sdfd-store.json marks the store and its
+ * layout; DIR/meshes/NAME.json and DIR/volumes/NAME.json are the sidecars, each naming its
+ * data file DIR/KIND/data/NAME.<hash>.<ext> (the bytes as uploaded, or the volume's EXR), a
+ * directory of their own so that no item name can collide with them; DIR/jobs/ID.json are
+ * job records; DIR/quarantine/ holds what failed its checks. Layout 1 (data files beside the
+ * sidecars) is moved to layout 2 at open.
  *
  * The sidecar is the commit record. A write puts the new data file under a name of its own
  * (its content hash), then the sidecar, then unlinks the old data file; a delete removes the
@@ -38,7 +40,7 @@ typedef enum sdfd_item_kind { SDFD_ITEM_MESH, SDFD_ITEM_VOLUME } sdfd_item_kind;
  * without loading it (a mesh's triangle count, a volume's description). */
 typedef struct sdfd_sidecar {
     char name[SDFD_MAX_NAME + 1];
-    char file[SDFD_MAX_NAME + 64]; /* the data file, in the kind's directory */
+    char file[SDFD_MAX_NAME + 64]; /* the data file, in the kind's data/ directory */
     char format[8];                /* obj, ply, stl, off; exr */
     uint64_t hash;                 /* FNV-1a 64 of the data file */
     size_t bytes;
@@ -51,8 +53,9 @@ typedef struct sdfd_stamp {
     long long mtime_ns;
 } sdfd_stamp;
 
-/* Open (creating what is missing) the store at dir and take its lock. 0, or -1 with err set
- * (another sdfd holds the lock: err names its pid and host, and --catalog). */
+/* Open (creating what is missing) the store at dir, take its lock and bring it to layout 2.
+ * 0, or -1 with err set (another sdfd holds the lock: err names its pid and host, and
+ * --catalog; a layout newer than 2). */
 int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap);
 void sdfd_store_close(sdfd_store *s); /* releases the lock; NULL is a no-op */
 

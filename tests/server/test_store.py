@@ -70,6 +70,13 @@ def volume_values(client, name):
     return client.query_volume(name, POINTS, form="octet")["distance"]
 
 
+def fnv1a64(data):
+    h = 0xcbf29ce484222325
+    for byte in data:
+        h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
 def quarantined(d):
     return sorted(f for f in os.listdir(os.path.join(d, "quarantine")) if not f.endswith(".why"))
 
@@ -231,6 +238,78 @@ class Store(unittest.TestCase):
             os.rename(away, self.dir)
         self.assertEqual(c._json("GET", "/readyz")["status"], "ready")
 
+    # ---- layout ----
+
+    def backdate(self, seconds):
+        """Every file of the store `seconds` older (past the start's grace for orphans)."""
+        then = time.time() - seconds
+        for root, _, files in os.walk(self.dir):
+            for f in files:
+                os.utime(os.path.join(root, f), (then, then))
+
+    def test_names_like_data_files(self):
+        """Names of the form NAME.<16 hex> (valid ones) are items like any other: a start long
+        after their upload keeps them (the scan once took their sidecars for data files)."""
+        s, c = self.start()
+        names = ["x.0123456789abcdef", "y.0123456789abcdef.off", "plain"]
+        for n in names:
+            self.assertEqual(put(s.ports["http"], f"/v1/meshes/{n}",
+                                 read(os.path.join(DATA, "cube.ply")))[0], 201)
+        c.wait(c.bake("plain", volume="v.0123456789abcdef", resolution=8))
+        before = {n: distances(c, n) for n in names}
+        values = volume_values(c, "v.0123456789abcdef")
+        self.kill(s)
+        self.backdate(11 * 60)
+        s, c = self.start()
+        self.assertEqual([m["name"] for m in c.meshes()], sorted(names))
+        self.assertEqual([v["name"] for v in c.volumes()], ["v.0123456789abcdef"])
+        for n, d in before.items():
+            self.assertTrue(same_bits(distances(c, n), d), n)
+        self.assertTrue(same_bits(volume_values(c, "v.0123456789abcdef"), values))
+        self.assertEqual([e for e in s.logs if e.get("event") == "store_cleanup"], [])
+        self.assertEqual(quarantined(self.dir), [])
+
+    def test_layout1_store(self):
+        """A store of layout 1 (data files beside the sidecars) is moved to layout 2 at start
+        and serves the same bits; a store of a layout newer than sdfd's is refused."""
+        s, c = self.start()
+        c.upload("fandisk", os.path.join(DATA, "fandisk.off"))
+        c.upload("x.0123456789abcdef", os.path.join(DATA, "cube.ply"))
+        c.wait(c.bake("fandisk", volume="vf", resolution=12))
+        before = {n: distances(c, n) for n in ("fandisk", "x.0123456789abcdef")}
+        values = volume_values(c, "vf")
+        self.kill(s)
+        # Back to layout 1: the same sidecars, the data files beside them.
+        for kind in ("meshes", "volumes"):
+            data = os.path.join(self.dir, kind, "data")
+            for f in os.listdir(data):
+                os.rename(os.path.join(data, f), os.path.join(self.dir, kind, f))
+            os.rmdir(data)
+        with open(os.path.join(self.dir, "sdfd-store.json"), "w") as fh:
+            fh.write('{"store":"sdfd","layout":1}\n')
+        self.backdate(11 * 60)
+        s, c = self.start()
+        for n, d in before.items():
+            self.assertTrue(same_bits(distances(c, n), d), n)
+        self.assertTrue(same_bits(volume_values(c, "vf"), values))
+        self.assertEqual(quarantined(self.dir), [])
+        with open(os.path.join(self.dir, "sdfd-store.json")) as fh:
+            self.assertEqual(json.load(fh)["layout"], 2)
+        self.assertEqual(sorted(os.listdir(os.path.join(self.dir, "meshes"))),
+                         ["data", "fandisk.json", "x.0123456789abcdef.json"])
+        self.assertEqual(len(os.listdir(os.path.join(self.dir, "meshes", "data"))), 2)
+        self.assertEqual(sorted(os.listdir(os.path.join(self.dir, "volumes"))), ["data", "vf.json"])
+        self.assertIn("store_migrate", [e.get("event") for e in s.logs])
+        self.assertEqual(s.stop(), 0)
+        self.servers.remove(s)
+        with open(os.path.join(self.dir, "sdfd-store.json"), "w") as fh:
+            fh.write('{"store":"sdfd","layout":3}\n')
+        r = subprocess.run([SDFD, "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0", "--data-dir",
+                            self.dir], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                           timeout=30)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("layout 3, newer than this sdfd's (2)", r.stderr.decode())
+
     # ---- memory budget ----
 
     def test_memory_budget(self):
@@ -295,29 +374,31 @@ class Store(unittest.TestCase):
             with open(os.path.join(kind_dir, name + ".json")) as fh:
                 return json.load(fh)
 
-        def rewrite(kind_dir, name, data):  # new data with a matching sidecar
+        def rewrite(kind_dir, name, data):  # new data with a matching sidecar, as sdfd names it
             meta = sidecar(kind_dir, name)
-            with open(os.path.join(kind_dir, meta["file"]), "wb") as fh:
+            os.remove(os.path.join(kind_dir, "data", meta["file"]))
+            h = fnv1a64(data)
+            meta.update(bytes=len(data), fnv1a64=f"{h:016x}",
+                        file=f"{name}.{h:016x}.{meta['format']}")
+            with open(os.path.join(kind_dir, "data", meta["file"]), "wb") as fh:
                 fh.write(data)
-            h = 0xcbf29ce484222325
-            for byte in data:
-                h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
-            meta.update(bytes=len(data), fnv1a64=f"{h:016x}")
             with open(os.path.join(kind_dir, name + ".json"), "w") as fh:
                 json.dump(meta, fh)
 
         rewrite(meshes, "garbage", b"ply\nthis is not a mesh\n" * 10)
-        path = os.path.join(meshes, sidecar(meshes, "unreadable")["file"])
+        path = os.path.join(meshes, "data", sidecar(meshes, "unreadable")["file"])
         os.remove(path)
         os.mkdir(path)  # root reads any file: a directory is what cannot be read as one
-        exr = read(os.path.join(volumes, sidecar(volumes, "vtrunc")["file"]))
+        exr = read(os.path.join(volumes, "data", sidecar(volumes, "vtrunc")["file"]))
         rewrite(volumes, "vtrunc", exr[:len(exr) // 2])  # a truncated EXR, hash and all
-        short = os.path.join(volumes, sidecar(volumes, "vshort")["file"])
+        short = os.path.join(volumes, "data", sidecar(volumes, "vshort")["file"])
         with open(short, "r+b") as fh:  # truncated under its sidecar
             fh.truncate(100)
         shutil.copy(os.path.join(meshes, "good.json"), os.path.join(meshes, "bad name!.json"))
         with open(os.path.join(meshes, "stray.txt"), "w") as fh:
             fh.write("not sdfd's")
+        with open(os.path.join(volumes, "data", "stray.bin"), "w") as fh:
+            fh.write("not sdfd's either")
         s, c = self.start()
         self.assertEqual([m["name"] for m in c.meshes()], ["good"])
         self.assertEqual([v["name"] for v in c.volumes()], ["vgood"])
@@ -329,7 +410,7 @@ class Store(unittest.TestCase):
             self.assertEqual(e.exception.status, 404)
         q = quarantined(self.dir)
         for piece in ("garbage.json", "unreadable.json", "vtrunc.json", "vshort.json",
-                      "bad name!.json", "stray.txt"):
+                      "bad name!.json", "stray.txt", "volumes-data-", "stray.bin"):
             self.assertTrue(any(piece in f for f in q), (piece, q))
         events = [e for e in s.logs if e.get("event") == "store_quarantine"]
         reasons = " ".join(e["message"] for e in events)
