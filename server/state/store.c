@@ -286,6 +286,23 @@ static char *sidecar_text(const sdfd_sidecar *m)
     return text;
 }
 
+/* Is `text` 1..max characters, each one of `set`? */
+static int spelled_with(const char *text, size_t max, const char *set)
+{
+    size_t n = strlen(text);
+    return n >= 1 && n <= max && strspn(text, set) == n;
+}
+
+/* Does the data file the sidecar names belong to its item: is it exactly the name sdfd gives
+ * the item's data, NAME.<fnv1a64>.<format>? A sidecar that names any other file (another
+ * item's, damaged or forged) must not lead a read, a delete or a quarantine to that file. */
+static int own_data_file(const sdfd_sidecar *m, const char *file)
+{
+    char expect[sizeof m->file];
+    int n = snprintf(expect, sizeof expect, "%s.%016" PRIx64 ".%s", m->name, m->hash, m->format);
+    return n > 0 && (size_t)n < sizeof expect && !strcmp(expect, file);
+}
+
 /* Parse a sidecar's text into m; 0 or -1 with why set. */
 static int parse_sidecar(const char *text, const char *name, sdfd_sidecar *m, char *why,
                          size_t cap)
@@ -298,25 +315,30 @@ static int parse_sidecar(const char *text, const char *name, sdfd_sidecar *m, ch
                 *h = cJSON_GetObjectItemCaseSensitive(o, "fnv1a64"),
                 *info = cJSON_GetObjectItemCaseSensitive(o, "info");
     int ok = cJSON_IsString(n) && !strcmp(n->valuestring, name) && cJSON_IsString(f) &&
-             strlen(f->valuestring) < sizeof m->file && !strchr(f->valuestring, '/') &&
-             f->valuestring[0] != '.' && cJSON_IsString(fmt) &&
-             strlen(fmt->valuestring) < sizeof m->format && cJSON_IsNumber(b) &&
-             b->valuedouble >= 0 && b->valuedouble <= (double)MAX_DATA_BYTES &&
-             cJSON_IsString(h) && strlen(h->valuestring) == 16 && cJSON_IsObject(info);
-    if (ok) {
-        char *end;
-        m->hash = strtoull(h->valuestring, &end, 16);
-        ok = *end == '\0';
+             cJSON_IsString(fmt) &&
+             spelled_with(fmt->valuestring, sizeof m->format - 1,
+                          "abcdefghijklmnopqrstuvwxyz0123456789") &&
+             cJSON_IsNumber(b) && b->valuedouble >= 0 &&
+             b->valuedouble <= (double)MAX_DATA_BYTES && cJSON_IsString(h) &&
+             spelled_with(h->valuestring, 16, "0123456789abcdef") &&
+             strlen(h->valuestring) == 16 && cJSON_IsObject(info);
+    if (!ok) {
+        snprintf(why, cap, "the sidecar is not a JSON object with name, file, format, bytes, "
+                 "fnv1a64 and info");
+    } else {
         snprintf(m->name, sizeof m->name, "%s", name);
-        snprintf(m->file, sizeof m->file, "%s", f->valuestring);
         snprintf(m->format, sizeof m->format, "%s", fmt->valuestring);
+        m->hash = strtoull(h->valuestring, NULL, 16);
         m->bytes = (size_t)b->valuedouble;
+        if (!(ok = own_data_file(m, f->valuestring)))
+            snprintf(why, cap, "the sidecar names the data file '%.80s', not its own (%.120s."
+                     "%s.%s)", f->valuestring, name, h->valuestring, m->format);
+    }
+    if (ok) {
+        snprintf(m->file, sizeof m->file, "%s", f->valuestring);
         m->info = cJSON_PrintUnformatted(info);
     }
     cJSON_Delete(o);
-    if (!ok)
-        snprintf(why, cap, "the sidecar is not a JSON object with name, file, format, bytes, "
-                 "fnv1a64 and info");
     return ok ? 0 : -1;
 }
 
@@ -469,6 +491,20 @@ int sdfd_store_remove(sdfd_store *s, sdfd_item_kind kind, const char *name, char
     return 0;
 }
 
+/* The length of NAME when `file` is a data file's name, NAME.<16 hex>.<ext> with a valid NAME
+ * and an ext of 1..7 lowercase letters or digits (a format's name); else 0. The last two
+ * dots end NAME, so a data file has one owner, whatever the names. */
+static size_t data_file_stem(const char *file)
+{
+    const char *ext = strrchr(file, '.');
+    if (!ext || ext - file < 18 || ext[-17] != '.' ||
+        !spelled_with(ext + 1, 7, "abcdefghijklmnopqrstuvwxyz0123456789") ||
+        strspn(ext - 16, "0123456789abcdef") != 16)
+        return 0;
+    size_t stem = (size_t)(ext - 17 - file);
+    return sdfd_valid_name(file, stem) ? stem : 0;
+}
+
 /* ---- quarantine -------------------------------------------------------------------------- */
 
 /* Move DIR/sub/file into DIR/quarantine (with a note saying why). */
@@ -499,6 +535,23 @@ static void quarantine_file(sdfd_store *s, const char *sub, const char *file, co
                  sizeof err);
 }
 
+/* Move the data files named as `name`'s (NAME.<hash>.<ext>) to quarantine. */
+static void quarantine_data_of(sdfd_store *s, sdfd_item_kind kind, const char *name,
+                               const char *why)
+{
+    char dir[4096];
+    size_t len = strlen(name);
+    path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
+    DIR *d = opendir(dir);
+    for (struct dirent *e; d && (e = readdir(d));)
+        if (data_file_stem(e->d_name) == len && !strncmp(e->d_name, name, len))
+            quarantine_file(s, data_dirs[kind], e->d_name, why);
+    if (d)
+        closedir(d);
+}
+
+/* A sidecar that parses names its item's own data file (parse_sidecar), which goes with it;
+ * one that does not takes the data files named as its item's. Never another item's file. */
 void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
                            const char *why)
 {
@@ -511,27 +564,13 @@ void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
     quarantine_file(s, kind_dirs[kind], file, why);
     if (!rc)
         quarantine_file(s, data_dirs[kind], meta.file, why);
+    else if (rc == SDF_EFORMAT)
+        quarantine_data_of(s, kind, name, why);
 }
 
 /* ---- the start's scan -------------------------------------------------------------------- */
 
 static int by_text(const void *a, const void *b) { return strcmp(a, b); }
-
-/* Is `file` NAME.<16 hex>.<ext> with a valid NAME and an ext of 1..7 lowercase letters or
- * digits (a format's name)? */
-static int data_file_name(const char *file)
-{
-    const char *ext = strrchr(file, '.');
-    if (!ext || ext - file < 18 || ext[-17] != '.' || !ext[1] || strlen(ext + 1) > 7)
-        return 0;
-    for (const char *h = ext - 16; h < ext; h++)
-        if (!strchr("0123456789abcdef", *h))
-            return 0;
-    for (const char *c = ext + 1; *c; c++)
-        if (!strchr("abcdefghijklmnopqrstuvwxyz0123456789", *c))
-            return 0;
-    return sdfd_valid_name(file, (size_t)(ext - 17 - file));
-}
 
 static int old_enough(const char *path)
 {
@@ -623,7 +662,7 @@ static void scan_data(sdfd_store *s, sdfd_item_kind kind, const file_list *used)
         if (f[0] == '.') {
             if (!strncmp(f, ".tmp-", 5))
                 clean_up(path, 1);
-        } else if (!data_file_name(f)) {
+        } else if (!data_file_stem(f)) {
             quarantine_file(s, data_dirs[kind], f, "not a file sdfd writes (NAME.<hash>.<ext>)");
         } else if (!file_list_has(used, f)) {
             clean_up(path, 0);

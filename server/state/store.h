@@ -82,7 +82,10 @@ int sdfd_store_stat(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
  * item is damaged: err says how, quarantine it). Free meta->info and *data. */
 int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_sidecar *meta,
                     void **data, sdfd_stamp *stamp, char *err, size_t cap);
-/* Move the item's sidecar and data file to DIR/quarantine/ with a .why file saying `why`. */
+/* Move the item's sidecar and its data file to DIR/quarantine/, each with a .why file saying
+ * `why`. Only the item's own: a sidecar that parses names NAME.<hash>.<format> (any other
+ * file makes it damaged), and for one that does not, the data files named NAME.<hash>.<ext>
+ * go. Another item's file never moves. */
 void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
                            const char *why);
 

@@ -419,6 +419,56 @@ class Store(unittest.TestCase):
             self.assertIn(why, reasons)
         self.assertIn("EXR", reasons)
 
+    def test_quarantine_takes_only_its_own(self):
+        """A damaged sidecar that names another item's data file is quarantined with its own
+        item's data file only: the other item keeps its file and is served. A sidecar that
+        names another item's file with that file's own length and hash is damaged too, never
+        served as that item."""
+        s, c = self.start()
+        for n, f in (("a", "cube.ply"), ("b", "fandisk.off"), ("c", "cube.ply")):
+            c.upload(n, os.path.join(DATA, f))
+        c.wait(c.bake("b", volume="va", resolution=8))
+        c.wait(c.bake("b", volume="vb", resolution=10))
+        b_distances, vb_values = distances(c, "b"), volume_values(c, "vb")
+        self.kill(s)
+        meshes, volumes = (os.path.join(self.dir, k) for k in ("meshes", "volumes"))
+
+        def sidecar(kind_dir, name):
+            with open(os.path.join(kind_dir, name + ".json")) as fh:
+                return json.load(fh)
+
+        def point(kind_dir, name, other, **changes):  # name's sidecar names other's file
+            meta = sidecar(kind_dir, name)
+            meta.update(file=sidecar(kind_dir, other)["file"], **changes)
+            with open(os.path.join(kind_dir, name + ".json"), "w") as fh:
+                json.dump(meta, fh)
+
+        b_meta, vb_meta = sidecar(meshes, "b"), sidecar(volumes, "vb")
+        own = [sidecar(meshes, "a")["file"], sidecar(meshes, "c")["file"],
+               sidecar(volumes, "va")["file"]]  # the damaged items' own data files
+        point(meshes, "a", "b", fnv1a64="0" * 16)  # a hash mismatch: damaged
+        point(meshes, "c", "b", fnv1a64=b_meta["fnv1a64"], bytes=b_meta["bytes"],
+              format=b_meta["format"])
+        point(volumes, "va", "vb", bytes=3)  # a length mismatch: damaged
+        s, c = self.start()
+        self.assertTrue(same_bits(distances(c, "b"), b_distances))
+        self.assertTrue(same_bits(volume_values(c, "vb"), vb_values))
+        self.assertEqual([m["name"] for m in c.meshes()], ["b"])
+        self.assertEqual([v["name"] for v in c.volumes()], ["vb"])
+        for name in ("a", "c"):
+            with self.assertRaises(sdfclient.SdfError) as e:
+                c.mesh(name)
+            self.assertEqual(e.exception.status, 404)
+        self.assertTrue(os.path.exists(os.path.join(meshes, "data", b_meta["file"])))
+        self.assertTrue(os.path.exists(os.path.join(volumes, "data", vb_meta["file"])))
+        q = quarantined(self.dir)
+        for piece in ["a.json", "c.json", "va.json"] + own:
+            self.assertTrue(any(f.endswith(piece) for f in q), (piece, q))
+        for f in (b_meta["file"], vb_meta["file"]):
+            self.assertFalse(any(f in x for x in q), (f, q))
+        reasons = " ".join(e["message"] for e in s.logs if e.get("event") == "store_quarantine")
+        self.assertIn("not its own", reasons)
+
     # ---- loads ----
 
     def test_load_does_not_stall(self):
