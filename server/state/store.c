@@ -57,11 +57,25 @@ static void path_of(const sdfd_store *s, char *out, size_t cap, const char *sub,
     snprintf(out, cap, "%s/%s%s%s", s->dir, sub, file ? "/" : "", file ? file : "");
 }
 
-/* Write `file` in `dir` atomically (storefile.h). 0, or SDFD_EUNAVAILABLE with err set. */
+/* Write `file` in `dir` atomically (storefile.h). 0; SDFD_ENOSPACE when the file system is
+ * full or the quota spent (507: the client may retry once space is freed, which sdfd cannot
+ * do); SDFD_EUNAVAILABLE for any other failure; err says which file and why. */
 static int write_atomic(const char *dir, const char *file, const void *data, size_t n,
                         char *err, size_t cap)
 {
-    return sdfd_storefile_write_atomic(dir, file, data, n, err, cap) ? SDFD_EUNAVAILABLE : 0;
+    static const char full[] = "the store is full: ";
+    int e = sdfd_storefile_write_atomic(dir, file, data, n, err, cap);
+    if (e != ENOSPC && e != EDQUOT)
+        return e ? SDFD_EUNAVAILABLE : 0;
+    if (cap > sizeof full) { /* prefix the message, cutting its end if need be */
+        size_t keep = strnlen(err, cap - 1);
+        if (keep > cap - sizeof full)
+            keep = cap - sizeof full;
+        memmove(err + sizeof full - 1, err, keep);
+        memcpy(err, full, sizeof full - 1);
+        err[sizeof full - 1 + keep] = '\0';
+    }
+    return SDFD_ENOSPACE;
 }
 
 /* Take DIR's lock for the life of the process (a flock, which the kernel drops with the
@@ -349,13 +363,18 @@ static void stamp_of(const struct stat *st, sdfd_stamp *out)
                         (long long)st->st_mtim.tv_sec * 1000000000ll + st->st_mtim.tv_nsec};
 }
 
-/* ENOENT is "no such item" only while the store itself is there. */
+/* ENOENT is "no such item" only while the store itself is there. Any other failure to open or
+ * read a file (a permission, an I/O error) is the store's trouble, not damage to the item:
+ * SDFD_EUNAVAILABLE, the file left where it is, and served once it can be read. */
 static int missing_or_unreadable(sdfd_store *s, int e, const char *path, char *err, size_t cap)
 {
-    int probe = e == ENOENT ? sdfd_store_probe(s) : e;
-    if (!probe)
+    int probe = sdfd_store_probe(s);
+    if (e == ENOENT && !probe)
         return SDF_ENOTFOUND;
-    snprintf(err, cap, "the store is unreadable: %s: %s", path, strerror(probe));
+    if (probe)
+        snprintf(err, cap, "the store is unreadable: %s: %s", path, strerror(probe));
+    else
+        snprintf(err, cap, "cannot read %s: %s", path, strerror(e));
     return SDFD_EUNAVAILABLE;
 }
 
@@ -445,6 +464,10 @@ int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, con
     int had = sdfd_store_read(s, kind, meta->name, &old, NULL, &ignored, why, sizeof why) == 0;
     free(old.info);
     *existed = had || sdfd_store_stat(s, kind, meta->name, &ignored, why, sizeof why) == 0;
+    char path[FILE_PATH];
+    struct stat st;
+    snprintf(path, sizeof path, "%s/%s", data_dir, meta->file);
+    int fresh = lstat(path, &st) != 0; /* the same bytes may be there already */
     int rc = write_atomic(data_dir, meta->file, data, n, err, cap);
     char *text = rc ? NULL : sidecar_text(meta);
     if (!rc && !text)
@@ -452,10 +475,11 @@ int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, con
     if (!rc)
         rc = write_atomic(dir, file, text, strlen(text), err, cap);
     free(text);
+    if (rc && fresh) /* no sidecar names it: give its space back now (a full store) */
+        unlink(path);
     if (rc)
         return rc;
     if (had && strcmp(old.file, meta->file)) { /* the old version's data, now unreferenced */
-        char path[FILE_PATH];
         snprintf(path, sizeof path, "%s/%s", data_dir, old.file);
         unlink(path);
     }
@@ -578,27 +602,19 @@ static int old_enough(const char *path)
     return !lstat(path, &st) && time(NULL) - st.st_mtime > SDFD_STORE_GRACE_SECONDS;
 }
 
-/* A file list: names of up to SDFD_MAX_NAME + 63 bytes. */
-typedef struct file_list {
-    char (*rows)[SDFD_MAX_NAME + 64];
+/* A list of item names. */
+typedef struct name_list {
+    char (*rows)[SDFD_MAX_NAME + 1];
     size_t n;
-} file_list;
+} name_list;
 
-static int file_list_add(file_list *l, const char *file)
+static int name_list_add(name_list *l, const char *name, size_t len)
 {
     void *grown = realloc(l->rows, (l->n + 1) * sizeof *l->rows);
     if (!grown)
         return -1;
     l->rows = grown;
-    snprintf(l->rows[l->n++], sizeof *l->rows, "%s", file);
-    return 0;
-}
-
-static int file_list_has(const file_list *l, const char *file)
-{
-    for (size_t i = 0; i < l->n; i++)
-        if (!strcmp(l->rows[i], file))
-            return 1;
+    snprintf(l->rows[l->n++], sizeof *l->rows, "%.*s", (int)len, name);
     return 0;
 }
 
@@ -610,10 +626,10 @@ static void clean_up(const char *path, int temp)
                  temp ? "write" : "write or delete");
 }
 
-/* KIND/: the sidecars, listed in `names` (their data files in `used`); strangers go to
- * quarantine, old temporaries are deleted. Dot files are never items: temporaries, and NFS's
- * .nfsXXXX stand-ins for files unlinked while open, which must stay where they are. */
-static void scan_sidecars(sdfd_store *s, sdfd_item_kind kind, file_list *names, file_list *used)
+/* KIND/: the sidecars, listed in `names`; strangers go to quarantine, old temporaries are
+ * deleted. Dot files are never items: temporaries, and NFS's .nfsXXXX stand-ins for files
+ * unlinked while open, which must stay where they are. */
+static void scan_sidecars(sdfd_store *s, sdfd_item_kind kind, name_list *names)
 {
     char dir[4096], path[FILE_PATH];
     path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
@@ -627,44 +643,50 @@ static void scan_sidecars(sdfd_store *s, sdfd_item_kind kind, file_list *names, 
         if (f[0] == '.' || !strcmp(f, "data"))
             continue;
         int sidecar = len > 5 && !strcmp(f + len - 5, ".json");
-        if (!sidecar || len - 5 > SDFD_STORE_MAX_NAME || !sdfd_valid_name(f, len - 5)) {
+        if (!sidecar || len - 5 > SDFD_STORE_MAX_NAME || !sdfd_valid_name(f, len - 5))
             quarantine_file(s, kind_dirs[kind], f,
                             sidecar ? "not a valid item name (1-200 of A-Z a-z 0-9 . _ -, not "
                                       "starting with '.')"
                                     : "not a file sdfd writes (NAME.json, or data/)");
-            continue;
-        }
-        char name[SDFD_MAX_NAME + 1];
-        snprintf(name, sizeof name, "%.*s", (int)(len - 5), f);
-        if (file_list_add(names, name))
+        else if (name_list_add(names, f, len - 5))
             break;
-        sdfd_sidecar meta;
-        sdfd_stamp stamp;
-        char why[64];
-        if (!sdfd_store_read(s, kind, name, &meta, NULL, &stamp, why, sizeof why))
-            file_list_add(used, meta.file);
-        free(meta.info);
     }
     if (d)
         closedir(d);
 }
 
-/* KIND/data/: strangers go to quarantine; old temporaries, and old data files no sidecar
- * names (orphans, left by a crash), are deleted. */
-static void scan_data(sdfd_store *s, sdfd_item_kind kind, const file_list *used)
+/* Is the data file `file` (NAME.<hash>.<ext>, NAME `stem` bytes long) an orphan: NAME has no
+ * sidecar, or one that reads and names another file? A sidecar that cannot be read now (a
+ * permission, an I/O error) or is damaged keeps the file: the former may be mended, the
+ * latter is quarantined with it. */
+static int orphan(sdfd_store *s, sdfd_item_kind kind, const char *file, size_t stem)
+{
+    char name[SDFD_MAX_NAME + 1], why[64];
+    sdfd_sidecar meta;
+    sdfd_stamp stamp;
+    snprintf(name, sizeof name, "%.*s", (int)stem, file);
+    int rc = sdfd_store_read(s, kind, name, &meta, NULL, &stamp, why, sizeof why);
+    free(meta.info);
+    return rc == SDF_ENOTFOUND || (!rc && strcmp(meta.file, file));
+}
+
+/* KIND/data/: strangers go to quarantine; old temporaries, and old orphans (left by a
+ * crash), are deleted. */
+static void scan_data(sdfd_store *s, sdfd_item_kind kind)
 {
     char dir[4096], path[FILE_PATH];
     path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
     DIR *d = opendir(dir);
     for (struct dirent *e; d && (e = readdir(d));) {
         const char *f = e->d_name;
+        size_t stem = data_file_stem(f);
         snprintf(path, sizeof path, "%s/%s", dir, f);
         if (f[0] == '.') {
             if (!strncmp(f, ".tmp-", 5))
                 clean_up(path, 1);
-        } else if (!data_file_stem(f)) {
+        } else if (!stem) {
             quarantine_file(s, data_dirs[kind], f, "not a file sdfd writes (NAME.<hash>.<ext>)");
-        } else if (!file_list_has(used, f)) {
+        } else if (orphan(s, kind, f, stem)) {
             clean_up(path, 0);
         }
     }
@@ -674,18 +696,13 @@ static void scan_data(sdfd_store *s, sdfd_item_kind kind, const file_list *used)
 
 size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
 {
-    file_list found = {0}, used = {0};
-    scan_sidecars(s, kind, &found, &used);
-    scan_data(s, kind, &used);
-    free(used.rows);
-    char(*list)[SDFD_MAX_NAME + 1] = found.n ? malloc(found.n * sizeof *list) : NULL;
-    for (size_t i = 0; list && i < found.n; i++)
-        snprintf(list[i], sizeof *list, "%s", found.rows[i]);
-    free(found.rows);
-    if (list)
-        qsort(list, found.n, sizeof *list, by_text);
-    *names = list;
-    return list ? found.n : 0;
+    name_list found = {0};
+    scan_sidecars(s, kind, &found);
+    scan_data(s, kind);
+    if (found.rows)
+        qsort(found.rows, found.n, sizeof *found.rows, by_text);
+    *names = found.rows;
+    return found.n;
 }
 
 /* The stems of DIR's "*.json" files (sidecars, job records) that `accept` takes, each shorter

@@ -9,6 +9,7 @@ import http.client
 import io
 import json
 import os
+import pwd
 import random
 import shutil
 import signal
@@ -91,8 +92,10 @@ class Store(unittest.TestCase):
             s.stop()
         shutil.rmtree(self.dir, ignore_errors=True)
 
-    def start(self, *args, data_dir=None):
-        s = Server("--data-dir", data_dir or self.dir, "--max-bake-queries", "50000000", *args)
+    def start(self, *args, data_dir=None, **how):
+        """sdfd on the store (how: Server's user and prefix)."""
+        s = Server("--data-dir", data_dir or self.dir, "--max-bake-queries", "50000000", *args,
+                   **how)
         self.servers.append(s)
         return s, sdfclient.Client(s.url)
 
@@ -468,6 +471,72 @@ class Store(unittest.TestCase):
             self.assertFalse(any(f in x for x in q), (f, q))
         reasons = " ".join(e["message"] for e in s.logs if e.get("event") == "store_quarantine")
         self.assertIn("not its own", reasons)
+
+    def test_unreadable_files(self):
+        """A store file sdfd may not read (mode 000 while sdfd is not root) answers 503
+        EUNAVAILABLE naming it, and stays where it is: not quarantined, and its item's data
+        file not taken for an orphan; the rest is served, and so is it once readable."""
+        user = "nobody" if os.geteuid() == 0 else None  # root reads mode 000 files
+        if user:
+            entry = pwd.getpwnam(user)
+            os.chown(self.dir, entry.pw_uid, entry.pw_gid)
+        s, c = self.start(user=user)
+        for n, f in (("sidecar-locked", "cube.ply"), ("data-locked", "fandisk.off"),
+                     ("fine", "cow.off")):
+            c.upload(n, os.path.join(DATA, f))
+        before = {n: distances(c, n) for n in ("sidecar-locked", "data-locked", "fine")}
+        self.kill(s)
+        self.backdate(11 * 60)  # old enough for the start to delete orphans
+        meshes = os.path.join(self.dir, "meshes")
+        with open(os.path.join(meshes, "sidecar-locked.json")) as fh:
+            kept = os.path.join(meshes, "data", json.load(fh)["file"])
+        with open(os.path.join(meshes, "data-locked.json")) as fh:
+            locked = [os.path.join(meshes, "sidecar-locked.json"),
+                      os.path.join(meshes, "data", json.load(fh)["file"])]
+        for path in locked:
+            os.chmod(path, 0)
+        s, c = self.start(user=user)
+        self.assertEqual(quarantined(self.dir), [])
+        for path in locked + [kept]:
+            self.assertTrue(os.path.exists(path), path)
+        self.assertTrue(same_bits(distances(c, "fine"), before["fine"]))
+        for name, path in zip(("sidecar-locked", "data-locked"), locked):
+            with self.assertRaises(sdfclient.SdfError) as e:
+                distances(c, name)
+            self.assertEqual((e.exception.status, e.exception.code), (503, "EUNAVAILABLE"))
+            self.assertIn(f"cannot read {path}: Permission denied", e.exception.message)
+        self.assertEqual(c._json("GET", "/readyz")["status"], "ready")
+        for path in locked:
+            os.chmod(path, 0o644)
+        for n, d in before.items():
+            self.assertTrue(same_bits(distances(c, n), d), n)
+
+    def test_store_full(self):
+        """A write that does not fit the store's file system (a 1 MiB tmpfs, mounted over the
+        store in sdfd's own mount namespace) answers 507 ENOSPACE: a PUT, and a bake's job
+        fails with it. It leaves no partial file behind (a small PUT fits afterwards); what
+        the store held is served, and /readyz stays ready."""
+        mount = ["unshare", "--mount", "--propagation", "private", "sh", "-c",
+                 'mount -t tmpfs -o size=1m,mode=0755 tmpfs "$0" && exec "$@"', self.dir]
+        s, c = self.start(prefix=mount)
+        c.upload("fandisk", os.path.join(DATA, "fandisk.off"))  # 376 kB
+        before = distances(c, "fandisk")
+        status, body = put(s.ports["http"], "/v1/meshes/elephant",
+                           read(os.path.join(DATA, "refined_elephant.off")))  # 4 MB
+        error = json.loads(body)["error"]
+        self.assertEqual((status, error["code"]), (507, "ENOSPACE"))
+        self.assertIn("the store is full: cannot write", error["message"])
+        self.assertIn("No space left on device", error["message"])
+        with self.assertRaises(sdfclient.SdfError) as e:
+            c.wait(c.bake("fandisk", volume="big", resolution=128))  # an 8 MB volume
+        self.assertEqual(e.exception.code, "ENOSPACE")
+        self.assertIn("the store is full", e.exception.message)
+        self.assertTrue(same_bits(distances(c, "fandisk"), before))
+        c.upload("cow", os.path.join(DATA, "cow.off"))  # 183 kB: fits once nothing is left over
+        self.assertEqual([m["name"] for m in c.meshes()], ["cow", "fandisk"])
+        self.assertEqual([v["name"] for v in c.volumes()], [])
+        self.assertEqual(c._json("GET", "/readyz")["status"], "ready")
+        self.assertEqual(os.listdir(self.dir), [])  # the tmpfs was sdfd's alone
 
     # ---- loads ----
 
