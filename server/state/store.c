@@ -21,16 +21,14 @@
 #include "core/errors.h"
 #include "core/log.h"
 #include "state/storefile.h"
+#include "state/storelayout.h"
 
 #define MAX_SIDECAR_BYTES (1 << 16)
 #define MAX_DATA_BYTES ((size_t)1 << 34)
 /* A file's path: the directory's (under 4096) and a name. */
 #define FILE_PATH 4608
-#define MARKER "sdfd-store.json"
+#define MARKER SDFD_STORE_MARKER
 #define LOCK_FILE "sdfd-store.lock"
-/* The layout this sdfd writes (docs/api.md, "Data directory"): 2 keeps the data files in
- * KIND/data/, apart from the sidecars; 1 kept them beside the sidecars, and is moved at open. */
-#define LAYOUT 2
 
 struct sdfd_store {
     char dir[3072];
@@ -38,10 +36,8 @@ struct sdfd_store {
     atomic_ulong quarantined; /* makes quarantine names unique within the process */
 };
 
-static const char *const kind_dirs[] = {"meshes", "volumes"};
-/* The data files, in a directory of their own: no item name can reach them, whatever it
- * spells (a sidecar is always KIND/NAME.json). */
-static const char *const data_dirs[] = {"meshes/data", "volumes/data"};
+static const char *const kind_dirs[] = SDFD_STORE_KIND_DIRS;
+static const char *const data_dirs[] = SDFD_STORE_DATA_DIRS;
 
 uint64_t sdfd_fnv1a64(const void *data, size_t n)
 {
@@ -116,108 +112,6 @@ static int lock_store(sdfd_store *s, char *err, size_t cap)
     return -1;
 }
 
-/* The layout the marker records: 0 when there is no marker (or it says none), -1 when it
- * cannot be read. */
-static int marker_layout(sdfd_store *s)
-{
-    char path[FILE_PATH], text[256];
-    path_of(s, path, sizeof path, MARKER, NULL);
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-        return errno == ENOENT ? 0 : -1;
-    ssize_t n = read(fd, text, sizeof text - 1);
-    close(fd);
-    if (n < 0)
-        return -1;
-    text[n] = '\0';
-    cJSON *o = cJSON_Parse(text);
-    const cJSON *l = cJSON_GetObjectItemCaseSensitive(o, "layout");
-    int layout = cJSON_IsNumber(l) && l->valuedouble >= 0 && l->valuedouble < 1000
-                     ? (int)l->valuedouble
-                     : 0;
-    cJSON_Delete(o);
-    return layout;
-}
-
-/* Is `file` a data file layout 1 wrote beside the sidecars, NAME.<16 hex>.<ext> with one of
- * the five extensions it wrote? No sidecar (NAME.json) is. */
-static int layout1_data_name(const char *file)
-{
-    static const char *const exts[] = {"obj", "ply", "stl", "off", "exr"};
-    const char *ext = strrchr(file, '.');
-    if (!ext || ext - file < 18 || ext[-17] != '.' ||
-        !sdfd_valid_name(file, (size_t)(ext - 17 - file)))
-        return 0;
-    for (const char *h = ext - 16; h < ext; h++)
-        if (!strchr("0123456789abcdef", *h))
-            return 0;
-    for (size_t i = 0; i < sizeof exts / sizeof exts[0]; i++)
-        if (!strcmp(ext + 1, exts[i]))
-            return 1;
-    return 0;
-}
-
-/* Move layout 1's data files into KIND/data/. Each rename is atomic, so a crash midway
- * leaves every file in one place or the other, and the next open moves the rest. 0, or -1
- * with err set. */
-static int migrate_layout1(sdfd_store *s, char *err, size_t cap)
-{
-    for (int k = 0; k < 2; k++) {
-        char dir[4096], data[4096], from[FILE_PATH], to[FILE_PATH];
-        path_of(s, dir, sizeof dir, kind_dirs[k], NULL);
-        path_of(s, data, sizeof data, data_dirs[k], NULL);
-        DIR *d = opendir(dir);
-        if (!d) {
-            snprintf(err, cap, "cannot read %s: %s", dir, strerror(errno));
-            return -1;
-        }
-        size_t moved = 0;
-        struct stat st;
-        for (struct dirent *e; (e = readdir(d));) {
-            if (!layout1_data_name(e->d_name))
-                continue;
-            snprintf(from, sizeof from, "%s/%s", dir, e->d_name);
-            snprintf(to, sizeof to, "%s/%s", data, e->d_name);
-            if (!lstat(to, &st))
-                continue; /* a second copy: the scan quarantines it */
-            if (rename(from, to)) {
-                snprintf(err, cap, "cannot move %s to %s: %s", from, to, strerror(errno));
-                closedir(d);
-                return -1;
-            }
-            moved++;
-        }
-        closedir(d);
-        if (moved && (sdfd_storefile_sync_dir(data) || sdfd_storefile_sync_dir(dir))) {
-            snprintf(err, cap, "cannot sync %s: %s", dir, strerror(errno));
-            return -1;
-        }
-        if (moved)
-            sdfd_log("info", "store_migrate", "moved %zu data files from %s/ to %s/ (store "
-                     "layout 1 to %d)", moved, kind_dirs[k], data_dirs[k], LAYOUT);
-    }
-    return 0;
-}
-
-/* Bring the store to LAYOUT (a new one, or one of layout 1) and record it in the marker;
- * refuse a layout this sdfd does not know. 0, or -1 with err set. */
-static int settle_layout(sdfd_store *s, char *err, size_t cap)
-{
-    int layout = marker_layout(s);
-    if (layout > LAYOUT) {
-        snprintf(err, cap, "%s holds a store of layout %d, newer than this sdfd's (%d)", s->dir,
-                 layout, LAYOUT);
-        return -1;
-    }
-    if (migrate_layout1(s, err, cap)) /* also after a crash in a migration */
-        return -1;
-    if (layout == LAYOUT)
-        return 0;
-    char text[64];
-    int n = snprintf(text, sizeof text, "{\"store\":\"sdfd\",\"layout\":%d}\n", LAYOUT);
-    return write_atomic(s->dir, MARKER, text, (size_t)n, err, cap) ? -1 : 0;
-}
-
 int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
 {
     *out = NULL;
@@ -244,7 +138,7 @@ int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
             return -1;
         }
     }
-    if (settle_layout(s, err, cap)) {
+    if (sdfd_storelayout_settle(s->dir, err, cap)) {
         sdfd_store_close(s);
         return -1;
     }
