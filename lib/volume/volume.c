@@ -309,8 +309,9 @@ int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
         return SDF_EINVAL;
     if (filter == SDF_VOLUME_DEFAULT)
         filter = volume->info.order == 1 ? SDF_VOLUME_HERMITE : SDF_VOLUME_TRILINEAR;
+    /* The queries' one rule (sdf_query's too): NaN fails the comparison. */
     for (size_t i = 0; i < 3 * count; i++)
-        if (!isfinite(points[i])) {
+        if (!(fabsf(points[i]) <= SDF_MAX_COORDINATE)) {
             if (bad_index)
                 *bad_index = i / 3;
             return SDF_ENONFINITE;

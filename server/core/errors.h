@@ -1,11 +1,13 @@
 /* errors.h - sdfd's error codes: the library's SDF_E* codes (sdf.h) extended by the ones only
- * a network server has (auth, methods, lengths, load, shutdown, request syntax) and the
- * binary protocol's SDF_EPROTO (proto.h), and the HTTP status every code is answered with.
+ * a network server has (auth, methods, lengths, load, shutdown, request syntax, a full store)
+ * and the binary protocol's SDF_EPROTO (proto.h), and the HTTP status every code is answered
+ * with.
  *
  * Clients see these as the `code` name and status of an HTTP error body and of a binary
  * ERROR frame (docs/api.md, proto/PROTOCOL.md), so names, values and statuses stay as they
- * are. The server's values fill the gap the library leaves (-13..-19); sdfd_errname's switch
- * over both tables fails to compile on a value used twice. */
+ * are. The server's values fill the gap the library leaves (-13..-19) and go on past the
+ * library's last (-21 on); sdfd_errname's switch over both tables fails to compile on a value
+ * used twice. */
 #ifndef SDFD_ERRORS_H
 #define SDFD_ERRORS_H
 
@@ -20,7 +22,8 @@
     X(ELENGTH, -16, 411, "Content-Length required")                                       \
     X(EBUSY, -17, 429, "too many requests")                                               \
     X(EUNAVAILABLE, -18, 503, "service unavailable (loading or shutting down)")           \
-    X(ESYNTAX, -19, 400, "malformed request")
+    X(ESYNTAX, -19, 400, "malformed request")                                             \
+    X(ENOSPACE, -21, 507, "the store is full")
 
 /* X(NAME, http_status) for every code of the library's SDF_ERRNO_MAP. A library code without
  * a line here fails to compile in errors.c (SDFD_STATUS_<NAME> undeclared): add its line. */

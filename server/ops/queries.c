@@ -131,8 +131,7 @@ static void evaluate(void *arg)
     vq->status = sdfd_volume_eval_words(vq->stored->volume, vq->points, vq->count,
                                         vq->interpolation, vq->gradient, vq->words, &bad);
     if (vq->status == SDF_ENONFINITE)
-        snprintf(vq->message, sizeof vq->message, "point %zu has a NaN or infinite coordinate",
-                 bad);
+        snprintf(vq->message, sizeof vq->message, SDFD_BAD_POINT_MESSAGE, bad);
     else
         snprintf(vq->message, sizeof vq->message, "%s",
                  vq->status ? sdfd_strerror(vq->status) : "");

@@ -1,5 +1,6 @@
-/* store.c - the files of --data-dir (see store.h): atomic writes, sidecars, quarantine and
- * job records. Every path is built from the directory given at open, so a store that
+/* store.c - the files of --data-dir (see store.h): the lock, the layout, sidecars and data
+ * files, quarantine, the start's scan and job records, on storefile.h's atomic writes and
+ * checked reads. Every path is built from the directory given at open, so a store that
  * disappears (an unmounted volume) reads as unreadable, not as empty. */
 #include "state/store.h"
 
@@ -12,25 +13,31 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
 #include "core/errors.h"
 #include "core/log.h"
+#include "state/storefile.h"
+#include "state/storelayout.h"
 
 #define MAX_SIDECAR_BYTES (1 << 16)
 #define MAX_DATA_BYTES ((size_t)1 << 34)
 /* A file's path: the directory's (under 4096) and a name. */
 #define FILE_PATH 4608
-#define MARKER "sdfd-store.json"
+#define MARKER SDFD_STORE_MARKER
+#define LOCK_FILE "sdfd-store.lock"
 
 struct sdfd_store {
     char dir[3072];
+    int lock_fd;              /* DIR/sdfd-store.lock, flock'ed for the process's life */
     atomic_ulong quarantined; /* makes quarantine names unique within the process */
 };
 
-static const char *const kind_dirs[] = {"meshes", "volumes"};
+static const char *const kind_dirs[] = SDFD_STORE_KIND_DIRS;
+static const char *const data_dirs[] = SDFD_STORE_DATA_DIRS;
 
 uint64_t sdfd_fnv1a64(const void *data, size_t n)
 {
@@ -46,55 +53,63 @@ static void path_of(const sdfd_store *s, char *out, size_t cap, const char *sub,
     snprintf(out, cap, "%s/%s%s%s", s->dir, sub, file ? "/" : "", file ? file : "");
 }
 
-static int fsync_dir(const char *dir)
-{
-    int fd = open(dir, O_RDONLY | O_DIRECTORY);
-    if (fd < 0)
-        return -1;
-    int rc = fsync(fd);
-    close(fd);
-    return rc;
-}
-
-static int write_all(int fd, const void *data, size_t n)
-{
-    const char *p = data;
-    while (n) {
-        ssize_t w = write(fd, p, n > (1u << 30) ? (1u << 30) : n);
-        if (w < 0 && errno == EINTR)
-            continue;
-        if (w <= 0)
-            return -1;
-        p += w, n -= (size_t)w;
-    }
-    return 0;
-}
-
-/* Write `file` in `dir` so a reader sees the old or the new bytes, never a part. */
+/* Write `file` in `dir` atomically (storefile.h). 0; SDFD_ENOSPACE when the file system is
+ * full or the quota spent (507: the client may retry once space is freed, which sdfd cannot
+ * do); SDFD_EUNAVAILABLE for any other failure; err says which file and why. */
 static int write_atomic(const char *dir, const char *file, const void *data, size_t n,
                         char *err, size_t cap)
 {
-    char tmp[FILE_PATH], final[FILE_PATH];
-    snprintf(tmp, sizeof tmp, "%s/.tmp-XXXXXX", dir);
-    snprintf(final, sizeof final, "%s/%s", dir, file);
-    int fd = mkstemp(tmp);
-    if (fd < 0) {
-        snprintf(err, cap, "cannot create a file in %s: %s", dir, strerror(errno));
-        return SDFD_EUNAVAILABLE;
+    static const char full[] = "the store is full: ";
+    int e = sdfd_storefile_write_atomic(dir, file, data, n, err, cap);
+    if (e != ENOSPC && e != EDQUOT)
+        return e ? SDFD_EUNAVAILABLE : 0;
+    if (cap > sizeof full) { /* prefix the message, cutting its end if need be */
+        size_t keep = strnlen(err, cap - 1);
+        if (keep > cap - sizeof full)
+            keep = cap - sizeof full;
+        memmove(err + sizeof full - 1, err, keep);
+        memcpy(err, full, sizeof full - 1);
+        err[sizeof full - 1 + keep] = '\0';
     }
-    int bad = fchmod(fd, 0644) || write_all(fd, data, n) || fsync(fd);
-    int saved = errno;
-    bad |= close(fd) != 0;
-    if (!bad && rename(tmp, final))
-        bad = 1, saved = errno;
-    if (!bad && fsync_dir(dir))
-        bad = 1, saved = errno;
-    if (bad) {
-        unlink(tmp);
-        snprintf(err, cap, "cannot write %s: %s", final, strerror(saved));
-        return SDFD_EUNAVAILABLE;
+    return SDFD_ENOSPACE;
+}
+
+/* Take DIR's lock for the life of the process (a flock, which the kernel drops with the
+ * process, however it ends; NFS carries it as a lock on the whole file), and write who holds
+ * it into the file for the message another sdfd gives. 0, or -1 with err set. */
+static int lock_store(sdfd_store *s, char *err, size_t cap)
+{
+    char path[FILE_PATH];
+    path_of(s, path, sizeof path, LOCK_FILE, NULL);
+    s->lock_fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (s->lock_fd < 0) {
+        snprintf(err, cap, "cannot open %s: %s", path, strerror(errno));
+        return -1;
     }
-    return 0;
+    if (!flock(s->lock_fd, LOCK_EX | LOCK_NB)) {
+        char host[128] = "";
+        gethostname(host, sizeof host - 1);
+        char text[200];
+        int n = snprintf(text, sizeof text, "pid %d on %s\n", (int)getpid(), host);
+        if (ftruncate(s->lock_fd, 0) || pwrite(s->lock_fd, text, (size_t)n, 0) != n)
+            sdfd_log("warn", "store_lock", "cannot write %s: %s", path, strerror(errno));
+        return 0;
+    }
+    int e = errno;
+    char holder[128] = "";
+    ssize_t got = e == EWOULDBLOCK ? pread(s->lock_fd, holder, sizeof holder - 1, 0) : -1;
+    for (ssize_t i = 0; i < got; i++) /* one printable line, whatever the file holds */
+        if (holder[i] < ' ' || holder[i] > '~')
+            holder[i] = '\0';
+    close(s->lock_fd);
+    s->lock_fd = -1;
+    if (e != EWOULDBLOCK)
+        snprintf(err, cap, "cannot lock %s: %s", path, strerror(e));
+    else
+        snprintf(err, cap, "%s is in use by another sdfd (%s): a data directory serves one sdfd "
+                 "at a time; replicas are to share their state through PostgreSQL (--catalog "
+                 "URI), not a directory", s->dir, holder[0] ? holder : "holder unknown");
+    return -1;
 }
 
 int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
@@ -107,30 +122,36 @@ int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
         return -1;
     }
     snprintf(s->dir, sizeof s->dir, "%s", dir);
-    static const char *const subs[] = {"", "meshes", "volumes", "jobs", "quarantine"};
+    s->lock_fd = -1;
+    static const char *const subs[] = {"",     "meshes",     "volumes",   "meshes/data",
+                                       "volumes/data", "jobs", "quarantine"};
     for (size_t i = 0; i < sizeof subs / sizeof subs[0]; i++) {
         char p[4096];
         path_of(s, p, sizeof p, subs[i], NULL);
         if (mkdir(p, 0755) && errno != EEXIST) {
             snprintf(err, cap, "cannot create %s: %s", p, strerror(errno));
-            free(s);
+            sdfd_store_close(s);
+            return -1;
+        }
+        if (i == 0 && lock_store(s, err, cap)) { /* before anything in DIR is touched */
+            sdfd_store_close(s);
             return -1;
         }
     }
-    char marker[4096];
-    path_of(s, marker, sizeof marker, MARKER, NULL);
-    if (access(marker, R_OK)) {
-        static const char text[] = "{\"store\":\"sdfd\",\"layout\":1}\n";
-        if (write_atomic(s->dir, MARKER, text, sizeof text - 1, err, cap)) {
-            free(s);
-            return -1;
-        }
+    if (sdfd_storelayout_settle(s->dir, err, cap)) {
+        sdfd_store_close(s);
+        return -1;
     }
     *out = s;
     return 0;
 }
 
-void sdfd_store_close(sdfd_store *s) { free(s); }
+void sdfd_store_close(sdfd_store *s)
+{
+    if (s && s->lock_fd >= 0)
+        close(s->lock_fd); /* the lock goes with it */
+    free(s);
+}
 
 int sdfd_store_probe(sdfd_store *s)
 {
@@ -139,8 +160,8 @@ int sdfd_store_probe(sdfd_store *s)
     path_of(s, p, sizeof p, MARKER, NULL);
     if (stat(p, &st))
         return errno;
-    for (int k = 0; k < 2; k++) {
-        path_of(s, p, sizeof p, kind_dirs[k], NULL);
+    for (int k = 0; k < 4; k++) {
+        path_of(s, p, sizeof p, k < 2 ? kind_dirs[k] : data_dirs[k - 2], NULL);
         DIR *d = opendir(p);
         if (!d)
             return errno;
@@ -173,6 +194,23 @@ static char *sidecar_text(const sdfd_sidecar *m)
     return text;
 }
 
+/* Is `text` 1..max characters, each one of `set`? */
+static int spelled_with(const char *text, size_t max, const char *set)
+{
+    size_t n = strlen(text);
+    return n >= 1 && n <= max && strspn(text, set) == n;
+}
+
+/* Does the data file the sidecar names belong to its item: is it exactly the name sdfd gives
+ * the item's data, NAME.<fnv1a64>.<format>? A sidecar that names any other file (another
+ * item's, damaged or forged) must not lead a read, a delete or a quarantine to that file. */
+static int own_data_file(const sdfd_sidecar *m, const char *file)
+{
+    char expect[sizeof m->file];
+    int n = snprintf(expect, sizeof expect, "%s.%016" PRIx64 ".%s", m->name, m->hash, m->format);
+    return n > 0 && (size_t)n < sizeof expect && !strcmp(expect, file);
+}
+
 /* Parse a sidecar's text into m; 0 or -1 with why set. */
 static int parse_sidecar(const char *text, const char *name, sdfd_sidecar *m, char *why,
                          size_t cap)
@@ -185,25 +223,30 @@ static int parse_sidecar(const char *text, const char *name, sdfd_sidecar *m, ch
                 *h = cJSON_GetObjectItemCaseSensitive(o, "fnv1a64"),
                 *info = cJSON_GetObjectItemCaseSensitive(o, "info");
     int ok = cJSON_IsString(n) && !strcmp(n->valuestring, name) && cJSON_IsString(f) &&
-             strlen(f->valuestring) < sizeof m->file && !strchr(f->valuestring, '/') &&
-             f->valuestring[0] != '.' && cJSON_IsString(fmt) &&
-             strlen(fmt->valuestring) < sizeof m->format && cJSON_IsNumber(b) &&
-             b->valuedouble >= 0 && b->valuedouble <= (double)MAX_DATA_BYTES &&
-             cJSON_IsString(h) && strlen(h->valuestring) == 16 && cJSON_IsObject(info);
-    if (ok) {
-        char *end;
-        m->hash = strtoull(h->valuestring, &end, 16);
-        ok = *end == '\0';
+             cJSON_IsString(fmt) &&
+             spelled_with(fmt->valuestring, sizeof m->format - 1,
+                          "abcdefghijklmnopqrstuvwxyz0123456789") &&
+             cJSON_IsNumber(b) && b->valuedouble >= 0 &&
+             b->valuedouble <= (double)MAX_DATA_BYTES && cJSON_IsString(h) &&
+             spelled_with(h->valuestring, 16, "0123456789abcdef") &&
+             strlen(h->valuestring) == 16 && cJSON_IsObject(info);
+    if (!ok) {
+        snprintf(why, cap, "the sidecar is not a JSON object with name, file, format, bytes, "
+                 "fnv1a64 and info");
+    } else {
         snprintf(m->name, sizeof m->name, "%s", name);
-        snprintf(m->file, sizeof m->file, "%s", f->valuestring);
         snprintf(m->format, sizeof m->format, "%s", fmt->valuestring);
+        m->hash = strtoull(h->valuestring, NULL, 16);
         m->bytes = (size_t)b->valuedouble;
+        if (!(ok = own_data_file(m, f->valuestring)))
+            snprintf(why, cap, "the sidecar names the data file '%.80s', not its own (%.120s."
+                     "%s.%s)", f->valuestring, name, h->valuestring, m->format);
+    }
+    if (ok) {
+        snprintf(m->file, sizeof m->file, "%s", f->valuestring);
         m->info = cJSON_PrintUnformatted(info);
     }
     cJSON_Delete(o);
-    if (!ok)
-        snprintf(why, cap, "the sidecar is not a JSON object with name, file, format, bytes, "
-                 "fnv1a64 and info");
     return ok ? 0 : -1;
 }
 
@@ -214,13 +257,18 @@ static void stamp_of(const struct stat *st, sdfd_stamp *out)
                         (long long)st->st_mtim.tv_sec * 1000000000ll + st->st_mtim.tv_nsec};
 }
 
-/* ENOENT is "no such item" only while the store itself is there. */
+/* ENOENT is "no such item" only while the store itself is there. Any other failure to open or
+ * read a file (a permission, an I/O error) is the store's trouble, not damage to the item:
+ * SDFD_EUNAVAILABLE, the file left where it is, and served once it can be read. */
 static int missing_or_unreadable(sdfd_store *s, int e, const char *path, char *err, size_t cap)
 {
-    int probe = e == ENOENT ? sdfd_store_probe(s) : e;
-    if (!probe)
+    int probe = sdfd_store_probe(s);
+    if (e == ENOENT && !probe)
         return SDF_ENOTFOUND;
-    snprintf(err, cap, "the store is unreadable: %s: %s", path, strerror(probe));
+    if (probe)
+        snprintf(err, cap, "the store is unreadable: %s: %s", path, strerror(probe));
+    else
+        snprintf(err, cap, "cannot read %s: %s", path, strerror(e));
     return SDFD_EUNAVAILABLE;
 }
 
@@ -237,45 +285,6 @@ int sdfd_store_stat(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
     return 0;
 }
 
-/* Read a whole regular file of at most `max` bytes (and exactly `expect`, unless SIZE_MAX).
- * 0, or an errno value (EFBIG: the size is wrong). */
-static int read_file(const char *path, size_t max, size_t expect, char **out, size_t *n,
-                     struct stat *st)
-{
-    *out = NULL;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-        return errno;
-    int e = 0;
-    if (fstat(fd, st))
-        e = errno;
-    else if (!S_ISREG(st->st_mode))
-        e = EISDIR;
-    else if ((size_t)st->st_size > max || (expect != SIZE_MAX && (size_t)st->st_size != expect))
-        e = EFBIG;
-    char *buf = e ? NULL : malloc((size_t)st->st_size + 1);
-    if (!e && !buf)
-        e = ENOMEM;
-    size_t got = 0;
-    while (!e && got < (size_t)st->st_size) {
-        ssize_t r = read(fd, buf + got, (size_t)st->st_size - got);
-        if (r < 0 && errno == EINTR)
-            continue;
-        if (r <= 0)
-            e = r < 0 ? errno : EFBIG;
-        else
-            got += (size_t)r;
-    }
-    close(fd);
-    if (e) {
-        free(buf);
-        return e;
-    }
-    buf[got] = '\0';
-    *out = buf, *n = got;
-    return 0;
-}
-
 int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_sidecar *meta,
                     void **data, sdfd_stamp *stamp, char *err, size_t cap)
 {
@@ -286,9 +295,9 @@ int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
     if (data)
         *data = NULL;
     sidecar_name(file, sizeof file, name);
-    path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
     path_of(s, path, sizeof path, kind_dirs[kind], file);
-    int e = read_file(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st);
+    int e = sdfd_storefile_read(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st);
     if (e == ENOENT || (e && e != EFBIG && e != EISDIR))
         return missing_or_unreadable(s, e, path, err, cap);
     if (e) {
@@ -305,7 +314,7 @@ int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
         return 0;
     char *bytes;
     snprintf(path, sizeof path, "%s/%s", dir, meta->file);
-    e = read_file(path, MAX_DATA_BYTES, meta->bytes, &bytes, &n, &st);
+    e = sdfd_storefile_read(path, MAX_DATA_BYTES, meta->bytes, &bytes, &n, &st);
     if (e == ENOENT && !sdfd_store_probe(s))
         snprintf(err, cap, "its data file %s is missing", meta->file);
     else if (e == EFBIG)
@@ -335,8 +344,9 @@ int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
 int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, const void *data,
                      size_t n, int *existed, sdfd_stamp *stamp, char *err, size_t cap)
 {
-    char dir[4096], file[SDFD_MAX_NAME + 8];
+    char dir[4096], data_dir[4096], file[SDFD_MAX_NAME + 8];
     path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
+    path_of(s, data_dir, sizeof data_dir, data_dirs[kind], NULL);
     sidecar_name(file, sizeof file, meta->name);
     meta->hash = sdfd_fnv1a64(data, n);
     meta->bytes = n;
@@ -348,18 +358,23 @@ int sdfd_store_write(sdfd_store *s, sdfd_item_kind kind, sdfd_sidecar *meta, con
     int had = sdfd_store_read(s, kind, meta->name, &old, NULL, &ignored, why, sizeof why) == 0;
     free(old.info);
     *existed = had || sdfd_store_stat(s, kind, meta->name, &ignored, why, sizeof why) == 0;
-    int rc = write_atomic(dir, meta->file, data, n, err, cap);
+    char path[FILE_PATH];
+    struct stat st;
+    snprintf(path, sizeof path, "%s/%s", data_dir, meta->file);
+    int fresh = lstat(path, &st) != 0; /* the same bytes may be there already */
+    int rc = write_atomic(data_dir, meta->file, data, n, err, cap);
     char *text = rc ? NULL : sidecar_text(meta);
     if (!rc && !text)
         rc = SDF_ENOMEM, snprintf(err, cap, "out of memory");
     if (!rc)
         rc = write_atomic(dir, file, text, strlen(text), err, cap);
     free(text);
+    if (rc && fresh) /* no sidecar names it: give its space back now (a full store) */
+        unlink(path);
     if (rc)
         return rc;
     if (had && strcmp(old.file, meta->file)) { /* the old version's data, now unreferenced */
-        char path[FILE_PATH];
-        snprintf(path, sizeof path, "%s/%s", dir, old.file);
+        snprintf(path, sizeof path, "%s/%s", data_dir, old.file);
         unlink(path);
     }
     return sdfd_store_stat(s, kind, meta->name, stamp, err, cap);
@@ -385,12 +400,27 @@ int sdfd_store_remove(sdfd_store *s, sdfd_item_kind kind, const char *name, char
         snprintf(err, cap, "cannot delete %s: %s", path, strerror(e));
         return SDFD_EUNAVAILABLE;
     }
-    fsync_dir(dir); /* the delete is the sidecar's: durable before the data goes */
+    sdfd_storefile_sync_dir(dir); /* the delete is the sidecar's: durable before the data goes */
     if (!rc) {
+        path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
         snprintf(path, sizeof path, "%s/%s", dir, meta.file);
         unlink(path);
     }
     return 0;
+}
+
+/* The length of NAME when `file` is a data file's name, NAME.<16 hex>.<ext> with a valid NAME
+ * and an ext of 1..7 lowercase letters or digits (a format's name); else 0. The last two
+ * dots end NAME, so a data file has one owner, whatever the names. */
+static size_t data_file_stem(const char *file)
+{
+    const char *ext = strrchr(file, '.');
+    if (!ext || ext - file < 18 || ext[-17] != '.' ||
+        !spelled_with(ext + 1, 7, "abcdefghijklmnopqrstuvwxyz0123456789") ||
+        strspn(ext - 16, "0123456789abcdef") != 16)
+        return 0;
+    size_t stem = (size_t)(ext - 17 - file);
+    return sdfd_valid_name(file, stem) ? stem : 0;
 }
 
 /* ---- quarantine -------------------------------------------------------------------------- */
@@ -402,6 +432,9 @@ static void quarantine_file(sdfd_store *s, const char *sub, const char *file, co
     unsigned long k = atomic_fetch_add(&s->quarantined, 1);
     snprintf(name, sizeof name, "%s-%lld-%d-%lu-%.200s", sub, (long long)time(NULL),
              (int)getpid(), k, file);
+    for (char *c = name; *c; c++) /* meshes/data -> meshes-data */
+        if (*c == '/')
+            *c = '-';
     path_of(s, from, sizeof from, sub, file);
     snprintf(to, sizeof to, "%s/quarantine/%s", s->dir, name);
     if (rename(from, to)) {
@@ -420,6 +453,23 @@ static void quarantine_file(sdfd_store *s, const char *sub, const char *file, co
                  sizeof err);
 }
 
+/* Move the data files named as `name`'s (NAME.<hash>.<ext>) to quarantine. */
+static void quarantine_data_of(sdfd_store *s, sdfd_item_kind kind, const char *name,
+                               const char *why)
+{
+    char dir[4096];
+    size_t len = strlen(name);
+    path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
+    DIR *d = opendir(dir);
+    for (struct dirent *e; d && (e = readdir(d));)
+        if (data_file_stem(e->d_name) == len && !strncmp(e->d_name, name, len))
+            quarantine_file(s, data_dirs[kind], e->d_name, why);
+    if (d)
+        closedir(d);
+}
+
+/* A sidecar that parses names its item's own data file (parse_sidecar), which goes with it;
+ * one that does not takes the data files named as its item's. Never another item's file. */
 void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
                            const char *why)
 {
@@ -431,24 +481,14 @@ void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
     sidecar_name(file, sizeof file, name);
     quarantine_file(s, kind_dirs[kind], file, why);
     if (!rc)
-        quarantine_file(s, kind_dirs[kind], meta.file, why);
+        quarantine_file(s, data_dirs[kind], meta.file, why);
+    else if (rc == SDF_EFORMAT)
+        quarantine_data_of(s, kind, name, why);
 }
 
 /* ---- the start's scan -------------------------------------------------------------------- */
 
 static int by_text(const void *a, const void *b) { return strcmp(a, b); }
-
-/* Is `file` NAME.<16 hex>.<ext> with a valid NAME? */
-static int data_file_name(const char *file)
-{
-    const char *ext = strrchr(file, '.');
-    if (!ext || ext - file < 18 || ext[-17] != '.')
-        return 0;
-    for (const char *h = ext - 16; h < ext; h++)
-        if (!strchr("0123456789abcdef", *h))
-            return 0;
-    return sdfd_valid_name(file, (size_t)(ext - 17 - file)) && strlen(ext + 1) < 8;
-}
 
 static int old_enough(const char *path)
 {
@@ -456,67 +496,107 @@ static int old_enough(const char *path)
     return !lstat(path, &st) && time(NULL) - st.st_mtime > SDFD_STORE_GRACE_SECONDS;
 }
 
-size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+/* A list of item names. */
+typedef struct name_list {
+    char (*rows)[SDFD_MAX_NAME + 1];
+    size_t n;
+} name_list;
+
+static int name_list_add(name_list *l, const char *name, size_t len)
+{
+    void *grown = realloc(l->rows, (l->n + 1) * sizeof *l->rows);
+    if (!grown)
+        return -1;
+    l->rows = grown;
+    snprintf(l->rows[l->n++], sizeof *l->rows, "%.*s", (int)len, name);
+    return 0;
+}
+
+/* Delete `path` (a temporary or an orphan) once it is old enough. */
+static void clean_up(const char *path, int temp)
+{
+    if (old_enough(path) && !unlink(path))
+        sdfd_log("info", "store_cleanup", "deleted %s, left by an interrupted %s", path,
+                 temp ? "write" : "write or delete");
+}
+
+/* KIND/: the sidecars, listed in `names`; strangers go to quarantine, old temporaries are
+ * deleted. Dot files are never items: temporaries, and NFS's .nfsXXXX stand-ins for files
+ * unlinked while open, which must stay where they are. */
+static void scan_sidecars(sdfd_store *s, sdfd_item_kind kind, name_list *names)
 {
     char dir[4096], path[FILE_PATH];
     path_of(s, dir, sizeof dir, kind_dirs[kind], NULL);
-    size_t n = 0, cap = 16;
-    char(*list)[SDFD_MAX_NAME + 1] = malloc(cap * sizeof *list);
-    char(*files)[SDFD_MAX_NAME + 64] = NULL; /* the data files the sidecars name */
-    size_t nfiles = 0;
     DIR *d = opendir(dir);
-    for (struct dirent *e; list && d && (e = readdir(d));) {
+    for (struct dirent *e; d && (e = readdir(d));) {
         const char *f = e->d_name;
         size_t len = strlen(f);
-        /* Dot files are never items: temporaries (below), and NFS's .nfsXXXX stand-ins
-         * for files unlinked while open, which must stay where they are. */
-        if (f[0] == '.' || data_file_name(f))
+        snprintf(path, sizeof path, "%s/%s", dir, f);
+        if (!strncmp(f, ".tmp-", 5))
+            clean_up(path, 1);
+        if (f[0] == '.' || !strcmp(f, "data"))
             continue;
         int sidecar = len > 5 && !strcmp(f + len - 5, ".json");
-        if (!sidecar || len - 5 > SDFD_STORE_MAX_NAME || !sdfd_valid_name(f, len - 5)) {
+        if (!sidecar || len - 5 > SDFD_STORE_MAX_NAME || !sdfd_valid_name(f, len - 5))
             quarantine_file(s, kind_dirs[kind], f,
                             sidecar ? "not a valid item name (1-200 of A-Z a-z 0-9 . _ -, not "
                                       "starting with '.')"
-                                    : "not a file sdfd writes (NAME.json or NAME.<hash>.<ext>)");
-            continue;
-        }
-        if (n == cap) {
-            void *grown = realloc(list, (cap *= 2) * sizeof *list);
-            if (!grown)
-                break;
-            list = grown;
-        }
-        snprintf(list[n++], sizeof *list, "%.*s", (int)(len - 5), f);
-        sdfd_sidecar meta;
-        sdfd_stamp stamp;
-        char why[64];
-        if (!sdfd_store_read(s, kind, list[n - 1], &meta, NULL, &stamp, why, sizeof why)) {
-            void *grown = realloc(files, (nfiles + 1) * sizeof *files);
-            if (grown)
-                files = grown, memcpy(files[nfiles++], meta.file, sizeof meta.file);
-            free(meta.info);
-        }
-    }
-    /* Second pass: temporaries and orphans left by a crash, once surely not in progress. */
-    if (d)
-        rewinddir(d);
-    for (struct dirent *e; d && (e = readdir(d));) {
-        const char *f = e->d_name;
-        int temp = !strncmp(f, ".tmp-", 5), orphan = !temp && data_file_name(f);
-        for (size_t i = 0; orphan && i < nfiles; i++)
-            orphan = strcmp(files[i], f) != 0;
-        snprintf(path, sizeof path, "%s/%s", dir, f);
-        if ((temp || orphan) && old_enough(path) && !unlink(path))
-            sdfd_log("info", "store_cleanup", "deleted %s, left by an interrupted %s", path,
-                     temp ? "write" : "write or delete");
+                                    : "not a file sdfd writes (NAME.json, or data/)");
+        else if (name_list_add(names, f, len - 5))
+            break;
     }
     if (d)
         closedir(d);
-    free(files);
-    if (list)
-        qsort(list, n, sizeof *list, by_text);
-    *names = list;
-    return list ? n : 0;
+}
+
+/* Is the data file `file` (NAME.<hash>.<ext>, NAME `stem` bytes long) an orphan: NAME has no
+ * sidecar, or one that reads and names another file? A sidecar that cannot be read now (a
+ * permission, an I/O error) or is damaged keeps the file: the former may be mended, the
+ * latter is quarantined with it. */
+static int orphan(sdfd_store *s, sdfd_item_kind kind, const char *file, size_t stem)
+{
+    char name[SDFD_MAX_NAME + 1], why[64];
+    sdfd_sidecar meta;
+    sdfd_stamp stamp;
+    snprintf(name, sizeof name, "%.*s", (int)stem, file);
+    int rc = sdfd_store_read(s, kind, name, &meta, NULL, &stamp, why, sizeof why);
+    free(meta.info);
+    return rc == SDF_ENOTFOUND || (!rc && strcmp(meta.file, file));
+}
+
+/* KIND/data/: strangers go to quarantine; old temporaries, and old orphans (left by a
+ * crash), are deleted. */
+static void scan_data(sdfd_store *s, sdfd_item_kind kind)
+{
+    char dir[4096], path[FILE_PATH];
+    path_of(s, dir, sizeof dir, data_dirs[kind], NULL);
+    DIR *d = opendir(dir);
+    for (struct dirent *e; d && (e = readdir(d));) {
+        const char *f = e->d_name;
+        size_t stem = data_file_stem(f);
+        snprintf(path, sizeof path, "%s/%s", dir, f);
+        if (f[0] == '.') {
+            if (!strncmp(f, ".tmp-", 5))
+                clean_up(path, 1);
+        } else if (!stem) {
+            quarantine_file(s, data_dirs[kind], f, "not a file sdfd writes (NAME.<hash>.<ext>)");
+        } else if (orphan(s, kind, f, stem)) {
+            clean_up(path, 0);
+        }
+    }
+    if (d)
+        closedir(d);
+}
+
+size_t sdfd_store_scan(sdfd_store *s, sdfd_item_kind kind, char (**names)[SDFD_MAX_NAME + 1])
+{
+    name_list found = {0};
+    scan_sidecars(s, kind, &found);
+    scan_data(s, kind);
+    if (found.rows)
+        qsort(found.rows, found.n, sizeof *found.rows, by_text);
+    *names = found.rows;
+    return found.n;
 }
 
 /* The stems of DIR's "*.json" files (sidecars, job records) that `accept` takes, each shorter
@@ -580,7 +660,7 @@ char *sdfd_store_read_job(sdfd_store *s, const char *id)
     struct stat st;
     snprintf(file, sizeof file, "%.64s.json", id);
     path_of(s, path, sizeof path, "jobs", file);
-    return read_file(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st) ? NULL : text;
+    return sdfd_storefile_read(path, MAX_SIDECAR_BYTES, SIZE_MAX, &text, &n, &st) ? NULL : text;
 }
 
 void sdfd_store_remove_job(sdfd_store *s, const char *id)

@@ -1,10 +1,14 @@
-/* store.h - sdfd's files under --data-dir: one directory that several replicas may share
- * (a ReadWriteMany volume, NFS), so every rule here holds for a reader in another process.
+/* store.h - sdfd's files under --data-dir: the single-node store. One sdfd at a time holds
+ * it (a flock on DIR/sdfd-store.lock, taken at open and held until the process ends): a
+ * second one refuses to start, since nothing here coordinates writers. Replicas that share
+ * their state are to use PostgreSQL (--catalog), not a shared directory.
  *
- * Layout (docs/api.md, "Data directory"): DIR/sdfd-store.json marks the store;
- * DIR/meshes/NAME.json and DIR/volumes/NAME.json are the sidecars, each naming its data file
- * DIR/KIND/NAME.<hash>.<ext> (the bytes as uploaded, or the volume's EXR); DIR/jobs/ID.json
- * are bake job records; DIR/quarantine/ holds what failed its checks.
+ * Layout 2 (docs/api.md, "Data directory"): DIR/sdfd-store.json marks the store and its
+ * layout; DIR/meshes/NAME.json and DIR/volumes/NAME.json are the sidecars, each naming its
+ * data file DIR/KIND/data/NAME.<hash>.<ext> (the bytes as uploaded, or the volume's EXR), a
+ * directory of their own so that no item name can collide with them; DIR/jobs/ID.json are
+ * job records; DIR/quarantine/ holds what failed its checks. Layout 1 (data files beside the
+ * sidecars) is moved to layout 2 at open.
  *
  * The sidecar is the commit record. A write puts the new data file under a name of its own
  * (its content hash), then the sidecar, then unlinks the old data file; a delete removes the
@@ -12,7 +16,8 @@
  * renamed over the final name, and the directory fsynced, so a crash at any instant leaves
  * the old or the new item whole, plus at most an unreferenced data file (an "orphan"), which
  * is never served and is deleted by a later start once older than SDFD_STORE_GRACE_SECONDS
- * (younger ones may be another replica's write in progress). Thread-safe. */
+ * (a margin for a write that lands late: NFS may hand the lock to a new holder while a
+ * partitioned old one still has writes in flight). Thread-safe. */
 #ifndef SDFD_STORE_H
 #define SDFD_STORE_H
 
@@ -35,7 +40,7 @@ typedef enum sdfd_item_kind { SDFD_ITEM_MESH, SDFD_ITEM_VOLUME } sdfd_item_kind;
  * without loading it (a mesh's triangle count, a volume's description). */
 typedef struct sdfd_sidecar {
     char name[SDFD_MAX_NAME + 1];
-    char file[SDFD_MAX_NAME + 64]; /* the data file, in the kind's directory */
+    char file[SDFD_MAX_NAME + 64]; /* the data file, in the kind's data/ directory */
     char format[8];                /* obj, ply, stl, off; exr */
     uint64_t hash;                 /* FNV-1a 64 of the data file */
     size_t bytes;
@@ -48,9 +53,11 @@ typedef struct sdfd_stamp {
     long long mtime_ns;
 } sdfd_stamp;
 
-/* Open (creating what is missing) the store at dir. 0, or -1 with err set. */
+/* Open (creating what is missing) the store at dir, take its lock and bring it to layout 2.
+ * 0, or -1 with err set (another sdfd holds the lock: err names its pid and host, and
+ * --catalog; a layout newer than 2). */
 int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap);
-void sdfd_store_close(sdfd_store *s); /* NULL is a no-op */
+void sdfd_store_close(sdfd_store *s); /* releases the lock; NULL is a no-op */
 
 /* Is the store readable (its marker file and directories)? 0, or an errno value. */
 int sdfd_store_probe(sdfd_store *s);
@@ -75,7 +82,10 @@ int sdfd_store_stat(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_s
  * item is damaged: err says how, quarantine it). Free meta->info and *data. */
 int sdfd_store_read(sdfd_store *s, sdfd_item_kind kind, const char *name, sdfd_sidecar *meta,
                     void **data, sdfd_stamp *stamp, char *err, size_t cap);
-/* Move the item's sidecar and data file to DIR/quarantine/ with a .why file saying `why`. */
+/* Move the item's sidecar and its data file to DIR/quarantine/, each with a .why file saying
+ * `why`. Only the item's own: a sidecar that parses names NAME.<hash>.<format> (any other
+ * file makes it damaged), and for one that does not, the data files named NAME.<hash>.<ext>
+ * go. Another item's file never moves. */
 void sdfd_store_quarantine(sdfd_store *s, sdfd_item_kind kind, const char *name,
                            const char *why);
 

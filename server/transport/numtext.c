@@ -150,8 +150,9 @@ static int decimal_exponent(double a)
 size_t sdfd_format_float(float f, char *out)
 {
     char *o = out;
-    if (!isfinite(f)) { /* JSON has no Inf or NaN; a first-order volume's plane extended
-                         * ~1e38 away can pass float32. The loops below would never end. */
+    if (!isfinite(f)) { /* JSON has no Inf or NaN; an uploaded first-order volume's steep
+                         * plane extended far out can pass float32. The loops below would
+                         * never end. */
         memcpy(o, "null", 4);
         return 4;
     }

@@ -12,6 +12,7 @@ client, urllib, hand-made requests) against docs/openapi.yaml (tests/api/apichec
 answer the document does not describe fails the request, and stop() fails as well."""
 import json
 import os
+import pwd
 import signal
 import struct
 import subprocess
@@ -32,9 +33,15 @@ DATA = os.environ.get("SDF_TEST_DATA", "tests/data")
 
 
 class Server:
-    def __init__(self, *args, wait_ready=True):
-        self.proc = subprocess.Popen([SDFD, "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0", *args],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    def __init__(self, *args, wait_ready=True, user=None, prefix=()):
+        """sdfd with args; as `user` (a name, with its primary group) when given, and run by
+        the command `prefix` (which must exec sdfd, so that signals reach it) when given."""
+        ids = {}
+        if user:
+            ids = {"user": user, "group": pwd.getpwnam(user).pw_gid, "extra_groups": []}
+        self.proc = subprocess.Popen(
+            [*prefix, SDFD, "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0", *args],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **ids)
         self.logs, self.ports = [], {}
         self._ready = threading.Event()
         self._reader = threading.Thread(target=self._read_log, daemon=True)

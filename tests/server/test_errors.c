@@ -36,6 +36,7 @@ static const struct {
     {SDFD_EBUSY, "EBUSY", 429, "too many requests"},
     {SDFD_EUNAVAILABLE, "EUNAVAILABLE", 503, "service unavailable (loading or shutting down)"},
     {SDFD_ESYNTAX, "ESYNTAX", 400, "malformed request"},
+    {SDFD_ENOSPACE, "ENOSPACE", 507, "the store is full"},
 };
 enum { N_EXPECTED = sizeof expected / sizeof expected[0] };
 

@@ -1,14 +1,15 @@
 """sdfd's store (--data-dir) with real processes and real files: a restart after SIGKILL
 serves the same bits; SIGKILL at random moments of uploads and bakes leaves every item whole
-(the old or the new version); two replicas on one directory see each other's writes; a byte
-budget keeps memory bounded while the answers stay exact; damaged store content is
-quarantined and the rest served; a bake interrupted by SIGKILL reads as failed afterwards;
-a store that becomes unreadable turns /readyz to 503; a long load from the store stalls no
-other client, on either protocol."""
+(the old or the new version); a second sdfd on the same directory refuses to start while the
+first holds it; a byte budget keeps memory bounded while the answers stay exact; damaged
+store content is quarantined and the rest served; a bake interrupted by SIGKILL reads as
+failed afterwards; a store that becomes unreadable turns /readyz to 503; a long load from
+the store stalls no other client, on either protocol."""
 import http.client
 import io
 import json
 import os
+import pwd
 import random
 import shutil
 import signal
@@ -23,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
-from harness import DATA, Server, metric, same_bits, wait_until  # noqa: E402
+from harness import DATA, SDFD, Server, metric, same_bits, wait_until  # noqa: E402
 
 SUBDIVIDE = os.path.join(os.path.dirname(__file__), "..", "bench", "subdivide.py")
 RNG = np.random.default_rng(7)
@@ -70,6 +71,13 @@ def volume_values(client, name):
     return client.query_volume(name, POINTS, form="octet")["distance"]
 
 
+def fnv1a64(data):
+    h = 0xcbf29ce484222325
+    for byte in data:
+        h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
 def quarantined(d):
     return sorted(f for f in os.listdir(os.path.join(d, "quarantine")) if not f.endswith(".why"))
 
@@ -84,8 +92,10 @@ class Store(unittest.TestCase):
             s.stop()
         shutil.rmtree(self.dir, ignore_errors=True)
 
-    def start(self, *args, data_dir=None):
-        s = Server("--data-dir", data_dir or self.dir, "--max-bake-queries", "50000000", *args)
+    def start(self, *args, data_dir=None, **how):
+        """sdfd on the store (how: Server's user and prefix)."""
+        s = Server("--data-dir", data_dir or self.dir, "--max-bake-queries", "50000000", *args,
+                   **how)
         self.servers.append(s)
         return s, sdfclient.Client(s.url)
 
@@ -183,53 +193,34 @@ class Store(unittest.TestCase):
             state["vol"] = vwhich[0]
             self.assertEqual(quarantined(self.dir), [], f"round {r}")
 
-    # ---- several replicas ----
+    # ---- one sdfd a store ----
 
-    def test_two_replicas(self):
-        a, ca = self.start()
-        b, cb = self.start()
-        ca.upload("fandisk", os.path.join(DATA, "fandisk.off"))
-        self.assertTrue(same_bits(distances(cb, "fandisk"), distances(ca, "fandisk")))
-        self.assertEqual([m["name"] for m in cb.meshes()], ["fandisk"])
-        ca.wait(ca.bake("fandisk", volume="vf", resolution=12))
-        self.assertTrue(same_bits(volume_values(cb, "vf"), volume_values(ca, "vf")))
-        ca.delete("fandisk")
-        t0 = time.time()
-        self.assertTrue(wait_until(lambda: self._missing(cb, "fandisk"), 5))
-        self.assertLess(time.time() - t0, 2.5)
-        # Replace on one replica while the other answers queries: old or new, never an error.
-        ca.upload("m", os.path.join(DATA, "bear.off"))
-        old = distances(cb, "m")
-        stop, answers, errors = threading.Event(), [], []
-
-        def query_loop():
-            c = sdfclient.Client(b.url)
-            while not stop.is_set():
-                try:
-                    answers.append(distances(c, "m"))
-                except Exception as e:  # noqa: BLE001 - every failure is what is counted
-                    errors.append(e)
-            c.close()
-        t = threading.Thread(target=query_loop)
-        t.start()
-        time.sleep(0.2)
-        ca.upload("m", os.path.join(DATA, "cow.off"))
-        new = distances(ca, "m")
-        wait_until(lambda: answers and same_bits(answers[-1], new), 5)
-        stop.set()
-        t.join()
-        self.assertEqual(errors, [])
-        self.assertTrue(all(same_bits(x, old) or same_bits(x, new) for x in answers))
-        self.assertTrue(same_bits(answers[-1], new))
-        self.assertTrue(same_bits(answers[0], old))
-
-    @staticmethod
-    def _missing(client, name):
+    def test_exclusive_lock(self):
+        """A second sdfd on the same --data-dir refuses to start, naming the holder and
+        --catalog; the first keeps serving; once it stops, a new one starts on the store."""
+        s, c = self.start()
+        c.upload("fandisk", os.path.join(DATA, "fandisk.off"))
+        before = distances(c, "fandisk")
+        second = subprocess.Popen([SDFD, "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0",
+                                   "--data-dir", self.dir], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.PIPE)
         try:
-            client.mesh(name)
-            return False
-        except sdfclient.SdfError as e:
-            return e.status == 404
+            _, err = second.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            second.kill()
+            second.communicate()
+            self.fail("a second sdfd on the same --data-dir kept running")
+        self.assertNotEqual(second.returncode, 0)
+        err = err.decode()
+        for piece in ("--catalog", "in use by another sdfd", f"pid {s.proc.pid} ", self.dir):
+            self.assertIn(piece, err)
+        self.assertTrue(same_bits(distances(c, "fandisk"), before))
+        c.upload("cube", os.path.join(DATA, "cube.ply"))  # and keeps writing
+        self.assertEqual(s.stop(), 0)
+        self.servers.remove(s)
+        s, c = self.start()
+        self.assertTrue(same_bits(distances(c, "fandisk"), before))
+        self.assertEqual([m["name"] for m in c.meshes()], ["cube", "fandisk"])
 
     def test_store_unreadable(self):
         s, c = self.start()
@@ -249,6 +240,78 @@ class Store(unittest.TestCase):
         finally:
             os.rename(away, self.dir)
         self.assertEqual(c._json("GET", "/readyz")["status"], "ready")
+
+    # ---- layout ----
+
+    def backdate(self, seconds):
+        """Every file of the store `seconds` older (past the start's grace for orphans)."""
+        then = time.time() - seconds
+        for root, _, files in os.walk(self.dir):
+            for f in files:
+                os.utime(os.path.join(root, f), (then, then))
+
+    def test_names_like_data_files(self):
+        """Names of the form NAME.<16 hex> (valid ones) are items like any other: a start long
+        after their upload keeps them (the scan once took their sidecars for data files)."""
+        s, c = self.start()
+        names = ["x.0123456789abcdef", "y.0123456789abcdef.off", "plain"]
+        for n in names:
+            self.assertEqual(put(s.ports["http"], f"/v1/meshes/{n}",
+                                 read(os.path.join(DATA, "cube.ply")))[0], 201)
+        c.wait(c.bake("plain", volume="v.0123456789abcdef", resolution=8))
+        before = {n: distances(c, n) for n in names}
+        values = volume_values(c, "v.0123456789abcdef")
+        self.kill(s)
+        self.backdate(11 * 60)
+        s, c = self.start()
+        self.assertEqual([m["name"] for m in c.meshes()], sorted(names))
+        self.assertEqual([v["name"] for v in c.volumes()], ["v.0123456789abcdef"])
+        for n, d in before.items():
+            self.assertTrue(same_bits(distances(c, n), d), n)
+        self.assertTrue(same_bits(volume_values(c, "v.0123456789abcdef"), values))
+        self.assertEqual([e for e in s.logs if e.get("event") == "store_cleanup"], [])
+        self.assertEqual(quarantined(self.dir), [])
+
+    def test_layout1_store(self):
+        """A store of layout 1 (data files beside the sidecars) is moved to layout 2 at start
+        and serves the same bits; a store of a layout newer than sdfd's is refused."""
+        s, c = self.start()
+        c.upload("fandisk", os.path.join(DATA, "fandisk.off"))
+        c.upload("x.0123456789abcdef", os.path.join(DATA, "cube.ply"))
+        c.wait(c.bake("fandisk", volume="vf", resolution=12))
+        before = {n: distances(c, n) for n in ("fandisk", "x.0123456789abcdef")}
+        values = volume_values(c, "vf")
+        self.kill(s)
+        # Back to layout 1: the same sidecars, the data files beside them.
+        for kind in ("meshes", "volumes"):
+            data = os.path.join(self.dir, kind, "data")
+            for f in os.listdir(data):
+                os.rename(os.path.join(data, f), os.path.join(self.dir, kind, f))
+            os.rmdir(data)
+        with open(os.path.join(self.dir, "sdfd-store.json"), "w") as fh:
+            fh.write('{"store":"sdfd","layout":1}\n')
+        self.backdate(11 * 60)
+        s, c = self.start()
+        for n, d in before.items():
+            self.assertTrue(same_bits(distances(c, n), d), n)
+        self.assertTrue(same_bits(volume_values(c, "vf"), values))
+        self.assertEqual(quarantined(self.dir), [])
+        with open(os.path.join(self.dir, "sdfd-store.json")) as fh:
+            self.assertEqual(json.load(fh)["layout"], 2)
+        self.assertEqual(sorted(os.listdir(os.path.join(self.dir, "meshes"))),
+                         ["data", "fandisk.json", "x.0123456789abcdef.json"])
+        self.assertEqual(len(os.listdir(os.path.join(self.dir, "meshes", "data"))), 2)
+        self.assertEqual(sorted(os.listdir(os.path.join(self.dir, "volumes"))), ["data", "vf.json"])
+        self.assertIn("store_migrate", [e.get("event") for e in s.logs])
+        self.assertEqual(s.stop(), 0)
+        self.servers.remove(s)
+        with open(os.path.join(self.dir, "sdfd-store.json"), "w") as fh:
+            fh.write('{"store":"sdfd","layout":3}\n')
+        r = subprocess.run([SDFD, "--http", "127.0.0.1:0", "--bin", "127.0.0.1:0", "--data-dir",
+                            self.dir], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                           timeout=30)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("layout 3, newer than this sdfd's (2)", r.stderr.decode())
 
     # ---- memory budget ----
 
@@ -314,29 +377,31 @@ class Store(unittest.TestCase):
             with open(os.path.join(kind_dir, name + ".json")) as fh:
                 return json.load(fh)
 
-        def rewrite(kind_dir, name, data):  # new data with a matching sidecar
+        def rewrite(kind_dir, name, data):  # new data with a matching sidecar, as sdfd names it
             meta = sidecar(kind_dir, name)
-            with open(os.path.join(kind_dir, meta["file"]), "wb") as fh:
+            os.remove(os.path.join(kind_dir, "data", meta["file"]))
+            h = fnv1a64(data)
+            meta.update(bytes=len(data), fnv1a64=f"{h:016x}",
+                        file=f"{name}.{h:016x}.{meta['format']}")
+            with open(os.path.join(kind_dir, "data", meta["file"]), "wb") as fh:
                 fh.write(data)
-            h = 0xcbf29ce484222325
-            for byte in data:
-                h = ((h ^ byte) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
-            meta.update(bytes=len(data), fnv1a64=f"{h:016x}")
             with open(os.path.join(kind_dir, name + ".json"), "w") as fh:
                 json.dump(meta, fh)
 
         rewrite(meshes, "garbage", b"ply\nthis is not a mesh\n" * 10)
-        path = os.path.join(meshes, sidecar(meshes, "unreadable")["file"])
+        path = os.path.join(meshes, "data", sidecar(meshes, "unreadable")["file"])
         os.remove(path)
         os.mkdir(path)  # root reads any file: a directory is what cannot be read as one
-        exr = read(os.path.join(volumes, sidecar(volumes, "vtrunc")["file"]))
+        exr = read(os.path.join(volumes, "data", sidecar(volumes, "vtrunc")["file"]))
         rewrite(volumes, "vtrunc", exr[:len(exr) // 2])  # a truncated EXR, hash and all
-        short = os.path.join(volumes, sidecar(volumes, "vshort")["file"])
+        short = os.path.join(volumes, "data", sidecar(volumes, "vshort")["file"])
         with open(short, "r+b") as fh:  # truncated under its sidecar
             fh.truncate(100)
         shutil.copy(os.path.join(meshes, "good.json"), os.path.join(meshes, "bad name!.json"))
         with open(os.path.join(meshes, "stray.txt"), "w") as fh:
             fh.write("not sdfd's")
+        with open(os.path.join(volumes, "data", "stray.bin"), "w") as fh:
+            fh.write("not sdfd's either")
         s, c = self.start()
         self.assertEqual([m["name"] for m in c.meshes()], ["good"])
         self.assertEqual([v["name"] for v in c.volumes()], ["vgood"])
@@ -348,7 +413,7 @@ class Store(unittest.TestCase):
             self.assertEqual(e.exception.status, 404)
         q = quarantined(self.dir)
         for piece in ("garbage.json", "unreadable.json", "vtrunc.json", "vshort.json",
-                      "bad name!.json", "stray.txt"):
+                      "bad name!.json", "stray.txt", "volumes-data-", "stray.bin"):
             self.assertTrue(any(piece in f for f in q), (piece, q))
         events = [e for e in s.logs if e.get("event") == "store_quarantine"]
         reasons = " ".join(e["message"] for e in events)
@@ -357,13 +422,130 @@ class Store(unittest.TestCase):
             self.assertIn(why, reasons)
         self.assertIn("EXR", reasons)
 
+    def test_quarantine_takes_only_its_own(self):
+        """A damaged sidecar that names another item's data file is quarantined with its own
+        item's data file only: the other item keeps its file and is served. A sidecar that
+        names another item's file with that file's own length and hash is damaged too, never
+        served as that item."""
+        s, c = self.start()
+        for n, f in (("a", "cube.ply"), ("b", "fandisk.off"), ("c", "cube.ply")):
+            c.upload(n, os.path.join(DATA, f))
+        c.wait(c.bake("b", volume="va", resolution=8))
+        c.wait(c.bake("b", volume="vb", resolution=10))
+        b_distances, vb_values = distances(c, "b"), volume_values(c, "vb")
+        self.kill(s)
+        meshes, volumes = (os.path.join(self.dir, k) for k in ("meshes", "volumes"))
+
+        def sidecar(kind_dir, name):
+            with open(os.path.join(kind_dir, name + ".json")) as fh:
+                return json.load(fh)
+
+        def point(kind_dir, name, other, **changes):  # name's sidecar names other's file
+            meta = sidecar(kind_dir, name)
+            meta.update(file=sidecar(kind_dir, other)["file"], **changes)
+            with open(os.path.join(kind_dir, name + ".json"), "w") as fh:
+                json.dump(meta, fh)
+
+        b_meta, vb_meta = sidecar(meshes, "b"), sidecar(volumes, "vb")
+        own = [sidecar(meshes, "a")["file"], sidecar(meshes, "c")["file"],
+               sidecar(volumes, "va")["file"]]  # the damaged items' own data files
+        point(meshes, "a", "b", fnv1a64="0" * 16)  # a hash mismatch: damaged
+        point(meshes, "c", "b", fnv1a64=b_meta["fnv1a64"], bytes=b_meta["bytes"],
+              format=b_meta["format"])
+        point(volumes, "va", "vb", bytes=3)  # a length mismatch: damaged
+        s, c = self.start()
+        self.assertTrue(same_bits(distances(c, "b"), b_distances))
+        self.assertTrue(same_bits(volume_values(c, "vb"), vb_values))
+        self.assertEqual([m["name"] for m in c.meshes()], ["b"])
+        self.assertEqual([v["name"] for v in c.volumes()], ["vb"])
+        for name in ("a", "c"):
+            with self.assertRaises(sdfclient.SdfError) as e:
+                c.mesh(name)
+            self.assertEqual(e.exception.status, 404)
+        self.assertTrue(os.path.exists(os.path.join(meshes, "data", b_meta["file"])))
+        self.assertTrue(os.path.exists(os.path.join(volumes, "data", vb_meta["file"])))
+        q = quarantined(self.dir)
+        for piece in ["a.json", "c.json", "va.json"] + own:
+            self.assertTrue(any(f.endswith(piece) for f in q), (piece, q))
+        for f in (b_meta["file"], vb_meta["file"]):
+            self.assertFalse(any(f in x for x in q), (f, q))
+        reasons = " ".join(e["message"] for e in s.logs if e.get("event") == "store_quarantine")
+        self.assertIn("not its own", reasons)
+
+    def test_unreadable_files(self):
+        """A store file sdfd may not read (mode 000 while sdfd is not root) answers 503
+        EUNAVAILABLE naming it, and stays where it is: not quarantined, and its item's data
+        file not taken for an orphan; the rest is served, and so is it once readable."""
+        user = "nobody" if os.geteuid() == 0 else None  # root reads mode 000 files
+        if user:
+            entry = pwd.getpwnam(user)
+            os.chown(self.dir, entry.pw_uid, entry.pw_gid)
+        s, c = self.start(user=user)
+        for n, f in (("sidecar-locked", "cube.ply"), ("data-locked", "fandisk.off"),
+                     ("fine", "cow.off")):
+            c.upload(n, os.path.join(DATA, f))
+        before = {n: distances(c, n) for n in ("sidecar-locked", "data-locked", "fine")}
+        self.kill(s)
+        self.backdate(11 * 60)  # old enough for the start to delete orphans
+        meshes = os.path.join(self.dir, "meshes")
+        with open(os.path.join(meshes, "sidecar-locked.json")) as fh:
+            kept = os.path.join(meshes, "data", json.load(fh)["file"])
+        with open(os.path.join(meshes, "data-locked.json")) as fh:
+            locked = [os.path.join(meshes, "sidecar-locked.json"),
+                      os.path.join(meshes, "data", json.load(fh)["file"])]
+        for path in locked:
+            os.chmod(path, 0)
+        s, c = self.start(user=user)
+        self.assertEqual(quarantined(self.dir), [])
+        for path in locked + [kept]:
+            self.assertTrue(os.path.exists(path), path)
+        self.assertTrue(same_bits(distances(c, "fine"), before["fine"]))
+        for name, path in zip(("sidecar-locked", "data-locked"), locked):
+            with self.assertRaises(sdfclient.SdfError) as e:
+                distances(c, name)
+            self.assertEqual((e.exception.status, e.exception.code), (503, "EUNAVAILABLE"))
+            self.assertIn(f"cannot read {path}: Permission denied", e.exception.message)
+        self.assertEqual(c._json("GET", "/readyz")["status"], "ready")
+        for path in locked:
+            os.chmod(path, 0o644)
+        for n, d in before.items():
+            self.assertTrue(same_bits(distances(c, n), d), n)
+
+    def test_store_full(self):
+        """A write that does not fit the store's file system (a 1 MiB tmpfs, mounted over the
+        store in sdfd's own mount namespace) answers 507 ENOSPACE: a PUT, and a bake's job
+        fails with it. It leaves no partial file behind (a small PUT fits afterwards); what
+        the store held is served, and /readyz stays ready."""
+        mount = ["unshare", "--mount", "--propagation", "private", "sh", "-c",
+                 'mount -t tmpfs -o size=1m,mode=0755 tmpfs "$0" && exec "$@"', self.dir]
+        s, c = self.start(prefix=mount)
+        c.upload("fandisk", os.path.join(DATA, "fandisk.off"))  # 376 kB
+        before = distances(c, "fandisk")
+        status, body = put(s.ports["http"], "/v1/meshes/elephant",
+                           read(os.path.join(DATA, "refined_elephant.off")))  # 4 MB
+        error = json.loads(body)["error"]
+        self.assertEqual((status, error["code"]), (507, "ENOSPACE"))
+        self.assertIn("the store is full: cannot write", error["message"])
+        self.assertIn("No space left on device", error["message"])
+        with self.assertRaises(sdfclient.SdfError) as e:
+            c.wait(c.bake("fandisk", volume="big", resolution=128))  # an 8 MB volume
+        self.assertEqual(e.exception.code, "ENOSPACE")
+        self.assertIn("the store is full", e.exception.message)
+        self.assertTrue(same_bits(distances(c, "fandisk"), before))
+        c.upload("cow", os.path.join(DATA, "cow.off"))  # 183 kB: fits once nothing is left over
+        self.assertEqual([m["name"] for m in c.meshes()], ["cow", "fandisk"])
+        self.assertEqual([v["name"] for v in c.volumes()], [])
+        self.assertEqual(c._json("GET", "/readyz")["status"], "ready")
+        self.assertEqual(os.listdir(self.dir), [])  # the tmpfs was sdfd's alone
+
     # ---- loads ----
 
     def test_load_does_not_stall(self):
-        """While a replica loads a 1.4M-triangle mesh on demand, its other clients' queries of
-        a resident mesh, over HTTP (new connections, so both I/O threads are probed) and the
-        binary protocol, are answered in well under the load's time; the queries that waited
-        for the load then get the answer the writer gives, a refusal included."""
+        """While sdfd loads a 1.4M-triangle mesh from the store on demand, its other clients'
+        queries of a resident mesh, over HTTP (new connections, so both I/O threads are
+        probed) and the binary protocol, are answered in well under the load's time; the
+        queries that waited for the load then get the answer the writer gave, a refusal
+        included."""
         work = tempfile.mkdtemp(prefix="sdfd-big-")
         self.addCleanup(shutil.rmtree, work, True)
         big = os.path.join(work, "big.off")
@@ -376,9 +558,6 @@ class Store(unittest.TestCase):
         else:
             shutil.copyfile(os.path.join(DATA, "refined_elephant.off"), big)
         a, ca = self.start()
-        b, cb = self.start()  # never looks "big" up before the test's queries
-        cb.upload("small", os.path.join(DATA, "fandisk.off"))
-        small = distances(cb, "small")
         self.assertEqual(put(a.ports["http"], "/v1/meshes/big", read(big), timeout=600)[0], 201)
         want = distances(ca, "big")
         bad = POINTS.copy()
@@ -386,6 +565,13 @@ class Store(unittest.TestCase):
         with self.assertRaises(sdfclient.SdfError) as e:
             ca.query("big", bad)
         refusal = (e.exception.status, e.exception.code, e.exception.message)
+        self.assertEqual(a.stop(), 0)
+        self.servers.remove(a)
+        # "small" (pinned, from --mesh) fills the budget, so the start leaves "big" in the
+        # store: the test's queries are its first use.
+        b, cb = self.start("--mesh", "small=" + os.path.join(DATA, "fandisk.off"),
+                           "--max-resident-bytes", "1")
+        small = distances(cb, "small")
 
         def query(proto, points):
             if proto == "http":
@@ -465,9 +651,11 @@ class Store(unittest.TestCase):
         self.assertIn(job, [j["id"] for j in c.jobs()])
         with self.assertRaises(sdfclient.SdfError):
             c.volume("slow")
-        # A second replica reads the record of a job it never ran.
-        b, cb = self.start()
-        self.assertEqual(cb.job(job)["state"], "failed")
+        # The record stays, failed, across the next start.
+        self.assertEqual(s.stop(), 0)
+        self.servers.remove(s)
+        s, c = self.start()
+        self.assertEqual(c.job(job)["state"], "failed")
 
 
 if __name__ == "__main__":

@@ -216,19 +216,37 @@ class Volumes(unittest.TestCase):
         self.assertFalse(np.array_equal(a, b))
         self.assertLess(np.abs(a - b).max(), 0.1 * np.abs(a).max())
 
-    def test_plane_extended_past_float(self):
-        # A first-order volume extends its boundary planes: ~3e38 away that passes float32.
-        # The octet form carries the infinity; JSON, which has none, says null (its
-        # formatter used to loop forever on it, hanging the request).
+    def test_coordinates_as_mesh_queries(self):
+        """A volume query holds its points to the mesh queries' rule, on both protocols and in
+        every body form: NaN, Inf or beyond +-1e18 is 422 ENONFINITE naming the point, and
+        1e18 itself is answered, finite: a first-order volume's boundary planes extended that
+        far stay inside float32."""
         self.bake(volume="far1", resolution=8, order=1)
-        far = [[3e38, 3e38, 3e38], [0, 0, 0]]
-        octet = self.c.query_volume("far1", far, "trilinear", form="octet")["distance"]
-        self.assertTrue(np.isinf(octet[0]) and np.isfinite(octet[1]), octet)
+        rule = "has a coordinate that is NaN, Inf or beyond +-1e18"
+        for far in (1e30, 3e38, 2e18, -1e19, float("inf"), float("nan")):
+            points = np.array([[0, 0, 0], [0, far, 0]], np.float32)
+            for form in ("octet", "npy", "json"):
+                if form == "json" and not np.isfinite(far):
+                    continue  # JSON has no Inf or NaN to send
+                with self.assertRaises(sdfclient.SdfError, msg=(far, form)) as e:
+                    self.c.query_volume("far1", points, form=form)
+                self.assertEqual((e.exception.status, e.exception.code), (422, "ENONFINITE"))
+                self.assertIn("point 1 " + rule, e.exception.message)
+            for what in (False, True):
+                with self.assertRaises(sdfclient.SdfError, msg=(far, what)) as e:
+                    self.bin.query_volume("far1", points, "default", what)
+                self.assertEqual((e.exception.status, e.exception.code), (422, "ENONFINITE"))
+                self.assertIn("point 1 " + rule, e.exception.message)
+        edge = [[1e18, -1e18, 1e18], [0, 0, 0]]
+        octet = self.c.query_volume("far1", edge, "trilinear", form="octet")["distance"]
+        self.assertTrue(np.all(np.isfinite(octet)), octet)
+        self.assertEqual(self.bin.query_volume("far1", edge, "trilinear")["distance"].tobytes(),
+                         octet.tobytes())
         text = self.c._request("POST", "/v1/volumes/far1/query",
-                               json.dumps({"points": far, "interpolation": "trilinear"}),
+                               json.dumps({"points": edge, "interpolation": "trilinear"}),
                                {"Content-Type": "application/json"})[1]
-        self.assertTrue(text.startswith(b'{"distance":[null,'), text)
-        self.assertEqual(np.float32(json.loads(text)["distance"][1]), octet[1])
+        self.assertEqual(np.array(json.loads(text)["distance"], np.float32).tobytes(),
+                         octet.tobytes())
         self.c.delete_volume("far1")
 
     def test_cancel_and_forget(self):

@@ -336,6 +336,13 @@ static void test_evaluation(const sdf_volume *v, const char *name)
     size_t bad_index = 99;
     CHECK(sdf_volume_eval(v, nan_point, 2, SDF_VOLUME_TRILINEAR, val, NULL, &bad_index) ==
                   SDF_ENONFINITE && bad_index == 1, "NaN must be refused with its index");
+    /* Finite but beyond +-SDF_MAX_COORDINATE: refused as sdf_query refuses it; the edge is not. */
+    float far_points[9] = {0, 0, 0, 0, 0, 0, 0, 0, -2e18f};
+    CHECK(sdf_volume_eval(v, far_points, 3, SDF_VOLUME_DEFAULT, val, NULL, &bad_index) ==
+                  SDF_ENONFINITE && bad_index == 2, "-2e18 must be refused with its index");
+    far_points[8] = -1e18f;
+    CHECK(sdf_volume_eval(v, far_points, 3, SDF_VOLUME_DEFAULT, val, NULL, &bad_index) == 0 &&
+                  isfinite(val[2]), "1e18 must be answered, finite");
     free(p), free(val), free(grad);
 }
 

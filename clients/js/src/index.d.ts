@@ -228,7 +228,7 @@ export type ErrorCode = 'EINVAL' | 'ENOMEM' | 'EIO' | 'EFORMAT' | 'EPARSE' | 'ET
 export declare class SdfError extends Error {
   constructor(status: number, code: string, message: string);
   readonly name: 'SdfError';
-  /** The HTTP status (400, 401, 404, 413, 422, 429, 503, ...). */
+  /** The HTTP status (400, 401, 404, 413, 422, 429, 503, 507, ...). */
   status: number;
   /** The server's error code (an ErrorCode: "ENOTFOUND", "EINVAL", ...), or "EUNKNOWN". */
   code: string;

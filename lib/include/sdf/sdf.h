@@ -108,7 +108,8 @@ typedef enum sdf_sign_method {
 int sdf_sign_from_name(const char *name, sdf_sign_method *out);
 const char *sdf_sign_name(sdf_sign_method method);
 
-/* The largest coordinate magnitude of a mesh vertex or a query point. Beyond it Embree's
+/* The largest coordinate magnitude of a mesh vertex or a query point (of a mesh or a volume:
+ * one rule for both). Beyond it Embree's
  * builder and rays fail their own checks (its limit is 1.8e18), squared float distances
  * could overflow, and double precision no longer tells a small mesh's features apart. */
 #define SDF_MAX_COORDINATE 1e18
@@ -459,8 +460,8 @@ const char *sdf_volume_filter_name(sdf_volume_filter filter);
  * node lookup clamps to the boundary (as a GPU sampler's clamp-to-edge): zero order
  * continues the boundary values, first order extends the boundary planes (hermite: the
  * boundary's values and derivatives) linearly. SDF_EINVAL for an unknown filter or HERMITE
- * on a zero-order volume; SDF_ENONFINITE (and *bad_index) for a NaN or Inf coordinate,
- * before writing anything. Large batches run on all CPUs (the same floats either way).
+ * on a zero-order volume; SDF_ENONFINITE (and *bad_index) for a coordinate that is NaN, Inf
+ * or beyond +-SDF_MAX_COORDINATE (as sdf_query), before writing anything. Large batches run on all CPUs (the same floats either way).
  * Thread-safe. */
 int sdf_volume_eval(const sdf_volume *volume, const float *points, size_t count,
                     sdf_volume_filter filter, float *value, float *gradient, size_t *bad_index);
