@@ -223,7 +223,8 @@ export interface VolumeDownload {
  * is "EUNKNOWN". */
 export type ErrorCode = 'EINVAL' | 'ENOMEM' | 'EIO' | 'EFORMAT' | 'EPARSE' | 'ETRUNC' | 'ELIMIT'
   | 'EEMPTY' | 'ENONFINITE' | 'EINDEX' | 'EBVH' | 'ENOTFOUND' | 'ECANCELED' | 'EPROTO'
-  | 'EUNAUTHORIZED' | 'EMETHOD' | 'ELENGTH' | 'EBUSY' | 'EUNAVAILABLE' | 'ESYNTAX';
+  | 'EUNAUTHORIZED' | 'EMETHOD' | 'ELENGTH' | 'EBUSY' | 'EUNAVAILABLE' | 'ESYNTAX'
+  | 'ENOSPACE';
 
 export declare class SdfError extends Error {
   constructor(status: number, code: string, message: string);

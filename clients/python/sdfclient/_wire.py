@@ -20,7 +20,8 @@ Interpolation = Literal["default", "trilinear", "nearest", "hermite"]
 on a zero-order volume is refused (422)."""
 ErrorCode = Literal["EINVAL", "ENOMEM", "EIO", "EFORMAT", "EPARSE", "ETRUNC", "ELIMIT", "EEMPTY",
                    "ENONFINITE", "EINDEX", "EBVH", "ENOTFOUND", "ECANCELED", "EPROTO",
-                   "EUNAUTHORIZED", "EMETHOD", "ELENGTH", "EBUSY", "EUNAVAILABLE", "ESYNTAX"]
+                   "EUNAUTHORIZED", "EMETHOD", "ELENGTH", "EBUSY", "EUNAVAILABLE", "ESYNTAX",
+                   "ENOSPACE"]
 """The codes of sdfd's refusals (SdfError.code; docs/api.md, "Errors"); the HTTP client adds
 "EUNKNOWN" for an answer that is not an error body."""
 Op = Union[Mapping[str, float], Tuple[str, float]]
