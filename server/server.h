@@ -15,8 +15,6 @@
 #include "volumes.h"
 #include "workers.h"
 
-#define SDFD_VERSION "0.1.0"
-
 typedef struct sdfd_server {
     sdfd_config cfg;
     sdfd_registry *registry;
