@@ -113,6 +113,7 @@ class Attack(threading.Thread):
     def __init__(self, step):
         super().__init__(daemon=True)
         self.step, self.stop, self.lived, self.errors = step, threading.Event(), [], []
+        self.opened = 0  # connections its first step opened
 
     def run(self):
         try:
@@ -134,6 +135,7 @@ def trickle(port, prefix, start_bytes=b""):
             s.setblocking(False)
             sel.register(s, selectors.EVENT_READ)
             conns.append([s, time.time(), 0])
+        attack.opened = attack.opened or len(conns)
         open_ = {c[0]: c for c in conns}
         next_byte = time.time()
         while open_ and not attack.stop.is_set():
@@ -222,9 +224,14 @@ class Limits(unittest.TestCase):
         returns the finished attack, stopped once `settled(attack)` (if given) holds or 10 s
         after the measurement."""
         idle_http, idle_bin, n_idle = self.prober.medians(3)
+        pid = self.server.proc.pid
+        fds = open_fds(pid)
         attack = Attack(step)
         attack.start()
-        time.sleep(0.3)  # the attack's connections are open
+        # Measured once sdfd has accepted the attack's connections (a descriptor each).
+        self.assertTrue(wait_until(lambda: attack.opened and
+                                   open_fds(pid) >= fds + attack.opened, 30),
+                        f"sdfd did not accept the attack's {attack.opened} connections")
         http_s, bin_s, n = self.prober.medians(seconds)
         if settled:
             wait_until(lambda: settled(attack), 10)
