@@ -26,6 +26,7 @@
 #include "body.h"
 #include "errors.h"
 #include "filterparams.h"
+#include "httpframing.h"
 #include "httpreq.h"
 #include "httpslice.h"
 #include "httpvolumes.h"
@@ -152,6 +153,9 @@ static int authorized(const request *req)
 static enum MHD_Result admit(request *req, const char *url)
 {
     sdfd_server *srv = req->srv;
+    char framing[256];
+    if (sdfd_http_framing_check(req->conn, framing, sizeof framing))
+        return sdfd_http_error(req, SDFD_ESYNTAX, "%s", framing);
     int route = parse_route(req, url);
     if (route == -1)
         return sdfd_http_error(req, SDF_ENOTFOUND, "no route %s", url);
