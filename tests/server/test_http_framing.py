@@ -2,7 +2,7 @@
 client library, writes the header fields. A request two parsers could frame two ways is
 answered 400 ESYNTAX from its headers and its connection closed, so that no byte after the
 headers is taken for a request (server/httpframing.c):
-  - Content-Length twice with different values (before the check: the first was used, 201);
+  - Content-Length twice with different values (an upload among them: nothing is stored);
   - Content-Length with Transfer-Encoding, in either order;
   - white space between a field name and its colon ("Transfer-Encoding : chunked", a tab).
 Requests smuggled behind each are never answered. What libmicrohttpd 0.9.75 refuses itself is
