@@ -15,9 +15,9 @@
 #
 #   deploy/test.sh [PART...]       (default: all four; run as root)
 #
-# It installs what it needs (apt, and the npm package kubernetes-models into
-# deploy/k8s/check/node_modules), builds build/server/sdfd if missing, and makes the Debian
-# base image with deploy/base-image.sh if missing. Ends with `deploy: N passed, N failed`.
+# It installs the Debian packages it needs (apt), builds build/server/sdfd if missing, and
+# makes the Debian base image with deploy/base-image.sh if missing; the npm packages of
+# deploy/k8s/check (kubernetes-models) come from .ci/deps. Ends with `deploy: N passed, N failed`.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -279,8 +279,11 @@ PYEOF
 part_k8s() {
     deps yamllint python3-kubernetes python3-yaml
     command -v node >/dev/null || deps nodejs npm
-    (cd deploy/k8s/check && npm ci --no-audit --no-fund --loglevel=error >/dev/null) ||
-        { check "npm ci in deploy/k8s/check" false; return; }
+    # kubernetes-models: .ci/deps installs it from the committed lock file
+    cmp -s deploy/k8s/check/package-lock.json deploy/k8s/check/node_modules/.installed-lock.json ||
+        { echo "deploy/k8s/check/node_modules is missing or was not installed from" \
+               "package-lock.json: run .ci/deps (it runs npm ci there)"
+          check "deploy/k8s/check/node_modules from package-lock.json" false; return; }
     shopt -s nullglob
     local manifests=(deploy/k8s/*.yaml deploy/podman/*.yaml) bad
     check "yamllint" yamllint -s -c deploy/k8s/check/yamllint.yaml "${manifests[@]}"

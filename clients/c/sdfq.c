@@ -112,7 +112,7 @@ static const char *const global_options = "server: bin: bin-tls cacert: token: t
 
 static void usage(FILE *f)
 {
-    fprintf(f, "usage: sdfq COMMAND [options] [arguments]   (sdfq COMMAND --help)\n"
+    fprintf(f, "usage: sdfq COMMAND [options] [arguments]   (sdfq COMMAND --help; sdfq --version)\n"
                "Commands:\n");
     for (size_t i = 0; i < sizeof commands / sizeof *commands; i++)
         fprintf(f, "  %s\n", commands[i].help + strlen("usage: sdfq "));
@@ -241,6 +241,10 @@ static int find_command(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
+    if (argc == 2 && !strcmp(argv[1], "--version")) {
+        printf("sdfq %s\n", SDFD_VERSION);
+        return SDFQ_OK;
+    }
     int at = find_command(argc, argv);
     if (!at) {
         int help = argc > 1 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"));

@@ -67,6 +67,7 @@ static void usage(FILE *out)
         fprintf(out, "  %-28s %s\n  %-28s   [env %s]\n", left, s->help, "", s->env);
     }
     fprintf(out, "  %-28s %s\n", "--help", "show this help");
+    fprintf(out, "  %-28s %s\n", "--version", "print the version and exit");
 }
 
 static int add_mesh(sdfd_config *cfg, const char *spec, const char *origin)
@@ -179,6 +180,10 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
     for (int a = 1; a < argc; a++) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             usage(stdout);
+            return 1;
+        }
+        if (!strcmp(argv[a], "--version")) {
+            printf("sdfd %s\n", SDFD_VERSION);
             return 1;
         }
         const setting *s = NULL;

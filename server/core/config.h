@@ -45,8 +45,8 @@ typedef struct sdfd_config {
     int bin_tls;                  /* the binary protocol over TLS too, same certificate */
 } sdfd_config;
 
-/* Fill `cfg` from argv and the environment. Returns 0; 1 if --help was printed (exit 0);
- * -1 after printing a clear message to stderr (exit non-zero). */
+/* Fill `cfg` from argv and the environment. Returns 0; 1 if --help or --version was printed
+ * (exit 0); -1 after printing a clear message to stderr (exit non-zero). */
 int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv);
 
 /* The largest binary payload the server reads: a QUERY of --max-points points, with room for

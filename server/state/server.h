@@ -14,8 +14,6 @@
 #include "state/volumes.h"
 #include "state/workers.h"
 
-#define SDFD_VERSION "0.1.0"
-
 typedef struct sdfd_server {
     sdfd_config cfg;
     sdfd_registry *registry;

@@ -30,6 +30,7 @@
 #include "ops/dispatch.h"
 #include "ops/urlargs.h"
 #include "transport/body.h"
+#include "transport/httpframing.h"
 #include "transport/httpquery.h"
 #include "transport/httpreq.h"
 #include "transport/httpwatch.h"
@@ -85,6 +86,9 @@ static enum MHD_Result admit_operation(request *req, const char *url)
 static enum MHD_Result admit(request *req, const char *url)
 {
     sdfd_server *srv = req->srv;
+    char framing[256];
+    if (sdfd_http_framing_check(req->conn, framing, sizeof framing))
+        return sdfd_http_error(req, SDFD_ESYNTAX, "%s", framing);
     enum MHD_Result r = admit_operation(req, url);
     if (r != MHD_YES || req->answered || !(req->op->flags & SDFD_OP_BODY))
         return r;

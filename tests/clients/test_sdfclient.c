@@ -567,30 +567,45 @@ static void test_fake_server(void)
     free(p);
 }
 
-int main(void)
+/* The cases on one plain connection to the demo server, each its own. */
+#define PLAIN_CASE(fn, test)                                                               \
+    static void fn(void)                                                                   \
+    {                                                                                      \
+        sdfc_client *c = open_client(port, NULL);                                          \
+        if (c)                                                                             \
+            test(c);                                                                       \
+        sdfc_close(c);                                                                     \
+    }
+PLAIN_CASE(case_hello_and_meshes, test_hello_and_meshes)
+PLAIN_CASE(case_pipelining, test_pipelining)
+PLAIN_CASE(case_filtered, test_filtered)
+PLAIN_CASE(case_refusals, test_refusals)
+
+static const check_case cases[] = {
+    {"hello_and_meshes", case_hello_and_meshes},
+    {"pipelining", case_pipelining},
+    {"filtered", case_filtered},
+    {"refusals", case_refusals},
+    {"auth", test_auth},
+    {"tls", test_tls},
+    {"resend", test_resend},
+    {"fake_server", test_fake_server},
+};
+
+int main(int argc, char **argv)
 {
+    int listing = argc == 2 && !strcmp(argv[1], "--list");
     ca_file = getenv("SDFC_TEST_CA");
     other_ca_file = getenv("SDFC_TEST_OTHER_CA");
-    if (parse_addr("SDFC_TEST_TLS_BIN", &tls_port) ||
-        parse_addr("SDFC_TEST_ELSEWHERE_BIN", &elsewhere_port) ||
-        parse_addr("SDFC_TEST_BIN", &port) || parse_addr("SDFC_TEST_AUTH_BIN", &auth_port) ||
-        !ca_file || !other_ca_file) {
+    if (!listing && (parse_addr("SDFC_TEST_TLS_BIN", &tls_port) ||
+                     parse_addr("SDFC_TEST_ELSEWHERE_BIN", &elsewhere_port) ||
+                     parse_addr("SDFC_TEST_BIN", &port) ||
+                     parse_addr("SDFC_TEST_AUTH_BIN", &auth_port) || !ca_file ||
+                     !other_ca_file)) {
         fprintf(stderr, "test_sdfclient: set SDFC_TEST_BIN, SDFC_TEST_AUTH_BIN, "
                         "SDFC_TEST_TLS_BIN, SDFC_TEST_ELSEWHERE_BIN (host:port), SDFC_TEST_CA "
                         "and SDFC_TEST_OTHER_CA (tests/clients/run_sdfclient.py does)\n");
         return 1;
     }
-    sdfc_client *c = open_client(port, NULL);
-    if (c) {
-        test_hello_and_meshes(c);
-        test_pipelining(c);
-        test_filtered(c);
-        test_refusals(c);
-    }
-    sdfc_close(c);
-    test_auth();
-    test_tls();
-    test_resend();
-    test_fake_server();
-    return check_finish("sdfclient");
+    return check_main("sdfclient", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

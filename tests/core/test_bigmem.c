@@ -9,7 +9,7 @@
 #include "../common/check.h"
 #include "core/bigmem.h"
 
-int main(void)
+static void test_sizes(void)
 {
     const size_t mib = (size_t)1 << 20;
     const size_t sizes[] = {1, 4096, 2 * mib - 1, 2 * mib, 2 * mib + 1, 5 * mib + 123, 64 * mib};
@@ -33,5 +33,13 @@ int main(void)
     CHECK(sdf__big_alloc(SIZE_MAX) == NULL, "SIZE_MAX bytes were given");
     CHECK(sdf__big_alloc(SIZE_MAX - mib) == NULL, "SIZE_MAX - 1 MiB bytes were given");
     sdf__big_free(NULL);
-    return check_finish("bigmem");
+}
+
+static const check_case cases[] = {
+    {"sizes", test_sizes},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("bigmem", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -6,7 +6,7 @@
 
 #include "../common/check.h"
 
-int main(void)
+static void test_table(void)
 {
     static const int codes[] = {
 #define CODE(name, value, msg) SDF_##name,
@@ -40,5 +40,13 @@ int main(void)
     sdf_sign_method m;
     CHECK(sdf_sign_from_name("bogus", &m) == SDF_EINVAL && sdf_sign_from_name(NULL, &m) == SDF_EINVAL,
           "bad sign name accepted");
-    return check_finish("test_errors");
+}
+
+static const check_case cases[] = {
+    {"table", test_table},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("errors", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

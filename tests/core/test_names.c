@@ -78,7 +78,7 @@ static void check_pair(const pair *p)
           "%s: a value outside the enum is not \"?\"", p->what);
 }
 
-int main(void)
+static void test_round_trips(void)
 {
     const pair pairs[] = {
         {"format", 5, format_from, format_to},
@@ -90,8 +90,12 @@ int main(void)
     };
     for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++)
         check_pair(&pairs[i]);
-    /* The spellings the server and the docs use, and the last value of each enum (the
-     * counts above must not fall short of an enum). */
+}
+
+/* The spellings the server and the docs use, and the last value of each enum (the counts
+ * above must not fall short of an enum). */
+static void test_spellings(void)
+{
     sdf_format f = SDF_FORMAT_OBJ;
     CHECK(sdf_format_from_name("AUTO", &f) == 0 && f == SDF_FORMAT_AUTO, "format auto");
     CHECK(sdf_format_from_name("Off", &f) == 0 && f == SDF_FORMAT_OFF, "format OFF");
@@ -106,5 +110,14 @@ int main(void)
     CHECK(sdf_volume_filter_from_name("NEAREST", &vf) == 0 && vf == SDF_VOLUME_NEAREST, "nearest");
     sdf_volume_file t = SDF_VOLUME_EXR;
     CHECK(sdf_volume_file_from_name("Raw", &t) == 0 && t == SDF_VOLUME_RAW, "raw");
-    return check_finish("test_names");
+}
+
+static const check_case cases[] = {
+    {"round_trips", test_round_trips},
+    {"spellings", test_spellings},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("names", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -263,13 +263,26 @@ static void runs(void)
     sdf_volume_destroy(in);
 }
 
-int main(void)
+static void test_accuracy_64(void)
 {
     accuracy(64, 0, field_case_count, limits);
+}
+
+static void test_accuracy_128(void)
+{
     accuracy(128, 0, 1, &limits128);
-    caveats();
-    bad_input();
-    names();
-    runs();
-    return check_finish("field");
+}
+
+static const check_case cases[] = {
+    {"accuracy_64", test_accuracy_64},
+    {"accuracy_128", test_accuracy_128},
+    {"caveats", caveats},
+    {"bad_input", bad_input},
+    {"names", names},
+    {"runs", runs},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("field", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

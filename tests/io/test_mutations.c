@@ -6,9 +6,10 @@
  * an error code; it must do nothing else: no crash, no read or write out of bounds, no leak
  * (the sanitizer build runs this too, which is where those show), no code outside the
  * documented ones, and no diag without a message. The damage is deterministic (a fixed
- * seed), so a failure reproduces; MUTATIONS_ROUNDS=N in the environment runs N rounds per
- * seed input instead of the default, for longer hunts, and MUTATIONS_DUMP=FILE writes each
- * damaged input there before it is read (after a crash, FILE holds the culprit). */
+ * seed for each input), so a failure reproduces, in the whole run or its case alone;
+ * MUTATIONS_ROUNDS=N in the environment runs N rounds per seed input instead of the
+ * default, for longer hunts, and MUTATIONS_DUMP=FILE writes each damaged input there before
+ * it is read (after a crash, FILE holds the culprit). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -217,9 +218,13 @@ static void read_body(const unsigned char *data, size_t len, void *ctx)
     free(body);
 }
 
-/* Damaged copies of `seed`, each handed to `read`. */
+/* Damaged copies of `seed`, each handed to `read`. The damage starts from a state of its
+ * own, made from `what`, so a case run alone damages its inputs as the whole run does. */
 static void hammer(const char *what, const void *seed, size_t n, reader_fn read, void *ctx)
 {
+    rng.state = 0x5eed5eedu;
+    for (const char *c = what; *c; c++)
+        rng.state = (rng.state ^ (unsigned char)*c) * 0x100000001b3u; /* FNV-1a */
     size_t cap = 2 * n + 256;
     unsigned char *buf = malloc(cap);
     CHECK(buf != NULL, "out of memory");
@@ -265,7 +270,7 @@ static void mesh_file(const char *name, sdf_format format)
 static const char small_off[] = "OFF\n# a tetrahedron\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
                                 "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
 
-int main(void)
+static void test_meshes(void)
 {
     mesh_file("cube.ply", SDF_FORMAT_PLY);
     mesh_file("cube_binary.ply", SDF_FORMAT_PLY);
@@ -285,7 +290,10 @@ int main(void)
     }
     sdf_format stl_format = SDF_FORMAT_STL;
     hammer("binary.stl", stl, sizeof stl, read_mesh, &stl_format);
+}
 
+static void test_npy(void)
+{
     /* A (5, 3) float32 .npy. */
     char npy[256];
     size_t shape[2] = {5, 3};
@@ -298,7 +306,10 @@ int main(void)
     hammer("points.npy", npy, (size_t)head + 60, read_npy, NULL);
     sdfd_form npy_form = SDFD_FORM_NPY;
     hammer("points.npy as a body", npy, (size_t)head + 60, read_body, &npy_form);
+}
 
+static void test_exr(void)
+{
     /* EXR volumes: a zero-order and a packed first-order bake of the demo mesh. */
     sdf_mesh *demo = NULL;
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo mesh");
@@ -317,7 +328,10 @@ int main(void)
         sdf_volume_destroy(v);
     }
     sdf_mesh_release(demo);
+}
 
+static void test_frames(void)
+{
     /* Binary protocol frames: a filtered QUERY and a VOLUME_QUERY. */
     float pts[9] = {0, 0, 0, 1, 2, 3, -1, 0.5f, 4};
     unsigned char frame[512];
@@ -332,7 +346,10 @@ int main(void)
     fl = sdf_proto_encode_volume_query(frame, sizeof frame, 10, &vq);
     CHECK(fl > 0, "encode volume query");
     hammer("VOLUME_QUERY frame", frame, fl, read_frame, NULL);
+}
 
+static void test_bodies(void)
+{
     /* HTTP query bodies. */
     static const char json[] =
         "{\"points\": [[0, 0, 0], [1.5e-3, -2, 3E2], [0.1, 0.2, 0.3]], \"mode\": \"filtered\", "
@@ -341,6 +358,19 @@ int main(void)
     hammer("JSON body", json, sizeof json - 1, read_body, &json_form);
     static const char flat[] = "{\"points\": [0.5, 1, -2.25e1, 3, 4, 5], \"mode\": \"closest\"}";
     hammer("flat JSON body", flat, sizeof flat - 1, read_body, &json_form);
+    float pts[9] = {0, 0, 0, 1, 2, 3, -1, 0.5f, 4};
     hammer("octet body", pts, sizeof pts, read_body, &octet_form);
-    return check_finish("mutations");
+}
+
+static const check_case cases[] = {
+    {"meshes", test_meshes},
+    {"npy", test_npy},
+    {"exr", test_exr},
+    {"frames", test_frames},
+    {"bodies", test_bodies},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("mutations", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

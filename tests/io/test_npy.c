@@ -23,7 +23,7 @@ static size_t make_npy(char *dst, const char *dict, int version, size_t data_byt
     return total + data_bytes;
 }
 
-int main(void)
+static void test_headers(void)
 {
     char buf[4096];
     sdf_npy_info info;
@@ -73,5 +73,13 @@ int main(void)
     buf[6] = 9;
     CHECK(sdf_npy_parse(buf, n, &info, &diag) == SDF_EFORMAT, "version 9 accepted");
     CHECK(sdf_npy_parse("GIF89a....", 10, &info, &diag) == SDF_EFORMAT, "bad magic accepted");
-    return check_finish("test_npy");
+}
+
+static const check_case cases[] = {
+    {"headers", test_headers},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("npy", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

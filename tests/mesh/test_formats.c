@@ -396,14 +396,17 @@ static void test_limits(void)
     CHECK(sdf_format_from_name("3ds", &f) == SDF_EINVAL, "unknown format name accepted");
 }
 
-int main(void)
+static const check_case cases[] = {
+    {"shared_files", test_shared_files},
+    {"odd_shared_files", test_odd_shared_files},
+    {"ply_free_text_header", test_ply_free_text_header},
+    {"round_trips", test_round_trips},
+    {"truncation", test_truncation},
+    {"malformed", test_malformed},
+    {"limits", test_limits},
+};
+
+int main(int argc, char **argv)
 {
-    test_shared_files();
-    test_odd_shared_files();
-    test_ply_free_text_header();
-    test_round_trips();
-    test_truncation();
-    test_malformed();
-    test_limits();
-    return check_finish("test_formats");
+    return check_main("formats", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

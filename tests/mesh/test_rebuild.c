@@ -53,7 +53,7 @@ static int build_once(void)
     return rc || !(dist[0] < 0 && dist[1] > 0) ? -1 : 0;
 }
 
-int main(void)
+static void test_repeated_builds(void)
 {
     enum { WARM = 200, BUILDS = 2000 };
     int failed = 0;
@@ -70,5 +70,13 @@ int main(void)
     CHECK(grown < 48L * BUILDS, "%d builds on one thread: live heap %zu -> %zu bytes (+%ld)",
           BUILDS, before, after, grown);
     printf("%d builds: live heap %zu -> %zu bytes (%+ld)\n", BUILDS, before, after, grown);
-    return check_finish("mesh_rebuild");
+}
+
+static const check_case cases[] = {
+    {"repeated_builds", test_repeated_builds},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("mesh_rebuild", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -384,14 +384,17 @@ static void test_demo_and_handles(void)
     CHECK(sdf_mesh_load_memory(NULL, 5, NULL, &out, &diag) == SDF_EINVAL, "NULL data");
 }
 
-int main(void)
+static const check_case cases[] = {
+    {"cube", test_cube},
+    {"inside_out", test_inside_out},
+    {"open_and_broken", test_open_and_broken},
+    {"self_intersection", test_self_intersection},
+    {"self_intersection_brute_force", test_self_intersection_brute_force},
+    {"self_intersection_soups", test_self_intersection_soups},
+    {"demo_and_handles", test_demo_and_handles},
+};
+
+int main(int argc, char **argv)
 {
-    test_cube();
-    test_inside_out();
-    test_open_and_broken();
-    test_self_intersection();
-    test_self_intersection_brute_force();
-    test_self_intersection_soups();
-    test_demo_and_handles();
-    return check_finish("test_topology");
+    return check_main("topology", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -88,10 +88,18 @@ static void or_lanes(void)
     CHECK(!sdf__v8i_any((sdf__v8i){0}), "empty mask seen as set");
 }
 
-int main(void)
+static void test_permutations(void)
 {
     CHECK(all_permutations() == 0, "the network misorders some permutation");
-    random_keys();
-    or_lanes();
-    return check_finish("lanes");
+}
+
+static const check_case cases[] = {
+    {"permutations", test_permutations},
+    {"random_keys", random_keys},
+    {"or_lanes", or_lanes},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("lanes", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

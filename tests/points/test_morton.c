@@ -91,7 +91,7 @@ static void make_points(enum kind kind, size_t count, float *pts)
     }
 }
 
-int main(void)
+static void test_order(void)
 {
     /* Around the size at which the sort splits over threads (2^17 points), and small ones. */
     const size_t counts[] = {0, 1, 2, 31, 1000, 131071, 131072, 131073, 300001};
@@ -126,5 +126,13 @@ int main(void)
         }
     free(pts), free(want), free(got);
     sdf_workspace_destroy(ws);
-    return check_finish("morton");
+}
+
+static const check_case cases[] = {
+    {"order", test_order},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("morton", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

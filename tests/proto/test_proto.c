@@ -479,19 +479,27 @@ static void test_mutations(void)
     }
 }
 
-int main(void)
+static void test_mode_names(void)
 {
-    test_mutations();
-    test_header();
-    test_query();
-    test_filtered_query();
-    test_volume_query();
-    test_volume_interpolations();
-    test_result();
-    test_error_and_hello();
     sdf_proto_mode m;
     CHECK(sdf_proto_mode_from_name("gradient", &m) == 0 && m == SDF_MODE_GRADIENT &&
               sdf_proto_words(m) == 4 && sdf_proto_mode_from_name("fast", &m) == SDF_EINVAL,
           "mode names");
-    return check_finish("test_proto");
+}
+
+static const check_case cases[] = {
+    {"mutations", test_mutations},
+    {"header", test_header},
+    {"query", test_query},
+    {"filtered_query", test_filtered_query},
+    {"volume_query", test_volume_query},
+    {"volume_interpolations", test_volume_interpolations},
+    {"result", test_result},
+    {"error_and_hello", test_error_and_hello},
+    {"mode_names", test_mode_names},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("proto", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -268,16 +268,39 @@ static void test_filtered_direct(const char *file, const char *kind, int samples
     sdf_mesh_release(m);
 }
 
-int main(void)
+static void test_clusters_fandisk(void)
 {
     test_clusters("fandisk.off", "band", 0.005, 160);
     test_clusters("fandisk.off", "box", 0.02, 60);
     test_clusters("fandisk.off", "surface", 0.002, 100);
+}
+
+static void test_clusters_knot_and_cow(void)
+{
     test_clusters("knot1.off", "band", 0.005, 100);
     test_clusters("cow.off", "band", 0.01, 80);
+}
+
+static void test_filtered_fandisk(void)
+{
     test_filtered_direct("fandisk.off", "band", 64);
     test_filtered_direct("fandisk.off", "box", 32);
-    test_filtered_direct("knot1.off", "band", 64);
     test_filtered_direct("fandisk.off", "near", 64);
-    return check_finish("cluster");
+}
+
+static void test_filtered_knot(void)
+{
+    test_filtered_direct("knot1.off", "band", 64);
+}
+
+static const check_case cases[] = {
+    {"clusters_fandisk", test_clusters_fandisk},
+    {"clusters_knot_and_cow", test_clusters_knot_and_cow},
+    {"filtered_fandisk", test_filtered_fandisk},
+    {"filtered_knot", test_filtered_knot},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("cluster", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -319,28 +319,61 @@ static void test_far_points(sdf_mesh *mesh)
     }
 }
 
-int main(void)
+/* Each data mesh: the workloads against brute force, and exact ties. */
+static void test_file(const char *file)
 {
-    const char *files[] = {"fandisk.off", "knot1.off", "cow.off", "elephant-with-holes.off",
-                           "mech-holes-shark.off", "Spider_binary.stl", "spider.obj"};
-    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
-        sdf_mesh *mesh = load_data_mesh(files[i]);
-        if (!mesh)
-            continue;
-        test_mesh(files[i], mesh);
-        test_exact_ties(files[i], mesh);
-        sdf_mesh_release(mesh);
-    }
+    sdf_mesh *mesh = load_data_mesh(file);
+    if (!mesh)
+        return;
+    test_mesh(file, mesh);
+    test_exact_ties(file, mesh);
+    sdf_mesh_release(mesh);
+}
+
+#define FILE_CASE(fn, file)                                                                \
+    static void fn(void) { test_file(file); }
+FILE_CASE(test_fandisk, "fandisk.off")
+FILE_CASE(test_knot1, "knot1.off")
+FILE_CASE(test_cow, "cow.off")
+FILE_CASE(test_elephant, "elephant-with-holes.off")
+FILE_CASE(test_shark, "mech-holes-shark.off")
+FILE_CASE(test_spider_stl, "Spider_binary.stl")
+FILE_CASE(test_spider_obj, "spider.obj")
+
+/* The demo mesh: the workloads, threads and strides, bad and far points. */
+static void test_demo(void)
+{
     sdf_mesh *demo;
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
     test_mesh("demo", demo);
-    test_many_ties();
     test_threads_and_stride(demo);
     test_bad_points(demo);
     test_far_points(demo);
     sdf_mesh_release(demo);
+}
+
+static void test_concurrent(void)
+{
+    sdf_mesh *demo;
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
     test_concurrent_callers(demo);
     sdf_mesh_release(demo);
-    return check_finish("test_distance");
+}
+
+static const check_case cases[] = {
+    {"fandisk", test_fandisk},
+    {"knot1", test_knot1},
+    {"cow", test_cow},
+    {"elephant", test_elephant},
+    {"shark", test_shark},
+    {"spider_stl", test_spider_stl},
+    {"spider_obj", test_spider_obj},
+    {"demo", test_demo},
+    {"many_ties", test_many_ties},
+    {"concurrent_callers", test_concurrent},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("distance", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -488,33 +488,58 @@ static void test_bad_parameters(const sdf_mesh *m, double diag)
               rb.bad_index == 1, "NaN point");
 }
 
-int main(void)
-{
-    sdf_mesh *m = load_data_mesh("fandisk.off");
-    if (!m)
-        return check_finish("test_filter");
-    double diag = diagonal_of(m);
-    test_surface_kept(m, diag);
-    test_far_matches_convolution(m, diag);
-    test_gradient(m, diag, "box", NULL);
-    test_gradient(m, diag, "band", NULL);
-    test_localized(m, diag);
-    test_deterministic(m, diag);
-    test_adaptive(m, diag);
-    test_smoothness(m, diag);
-    test_no_extra_zeros(m, diag);
-    test_bad_parameters(m, diag);
-    sdf_mesh_release(m);
-    /* cow.off is closed but crosses itself (sign: winding numbers): samples nearer to p than
-     * |f(p)| take p's sign without a winding traversal; the values still match the reference
-     * convolution built from sdf_query's own signs. */
-    sdf_mesh *cow = load_data_mesh("cow.off");
-    if (cow) {
-        sdf_mesh_report r;
-        sdf_mesh_get_report(cow, &r);
-        CHECK(r.closed && r.auto_sign == SDF_SIGN_WINDING, "cow: closed, winding sign");
-        test_far_matches_convolution(cow, diagonal_of(cow));
-        sdf_mesh_release(cow);
+/* A case on fandisk: `call` sees the mesh `m` and its diagonal `diag`. */
+#define FANDISK_CASE(fn, call)                                                             \
+    static void fn(void)                                                                   \
+    {                                                                                      \
+        sdf_mesh *m = load_data_mesh("fandisk.off");                                       \
+        if (!m)                                                                            \
+            return;                                                                        \
+        double diag = diagonal_of(m);                                                      \
+        call;                                                                              \
+        sdf_mesh_release(m);                                                               \
     }
-    return check_finish("test_filter");
+FANDISK_CASE(case_surface_kept, test_surface_kept(m, diag))
+FANDISK_CASE(case_far_matches_convolution, test_far_matches_convolution(m, diag))
+FANDISK_CASE(case_gradient_box, test_gradient(m, diag, "box", NULL))
+FANDISK_CASE(case_gradient_band, test_gradient(m, diag, "band", NULL))
+FANDISK_CASE(case_localized, test_localized(m, diag))
+FANDISK_CASE(case_deterministic, test_deterministic(m, diag))
+FANDISK_CASE(case_adaptive, test_adaptive(m, diag))
+FANDISK_CASE(case_smoothness, test_smoothness(m, diag))
+FANDISK_CASE(case_no_extra_zeros, test_no_extra_zeros(m, diag))
+FANDISK_CASE(case_bad_parameters, test_bad_parameters(m, diag))
+
+/* cow.off is closed but crosses itself (sign: winding numbers): samples nearer to p than
+ * |f(p)| take p's sign without a winding traversal; the values still match the reference
+ * convolution built from sdf_query's own signs. */
+static void case_cow(void)
+{
+    sdf_mesh *cow = load_data_mesh("cow.off");
+    if (!cow)
+        return;
+    sdf_mesh_report r;
+    sdf_mesh_get_report(cow, &r);
+    CHECK(r.closed && r.auto_sign == SDF_SIGN_WINDING, "cow: closed, winding sign");
+    test_far_matches_convolution(cow, diagonal_of(cow));
+    sdf_mesh_release(cow);
+}
+
+static const check_case cases[] = {
+    {"surface_kept", case_surface_kept},
+    {"far_matches_convolution", case_far_matches_convolution},
+    {"gradient_box", case_gradient_box},
+    {"gradient_band", case_gradient_band},
+    {"localized", case_localized},
+    {"deterministic", case_deterministic},
+    {"adaptive", case_adaptive},
+    {"smoothness", case_smoothness},
+    {"no_extra_zeros", case_no_extra_zeros},
+    {"bad_parameters", case_bad_parameters},
+    {"cow", case_cow},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("filter", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -107,21 +107,39 @@ static void test_on_surface(const char *name, sdf_mesh *mesh)
     }
 }
 
-int main(void)
+static void test_mesh(const char *name, sdf_mesh *mesh)
 {
-    const char *files[] = {"fandisk.off", "knot1.off"};
-    for (int i = 0; i < 2; i++) {
-        sdf_mesh *mesh = load_data_mesh(files[i]);
-        if (!mesh)
-            continue;
-        test_central_differences(files[i], mesh);
-        test_on_surface(files[i], mesh);
-        sdf_mesh_release(mesh);
-    }
-    sdf_mesh *demo;
+    if (!mesh)
+        return;
+    test_central_differences(name, mesh);
+    test_on_surface(name, mesh);
+    sdf_mesh_release(mesh);
+}
+
+static void test_fandisk(void)
+{
+    test_mesh("fandisk.off", load_data_mesh("fandisk.off"));
+}
+
+static void test_knot1(void)
+{
+    test_mesh("knot1.off", load_data_mesh("knot1.off"));
+}
+
+static void test_demo(void)
+{
+    sdf_mesh *demo = NULL;
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
-    test_central_differences("demo", demo);
-    test_on_surface("demo", demo);
-    sdf_mesh_release(demo);
-    return check_finish("test_gradient");
+    test_mesh("demo", demo);
+}
+
+static const check_case cases[] = {
+    {"fandisk", test_fandisk},
+    {"knot1", test_knot1},
+    {"demo", test_demo},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("gradient", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -64,7 +64,7 @@ static int same_answers(const answers *a, const answers *b, size_t n)
 static void check_raw(const sdf_mesh *mesh, const float *points, sdf_workspace *ws)
 {
     const size_t sizes[] = {MOST, 1000, 0, 1, MOST / 2, MOST};
-    answers want, got;
+    answers want = {0}, got = {0};
     float *wind_want = malloc((MOST + 1) * sizeof(float));
     float *wind_got = malloc((MOST + 1) * sizeof(float));
     CHECK(answers_alloc(&want, MOST) && answers_alloc(&got, MOST) && wind_want && wind_got,
@@ -120,7 +120,7 @@ static void check_lattice(const sdf_mesh *mesh, sdf_workspace *ws)
 {
     size_t n = 64 * 64 * 64;
     float *grid = malloc(3 * n * sizeof *grid);
-    answers want, got;
+    answers want = {0}, got = {0};
     CHECK(grid && answers_alloc(&want, n) && answers_alloc(&got, n), "memory");
     CHECK(sdf_workload(mesh, "grid", &n, 1, grid) == 0 && n == 64 * 64 * 64, "grid");
     size_t before = sdf_workspace_bytes(ws);
@@ -149,7 +149,7 @@ typedef struct sharer {
 static void *share(void *arg)
 {
     sharer *s = arg;
-    answers got;
+    answers got = {0};
     if (!answers_alloc(&got, s->n)) {
         s->mismatches = -1;
         answers_free(&got);
@@ -166,7 +166,7 @@ static void *share(void *arg)
 static void check_shared(const sdf_mesh *mesh, const float *points, sdf_workspace *ws)
 {
     size_t n = MOST / 2;
-    answers want[2];
+    answers want[2] = {{0}};
     CHECK(answers_alloc(&want[0], n) && answers_alloc(&want[1], n), "memory");
     const float *at[2] = {points, points + 3 * (MOST - n)}; /* different points each */
     for (int t = 0; t < 2; t++)
@@ -208,14 +208,20 @@ static void check_bake(const sdf_mesh *mesh)
     sdf_workspace_destroy(ws);
 }
 
-int main(void)
+static void test_arguments(void)
 {
     CHECK(sdf_workspace_create(NULL) == SDF_EINVAL, "NULL out");
     CHECK(sdf_workspace_bytes(NULL) == 0, "NULL workspace's bytes");
     sdf_workspace_destroy(NULL);
+}
+
+/* One workspace handed from raw queries to filtered ones, to lattices, to two threads: what
+ * one kind of call left in it must not change the next one's answers. */
+static void test_one_workspace(void)
+{
     sdf_mesh *mesh = load_data_mesh("fandisk.off");
     if (!mesh)
-        return check_finish("workspace");
+        return;
     size_t n = MOST;
     float *points = malloc(3 * MOST * sizeof *points);
     sdf_workspace *ws = NULL;
@@ -225,9 +231,27 @@ int main(void)
     check_filtered(mesh, points, ws);
     check_lattice(mesh, ws);
     check_shared(mesh, points, ws);
-    check_bake(mesh);
     sdf_workspace_destroy(ws);
     free(points);
     sdf_mesh_release(mesh);
-    return check_finish("workspace");
+}
+
+static void test_bake(void)
+{
+    sdf_mesh *mesh = load_data_mesh("fandisk.off");
+    if (!mesh)
+        return;
+    check_bake(mesh);
+    sdf_mesh_release(mesh);
+}
+
+static const check_case cases[] = {
+    {"arguments", test_arguments},
+    {"one_workspace", test_one_workspace},
+    {"bake", test_bake},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("workspace", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -403,23 +403,52 @@ static void test_lattice_queries(const char *file)
     sdf_mesh_release(mesh);
 }
 
-int main(void)
+static void test_meshes(void)
 {
     test_mesh("fandisk.off", SDF_SIGN_AUTO, 48);
     test_mesh("fandisk.off", SDF_SIGN_NONE, 32);
     test_mesh("knot1.off", SDF_SIGN_AUTO, 40);
     test_mesh("cow.off", SDF_SIGN_NONE, 36);           /* closed, self-intersecting */
-    test_mesh("cow.off", SDF_SIGN_AUTO, 24);           /* winding numbers: the search path */
-    test_mesh("knot1.off", SDF_SIGN_RAYCAST, 20);      /* the search path */
-    test_mesh("mech-holes-shark.off", SDF_SIGN_NONE, 24); /* open: the search path */
-    test_on_surface();
-    test_threads();
+}
+
+/* Signs the scan does not give: the lattice goes the search path. */
+static void test_search_path(void)
+{
+    test_mesh("cow.off", SDF_SIGN_AUTO, 24);           /* winding numbers */
+    test_mesh("knot1.off", SDF_SIGN_RAYCAST, 20);
+    test_mesh("mech-holes-shark.off", SDF_SIGN_NONE, 24); /* open */
+}
+
+static void test_slices(void)
+{
     test_slices_in_calls("fandisk.off", SDF_SIGN_AUTO, 40);
     test_slices_in_calls("knot1.off", SDF_SIGN_NONE, 33);
+}
+
+static void test_sample_lattices(void)
+{
     test_samples("fandisk.off", SDF_SIGN_AUTO, 1, 0.1, 28);
     test_samples("knot1.off", SDF_SIGN_AUTO, 2, 0.4, 20);
     test_samples("cow.off", SDF_SIGN_NONE, 1, 0.25, 22); /* self-intersecting: unsigned */
+}
+
+static void test_lattice_query_calls(void)
+{
     test_lattice_queries("fandisk.off");
     test_lattice_queries("knot1.off");
-    return check_finish("scan");
+}
+
+static const check_case cases[] = {
+    {"meshes", test_meshes},
+    {"search_path", test_search_path},
+    {"on_surface", test_on_surface},
+    {"threads", test_threads},
+    {"slices_in_calls", test_slices},
+    {"samples", test_sample_lattices},
+    {"lattice_queries", test_lattice_query_calls},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("scan", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

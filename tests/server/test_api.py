@@ -362,6 +362,12 @@ class Meshes(unittest.TestCase):
         r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--help"], capture_output=True)
         self.assertEqual(r.returncode, 0)
         self.assertIn(b"--batch-window-us", r.stdout)
+        self.assertIn(b"--version", r.stdout)
+        # meson.build's project version, handed over by the test's environment
+        r = subprocess.run([os.environ.get("SDFD", "build/server/sdfd"), "--version"],
+                           capture_output=True, timeout=30)
+        self.assertEqual(r.returncode, 0)
+        self.assertEqual(r.stdout.decode(), "sdfd %s\n" % os.environ["SDF_VERSION"])
 
 
 class ClientText(unittest.TestCase):

@@ -167,9 +167,12 @@ static void check_batches(void)
     sdf_mesh_release(mesh);
 }
 
-int main(void)
+static const check_case cases[] = {
+    {"keys", check_keys},
+    {"batches", check_batches},
+};
+
+int main(int argc, char **argv)
 {
-    check_keys();
-    check_batches();
-    return check_finish("test_batcher");
+    return check_main("server_batcher", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

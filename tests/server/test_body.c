@@ -19,7 +19,10 @@
 #include "core/errors.h"
 #include "transport/numtext.h"
 
-static unsigned long long rng = 0x2545f4914f6cdd1dull;
+/* Reset at the start of every case, so that a case run alone draws what it draws in the
+ * whole run. */
+#define RNG_SEED 0x2545f4914f6cdd1dull
+static unsigned long long rng = RNG_SEED;
 static double next_value(void)
 {
     rng ^= rng << 13, rng ^= rng >> 7, rng ^= rng << 17;
@@ -93,6 +96,7 @@ static int parse(text *t, size_t max_points, float **points, size_t *count, char
 
 static void test_valid(int nested)
 {
+    rng = RNG_SEED;
     size_t n = 200000; /* ~6 MB of text */
     float *expect = malloc(3 * n * sizeof *expect), *got;
     text t = make_body(n, nested, expect, SIZE_MAX, GOOD, NULL);
@@ -115,6 +119,7 @@ static void test_valid(int nested)
 
 static void test_errors(void)
 {
+    rng = RNG_SEED;
     size_t n = 200000, bad = 170000, count, at = 0;
     char err[256], want[128];
     float *got;
@@ -146,6 +151,7 @@ static void test_errors(void)
  * round down to it or to zero are fine. */
 static void test_float_range(void)
 {
+    rng = RNG_SEED;
     static const struct {
         const char *body;
         int rc;
@@ -178,6 +184,7 @@ static void test_float_range(void)
 /* The split lands in a long string after a short array. */
 static void test_split_outside(void)
 {
+    rng = RNG_SEED;
     text t = {0};
     put(&t, "{\"points\": [[1, 2, 3], [4, 5, 6]], \"note\": \"");
     while (t.len < ((size_t)3 << 20))
@@ -202,6 +209,7 @@ static void test_split_outside(void)
  * (,"triangle":[..])}. */
 static void test_reply(sdf_proto_mode mode)
 {
+    rng = RNG_SEED;
     size_t n = 200000;
     unsigned w = sdf_proto_words(mode);
     sdfd_reply r;
@@ -252,14 +260,37 @@ static void test_reply(sdf_proto_mode mode)
     free(got), free(want.s), free(r.buffer);
 }
 
-int main(void)
+static void test_valid_nested(void)
 {
     test_valid(1);
+}
+
+static void test_valid_flat(void)
+{
     test_valid(0);
-    test_errors();
-    test_split_outside();
-    test_float_range();
+}
+
+static void test_reply_gradient(void)
+{
     test_reply(SDF_MODE_GRADIENT);
+}
+
+static void test_reply_closest(void)
+{
     test_reply(SDF_MODE_CLOSEST);
-    return check_finish("body");
+}
+
+static const check_case cases[] = {
+    {"valid_nested", test_valid_nested},
+    {"valid_flat", test_valid_flat},
+    {"errors", test_errors},
+    {"split_outside", test_split_outside},
+    {"float_range", test_float_range},
+    {"reply_gradient", test_reply_gradient},
+    {"reply_closest", test_reply_closest},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("body", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -387,33 +387,70 @@ static void test_last_writer_wins(sdfd_catalog *c)
     free(item.info);
 }
 
-int main(void)
+/* ---- the cases --------------------------------------------------------------------------- */
+
+/* The cases after the schema's share one database and one handle, opened by the first of
+ * them that runs (each can also run alone: `test_catalog NAME`). */
+static const char *const db = "items";
+static sdfd_catalog_metrics metrics;
+static sdfd_catalog *items;
+
+static sdfd_catalog *shared(void)
+{
+    static int tried;
+    if (!tried) {
+        tried = 1;
+        CHECK(pg_create_db(db) == 0, "create database");
+        static sdfd_catalog_options opt = {.chunk_bytes = 4096, .metrics = &metrics};
+        items = open_db(db, &opt);
+    }
+    CHECK(items != NULL, "the shared catalog is open");
+    return items;
+}
+
+#define ON_SHARED(name, call)                                                                \
+    static void name(void)                                                                   \
+    {                                                                                        \
+        sdfd_catalog *c = shared();                                                          \
+        if (c)                                                                               \
+            call;                                                                            \
+    }
+ON_SHARED(round_trip, test_round_trip(c, db))
+ON_SHARED(refusals, test_refusals(c))
+ON_SHARED(limits, test_limits(c, db))
+ON_SHARED(damage, test_damage(c, db))
+ON_SHARED(versions, test_versions(c, db))
+ON_SHARED(last_writer_wins, test_last_writer_wins(c))
+ON_SHARED(blobs, test_blobs(c, db))
+ON_SHARED(sweeper, test_sweeper(c, db))
+ON_SHARED(put_delete_sweep_race, test_put_delete_sweep_race(c))
+ON_SHARED(listener, test_listener(c))
+ON_SHARED(outage, test_outage(c, db))
+
+int main(int argc, char **argv)
 {
     setvbuf(stdout, NULL, _IOLBF, 0);
-    test_migrate_concurrently(); /* first: it forks, before any thread exists */
-    test_migrate_twice();
-    test_open_refusals();
-    const char *db = "items";
-    CHECK(pg_create_db(db) == 0, "create database");
-    sdfd_catalog_metrics metrics = {0};
-    sdfd_catalog_options opt = {.chunk_bytes = 4096, .metrics = &metrics};
-    sdfd_catalog *c = open_db(db, &opt);
-    if (!c)
-        return check_finish("catalog");
-    test_round_trip(c, db);
-    test_refusals(c);
-    test_limits(c, db);
-    test_damage(c, db);
-    test_versions(c, db);
-    test_last_writer_wins(c);
-    test_blobs(c, db);
-    test_sweeper(c, db);
-    test_put_delete_sweep_race(c);
-    test_listener(c);
-    test_outage(c, db);
+    /* migrate_concurrently forks: it comes first, before any case has started a thread */
+    static const check_case cases[] = {
+        {"migrate_concurrently", test_migrate_concurrently},
+        {"migrate_twice", test_migrate_twice},
+        {"open_refusals", test_open_refusals},
+        {"round_trip", round_trip},
+        {"refusals", refusals},
+        {"limits", limits},
+        {"damage", damage},
+        {"versions", versions},
+        {"last_writer_wins", last_writer_wins},
+        {"blobs", blobs},
+        {"sweeper", sweeper},
+        {"put_delete_sweep_race", put_delete_sweep_race},
+        {"listener", listener},
+        {"outage", outage},
+    };
+    int rc = check_main("test_catalog", cases, CHECK_COUNT_OF(cases), argc, argv);
     unsigned long long trips = atomic_load(&metrics.round_trips);
     printf("round trips: %llu, %.3f ms mean\n", trips,
            (double)atomic_load(&metrics.round_trip_ns) / 1e6 / (double)(trips ? trips : 1));
-    sdfd_catalog_close(c);
-    return check_finish("catalog");
+    sdfd_catalog_close(items);
+    return rc;
 }

@@ -48,7 +48,7 @@ static int pinned(int code)
     return 0;
 }
 
-int main(void)
+static void test_table(void)
 {
     for (int i = 0; i < N_EXPECTED; i++) {
         int c = expected[i].code;
@@ -84,5 +84,13 @@ int main(void)
     CHECK(sdfd_http_status(-999) == 500 && !strcmp(sdfd_errname(-999), "EUNKNOWN") &&
               !strcmp(sdfd_strerror(-999), "unknown error"),
           "unknown code");
-    return check_finish("test_server_errors");
+}
+
+static const check_case cases[] = {
+    {"table", test_table},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("server_errors", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

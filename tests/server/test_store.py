@@ -225,6 +225,7 @@ class Store(unittest.TestCase):
     def test_store_unreadable(self):
         s, c = self.start()
         c.upload("cube", os.path.join(DATA, "cube.ply"))
+        checked = time.time()  # the server compared the cube with the store before this
         away = self.dir + ".away"
         os.rename(self.dir, away)
         try:
@@ -235,7 +236,10 @@ class Store(unittest.TestCase):
                 distances(c, "never-loaded")
             self.assertEqual(e.exception.status, 503)
             self.assertIn("store is unreadable", e.exception.message)
-            time.sleep(1.2)  # past the recheck: the store is looked at, and cannot be read
+            # What is awaited is time itself: once the cube's last comparison is older than
+            # the recheck interval (SDFD_LOADER_RECHECK_SECONDS, 1 s), a query looks at the
+            # store, which cannot be read.
+            time.sleep(max(0.0, checked + 1.2 - time.time()))
             distances(c, "cube")  # in memory: still served
         finally:
             os.rename(away, self.dir)

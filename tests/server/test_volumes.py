@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
 import harness  # noqa: E402
-from harness import DATA, Server, same_bits  # noqa: E402
+from harness import DATA, Server, same_bits, wait_until  # noqa: E402
 
 SDF_VOLUME = os.environ.get("SDF_VOLUME", "build/tests/bench/sdf-volume")
 
@@ -425,9 +425,9 @@ class Limits(unittest.TestCase):
         with Server("--token", "t") as s:
             admin = sdfclient.Client(s.url, token="t")
             self.addCleanup(admin.close)
-            admin.bake("demo", volume="long", resolution=13, order=1, field="filtered",
-                       filter={"samples": 64})
-            time.sleep(0.3)
+            job = admin.bake("demo", volume="long", resolution=13, order=1, field="filtered",
+                             filter={"samples": 64})["id"]
+            self.assertTrue(wait_until(lambda: admin.job(job)["state"] == "running", 30))
             t0 = time.time()
             self.assertEqual(s.stop(signal.SIGTERM), 0)
             self.assertLess(time.time() - t0, 20)

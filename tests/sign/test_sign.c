@@ -255,31 +255,52 @@ static void test_pseudonormal_values(const char *name, const sdf_mesh *m)
     free(normal), free(angle), free(vertex), free(edge_sum), free(uses), free(use_of);
 }
 
-int main(void)
+static void test_closed_file(const char *file)
 {
-    const char *closed[] = {"fandisk.off", "knot1.off"};
-    const char *open[] = {"elephant-with-holes.off", "mech-holes-shark.off", "cow.off"};
-    for (int i = 0; i < 2; i++) {
-        sdf_mesh *m = load_data_mesh(closed[i]);
-        if (m) {
-            test_closed(closed[i], m);
-            test_winding_values(closed[i], m);
-            test_pseudonormal_values(closed[i], m);
-        }
-        sdf_mesh_release(m);
-    }
+    sdf_mesh *m = load_data_mesh(file);
+    if (!m)
+        return;
+    test_closed(file, m);
+    test_winding_values(file, m);
+    test_pseudonormal_values(file, m);
+    sdf_mesh_release(m);
+}
+
+static void test_open_file(const char *file)
+{
+    sdf_mesh *m = load_data_mesh(file);
+    if (!m)
+        return;
+    test_open(file, m);
+    test_winding_values(file, m);
+    test_pseudonormal_values(file, m);
+    sdf_mesh_release(m);
+}
+
+static void test_fandisk(void) { test_closed_file("fandisk.off"); }
+static void test_knot1(void) { test_closed_file("knot1.off"); }
+static void test_elephant(void) { test_open_file("elephant-with-holes.off"); }
+static void test_shark(void) { test_open_file("mech-holes-shark.off"); }
+static void test_cow(void) { test_open_file("cow.off"); }
+
+static void test_demo(void)
+{
     sdf_mesh *demo;
     CHECK(sdf_mesh_create_demo(&demo) == 0, "demo");
     test_closed("demo", demo);
     sdf_mesh_release(demo);
-    for (int i = 0; i < 3; i++) {
-        sdf_mesh *m = load_data_mesh(open[i]);
-        if (m) {
-            test_open(open[i], m);
-            test_winding_values(open[i], m);
-            test_pseudonormal_values(open[i], m);
-        }
-        sdf_mesh_release(m);
-    }
-    return check_finish("test_sign");
+}
+
+static const check_case cases[] = {
+    {"fandisk", test_fandisk},
+    {"knot1", test_knot1},
+    {"demo", test_demo},
+    {"elephant", test_elephant},
+    {"shark", test_shark},
+    {"cow", test_cow},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("sign", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -118,9 +118,10 @@ static void check_mesh(const char *file, const bake_case *cases, size_t count)
     sdf_mesh_release(mesh);
 }
 
-int main(void)
+static const sdf_volume_encoding F = SDF_ENCODING_FLOAT32, P = SDF_ENCODING_PACKED32;
+
+static void test_closed_mesh(void)
 {
-    const sdf_volume_encoding F = SDF_ENCODING_FLOAT32, P = SDF_ENCODING_PACKED32;
     const bake_case closed[] = {
         {64, 0, 0, SDF_SIGN_AUTO, F},    {128, 0, 0, SDF_SIGN_AUTO, F},
         {64, 1, 0, SDF_SIGN_AUTO, F},    {96, 1, 0, SDF_SIGN_AUTO, F},
@@ -129,24 +130,42 @@ int main(void)
         {32, 0, 0, SDF_SIGN_NONE, F},    {16, 0, 1, SDF_SIGN_AUTO, F},
         {8, 1, 1, SDF_SIGN_AUTO, F},
     };
+    check_mesh("fandisk.off", closed, sizeof closed / sizeof closed[0]);
+}
+
+static void test_open_mesh(void)
+{
     const bake_case open[] = {
         {64, 0, 0, SDF_SIGN_AUTO, F}, {24, 1, 0, SDF_SIGN_AUTO, F}, {12, 0, 1, SDF_SIGN_AUTO, F},
     };
-    check_mesh("fandisk.off", closed, sizeof closed / sizeof closed[0]);
     check_mesh("elephant-with-holes.off", open, sizeof open / sizeof open[0]);
-    /* A bad option is refused as sdf_volume_plan refuses it. */
+}
+
+/* A bad option is refused as sdf_volume_plan refuses it. */
+static void test_bad_option(void)
+{
     sdf_mesh *mesh = load_data_mesh("fandisk.off");
-    if (mesh) {
-        sdf_bake_options bad = {.dims = {1, 8, 8}};
-        sdf_diag plan_diag = {0}, scratch_diag = {0};
-        sdf_volume_info info;
-        size_t bytes = 0;
-        CHECK(sdf_volume_plan(mesh, &bad, &info, &plan_diag) == SDF_EINVAL, "plan");
-        CHECK(sdf_volume_bake_scratch(mesh, &bad, &bytes, &scratch_diag) == SDF_EINVAL,
-              "scratch");
-        CHECK(strcmp(plan_diag.message, scratch_diag.message) == 0, "%s / %s", plan_diag.message,
-              scratch_diag.message);
-        sdf_mesh_release(mesh);
-    }
-    return check_finish("bake_memory");
+    if (!mesh)
+        return;
+    sdf_bake_options bad = {.dims = {1, 8, 8}};
+    sdf_diag plan_diag = {0}, scratch_diag = {0};
+    sdf_volume_info info;
+    size_t bytes = 0;
+    CHECK(sdf_volume_plan(mesh, &bad, &info, &plan_diag) == SDF_EINVAL, "plan");
+    CHECK(sdf_volume_bake_scratch(mesh, &bad, &bytes, &scratch_diag) == SDF_EINVAL,
+          "scratch");
+    CHECK(strcmp(plan_diag.message, scratch_diag.message) == 0, "%s / %s", plan_diag.message,
+          scratch_diag.message);
+    sdf_mesh_release(mesh);
+}
+
+static const check_case cases[] = {
+    {"closed_mesh", test_closed_mesh},
+    {"open_mesh", test_open_mesh},
+    {"bad_option", test_bad_option},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("bake_memory", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -508,11 +508,14 @@ static void test_damaged(void)
     sdf_volume_destroy(v);
 }
 
-int main(void)
+static const check_case cases[] = {
+    {"size_sweep", test_size_sweep},
+    {"sphere_bake", test_sphere_bake},
+    {"fields", test_fields},
+    {"damaged", test_damaged},
+};
+
+int main(int argc, char **argv)
 {
-    test_size_sweep();
-    test_sphere_bake();
-    test_fields();
-    test_damaged();
-    return check_finish("exr_roundtrip");
+    return check_main("exr_roundtrip", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -366,21 +366,29 @@ static void test_baked(const sdf_volume *v, const char *name)
     free(mp), free(mv), free(mg), free(sv), free(sg);
 }
 
-int main(void)
+static const double unit_plane[4] = {0.48, -0.6, 0.64, 0.35};
+static const double steep_plane[4] = {0.6, -1.2, 0.9, -0.7};
+
+static void test_plane_fields(void)
 {
-    test_gradient_is_derivative();
-    test_cubic();
-    const double unit[4] = {0.48, -0.6, 0.64, 0.35}, steep[4] = {0.6, -1.2, 0.9, -0.7};
-    test_plane_field(unit, SDF_NORMALIZE_PLANE);
-    test_plane_field(steep, SDF_NORMALIZE_PLANE);
-    test_plane_field(steep, SDF_NORMALIZE_GRADIENT);
-    test_limit();
+    test_plane_field(unit_plane, SDF_NORMALIZE_PLANE);
+    test_plane_field(steep_plane, SDF_NORMALIZE_PLANE);
+    test_plane_field(steep_plane, SDF_NORMALIZE_GRADIENT);
+}
+
+static void test_sphere(void)
+{
     sdf_volume *sphere = noisy_sphere();
+    CHECK(sphere != NULL, "the noisy sphere");
     if (sphere) {
         test_continuity(sphere);
         test_default_and_names(sphere);
     }
     sdf_volume_destroy(sphere);
+}
+
+static void test_fandisk_bakes(void)
+{
     sdf_mesh *mesh = load_data_mesh("fandisk.off");
     const sdf_volume_encoding encodings[] = {SDF_ENCODING_FLOAT32, SDF_ENCODING_PACKED32};
     for (int e = 0; mesh && e < 2; e++) {
@@ -392,5 +400,18 @@ int main(void)
         sdf_volume_destroy(v);
     }
     sdf_mesh_release(mesh);
-    return check_finish("hermite");
+}
+
+static const check_case cases[] = {
+    {"gradient_is_derivative", test_gradient_is_derivative},
+    {"cubic", test_cubic},
+    {"plane_fields", test_plane_fields},
+    {"limit", test_limit},
+    {"sphere", test_sphere},
+    {"fandisk_bakes", test_fandisk_bakes},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("hermite", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -12,13 +12,13 @@
 #include "../common/accuracy.h"
 #include "../common/check.h"
 
-int main(void)
+static void test_fandisk(void)
 {
     sdf_mesh *loaded = load_data_mesh("fandisk.off");
     sdf_mesh *mesh = loaded ? normalized_mesh(loaded) : NULL;
     CHECK(mesh != NULL, "normalising fandisk");
     if (!mesh)
-        return check_finish("tdf_accuracy");
+        return;
     const size_t dims[] = {8, 16, 32, 64, 128};
     accuracy_row rows[5];
     accuracy_grid grid;
@@ -56,5 +56,13 @@ int main(void)
     accuracy_grid_free(&grid);
     sdf_mesh_release(mesh);
     sdf_mesh_release(loaded);
-    return check_finish("tdf_accuracy");
+}
+
+static const check_case cases[] = {
+    {"fandisk", test_fandisk},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("tdf_accuracy", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

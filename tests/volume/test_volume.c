@@ -606,17 +606,29 @@ static void test_filtered(const sdf_mesh *mesh)
     sdf_volume_destroy(v);
 }
 
-int main(void)
+/* A case on fandisk: `call` sees the mesh `mesh`. */
+#define FANDISK_CASE(fn, call)                                                             \
+    static void fn(void)                                                                   \
+    {                                                                                      \
+        sdf_mesh *mesh = load_data_mesh("fandisk.off");                                    \
+        if (!mesh)                                                                         \
+            return;                                                                        \
+        call;                                                                              \
+        sdf_mesh_release(mesh);                                                            \
+    }
+FANDISK_CASE(test_zero, test_zero_order(mesh))
+FANDISK_CASE(test_first_plane, test_first_order(mesh, SDF_NORMALIZE_PLANE))
+FANDISK_CASE(test_first_gradient, test_first_order(mesh, SDF_NORMALIZE_GRADIENT))
+FANDISK_CASE(test_normalization, test_normalization_accuracy(mesh))
+FANDISK_CASE(test_filtered_bake, test_filtered(mesh))
+FANDISK_CASE(test_progress, test_progress_and_options(mesh))
+
+/* Evaluation and files of zero-order float32, first-order float32 and packed bakes. */
+static void test_bakes(void)
 {
-    test_packing();
     sdf_mesh *mesh = load_data_mesh("fandisk.off");
     if (!mesh)
-        return check_finish("volume");
-    test_zero_order(mesh);
-    test_first_order(mesh, SDF_NORMALIZE_PLANE);
-    test_first_order(mesh, SDF_NORMALIZE_GRADIENT);
-    test_normalization_accuracy(mesh);
-    test_filtered(mesh);
+        return;
     const sdf_volume_encoding encodings[] = {SDF_ENCODING_FLOAT32, SDF_ENCODING_PACKED32};
     for (int order = 0; order < 2; order++)
         for (int e = 0; e < 1 + order; e++) {
@@ -631,8 +643,22 @@ int main(void)
             }
             sdf_volume_destroy(v);
         }
-    test_progress_and_options(mesh);
-    test_create();
     sdf_mesh_release(mesh);
-    return check_finish("volume");
+}
+
+static const check_case cases[] = {
+    {"packing", test_packing},
+    {"zero_order", test_zero},
+    {"first_order_plane", test_first_plane},
+    {"first_order_gradient", test_first_gradient},
+    {"normalization_accuracy", test_normalization},
+    {"filtered", test_filtered_bake},
+    {"bakes", test_bakes},
+    {"progress_and_options", test_progress},
+    {"create", test_create},
+};
+
+int main(int argc, char **argv)
+{
+    return check_main("volume", cases, CHECK_COUNT_OF(cases), argc, argv);
 }

@@ -5,6 +5,7 @@
  * build/ directory. */
 import { spawn } from 'node:child_process';
 import { once } from 'node:events';
+import { readFile } from 'node:fs/promises';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 
@@ -90,4 +91,28 @@ export function randomPoints(n, seed, lo = -0.2, hi = 0.2) {
     return ((r ^ (r >>> 14)) >>> 0) / 4294967296;
   };
   return Float32Array.from({ length: 3 * n }, () => lo + (hi - lo) * next());
+}
+
+/** Poll `predicate` (it may be async) every 20 ms until it holds or `ms` have passed; true if
+ * it held. */
+export async function waitUntil(predicate, ms = 10000) {
+  const deadline = Date.now() + ms;
+  for (;;) {
+    if (await predicate())
+      return true;
+    if (Date.now() > deadline)
+      return false;
+    await new Promise((resolve) => setTimeout(resolve, 20));
+  }
+}
+
+/** How many TCP connections the server side of 127.0.0.1:`port` holds established, from the
+ * kernel's table (Linux's /proc/net/tcp): how a test sees that sdfd closed one. */
+export async function establishedAt(port) {
+  const local = `0100007F:${port.toString(16).toUpperCase().padStart(4, '0')}`;
+  const rows = (await readFile('/proc/net/tcp', 'utf8')).split('\n').slice(1);
+  return rows.filter((row) => {
+    const f = row.trim().split(/\s+/);
+    return f[1] === local && f[3] === '01';
+  }).length;
 }

@@ -7,9 +7,8 @@ import assert from 'node:assert/strict';
 import { readFile } from 'node:fs/promises';
 import path from 'node:path';
 import { after, before, describe, test } from 'node:test';
-import { setTimeout as sleep } from 'node:timers/promises';
 import { Client, SdfError, parseNpy } from 'sdfd-client';
-import { DATA, Server, randomPoints, sameBits } from './harness.js';
+import { DATA, Server, establishedAt, randomPoints, sameBits, waitUntil } from './harness.js';
 
 const FANDISK = path.join(DATA, 'fandisk.off');
 const MODES = ['signed', 'distance', 'gradient', 'closest', 'filtered', 'filtered-gradient'];
@@ -339,7 +338,10 @@ describe('HTTP client against a server with --token and a 1 s idle timeout', { t
   test('a request after the server closed the idle connection', async () => {
     const auth = new Client(server.url, { token: 'sesame' });
     const first = await auth.query('fandisk', randomPoints(10, 1));
-    await sleep(2500);
+    const port = server.ports.http;
+    assert.ok(await establishedAt(port) >= 1, 'the kept-alive connection is open');
+    assert.ok(await waitUntil(async () => await establishedAt(port) === 0, 10000),
+      'sdfd did not close the idle connection (--timeout 1)');
     const again = await auth.query('fandisk', randomPoints(10, 1));
     sameResult(again, first, 'after the idle close');
   });
