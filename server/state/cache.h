@@ -4,10 +4,11 @@
  * Without a store it passes every call straight to the registry and the volumes: memory
  * only, as if it were not there. With one:
  * - a lookup of a name not in memory loads it from the store on a loader thread (loader.h:
- *   one load at a time per name; the lookups of that name wait for it);
+ *   one load at a time per name; the lookups of that name wait for it), so an item another
+ *   replica wrote is found;
  * - a lookup of a name in memory checks the sidecar's stamp at most once a second
- *   (SDFD_LOADER_RECHECK_SECONDS) and drops the item whose sidecar is gone, or reloads the
- *   one whose sidecar changed (serving the old version until the new one is in);
+ *   (SDFD_LOADER_RECHECK_SECONDS) and drops the item another replica deleted, or reloads the
+ *   one it replaced (serving the old version until the new one is in);
  * - with a byte budget, the items used least recently are dropped from memory once the
  *   resident bytes pass it (and reloaded on their next use);
  * - an item whose files fail their checks is logged and quarantined, never served;

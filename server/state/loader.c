@@ -107,7 +107,7 @@ static int parse_item(sdfd_loader *ld, const sdfd_sidecar *meta, const void *dat
 
 /* Read and parse e's item from the store (e claimed, the lock not held): 0 with *item (one
  * reference) and the sidecar's hash and stamp; or an error with msg. A damaged item is
- * quarantined, unless its sidecar changed while it was read (a write of the item: read
+ * quarantined, unless its sidecar changed while it was read (another replica's write: read
  * again). */
 static int load(sdfd_loader *ld, sdfd_cached *e, void **item, uint64_t *hash,
                 sdfd_stamp *stamp, char *msg, size_t cap)
@@ -167,7 +167,7 @@ static int check(sdfd_loader *ld, sdfd_cached *e, sdfd_lookup *l)
     int resident = e->resident;
     uint64_t hash = e->hash;
     if (rc == SDF_ENOTFOUND && resident)
-        sdfd_resident_drop(r, e); /* its sidecar is gone */
+        sdfd_resident_drop(r, e); /* deleted, on this replica or another */
     /* Serve what is in memory: unchanged, or a store that cannot be read just now. */
     if (resident && (rc == SDFD_EUNAVAILABLE || (!rc && same_stamp(&stamp, &e->stamp))) &&
         (l->item = sdfd_resident_get(r, e))) {

@@ -86,6 +86,8 @@ static int migrate_layout1(const char *store, char *err, size_t cap)
             if (!lstat(to, &st))
                 continue; /* a second copy: the scan quarantines it */
             if (rename(from, to)) {
+                if (errno == ENOENT)
+                    continue; /* another replica opening the store moved it first */
                 snprintf(err, cap, "cannot move %s to %s: %s", from, to, strerror(errno));
                 closedir(d);
                 return -1;
