@@ -4,6 +4,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "core/errors.h"
 
@@ -39,6 +40,16 @@ int sdfd_call_json(sdfd_call *call, int status, cJSON *json)
     call->result.status = status;
     call->result.json = json;
     return SDFD_CALL_READY;
+}
+
+void *sdfd_call_lookup(sdfd_call *call, sdfd_item_kind kind, const char *name)
+{
+    void *item = NULL;
+    char msg[512];
+    int rc = sdfd_cache_get(call->srv->cache, kind, name, strlen(name), &item, msg, sizeof msg);
+    if (rc)
+        sdfd_call_fail(call, rc, "%s", msg);
+    return rc ? NULL : item;
 }
 
 void sdfd_call_field(sdfd_call *call, const char *name, const char *fmt, ...)

@@ -79,6 +79,10 @@ int sdfd_call_fail(sdfd_call *call, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 /* Answer with JSON (taken over) and a status. Returns SDFD_CALL_READY. */
 int sdfd_call_json(sdfd_call *call, int status, cJSON *json);
+/* The item of `kind` called `name` through the cache (sdfd_cache_get, which may wait for a
+ * load from the store): a retained reference (an sdf_mesh * or an sdfd_stored_volume *), or
+ * NULL with the call refused by the lookup's code and message. */
+void *sdfd_call_lookup(sdfd_call *call, sdfd_item_kind kind, const char *name);
 /* Add a named field to the answer. */
 void sdfd_call_field(sdfd_call *call, const char *name, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));

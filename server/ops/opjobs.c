@@ -71,20 +71,17 @@ int sdfd_op_bake(sdfd_call *call)
     int rc = sdfd_bake_from_json(call->body, call->len, &bake, &names, err, sizeof err);
     if (rc)
         return sdfd_call_fail(call, rc, "%s", err);
-    void *item;
-    if ((rc = sdfd_cache_get(srv->cache, SDFD_ITEM_MESH, call->name, strlen(call->name), &item,
-                             err, sizeof err)))
-        return sdfd_call_fail(call, rc, "%s", err);
-    sdf_mesh *mesh = item;
+    sdf_mesh *mesh = sdfd_call_lookup(call, SDFD_ITEM_MESH, call->name);
+    if (!mesh)
+        return SDFD_CALL_READY;
     if (names.smoothing_mesh[0]) {
-        rc = sdfd_cache_get(srv->cache, SDFD_ITEM_MESH, names.smoothing_mesh,
-                            strlen(names.smoothing_mesh), &item, err, sizeof err);
-        bake.smoothing_mesh = rc ? NULL : item;
-        if (rc) {
+        bake.smoothing_mesh = sdfd_call_lookup(call, SDFD_ITEM_MESH, names.smoothing_mesh);
+        if (!bake.smoothing_mesh) {
             sdf_mesh_release(mesh);
-            if (rc == SDF_ENOTFOUND)
-                snprintf(err, sizeof err, "no smoothing mesh named '%s'", names.smoothing_mesh);
-            return sdfd_call_fail(call, rc, "%s", err);
+            if (call->result.code == SDF_ENOTFOUND)
+                sdfd_call_fail(call, SDF_ENOTFOUND, "no smoothing mesh named '%s'",
+                               names.smoothing_mesh);
+            return SDFD_CALL_READY;
         }
         bake.filter.smooth.mesh = bake.smoothing_mesh;
     }
@@ -111,10 +108,9 @@ int sdfd_op_volume_ops(sdfd_call *call)
     int rc = sdfd_ops_from_json(call->body, call->len, &ops, volume, err, sizeof err);
     if (rc)
         return sdfd_call_fail(call, rc, "%s", err);
-    void *source;
-    if ((rc = sdfd_cache_get(srv->cache, SDFD_ITEM_VOLUME, call->name, strlen(call->name),
-                             &source, err, sizeof err)))
-        return sdfd_call_fail(call, rc, "%s", err);
+    sdfd_stored_volume *source = sdfd_call_lookup(call, SDFD_ITEM_VOLUME, call->name);
+    if (!source)
+        return SDFD_CALL_READY;
     char id[24];
     /* The job takes over the source's reference, also when it fails to start. */
     rc = sdfd_volumes_ops(srv->volumes, source, volume[0] ? volume : call->name, &ops, id, err,

@@ -59,12 +59,9 @@ int sdfd_op_mesh_list(sdfd_call *call)
 
 int sdfd_op_mesh_get(sdfd_call *call)
 {
-    void *mesh;
-    char msg[512];
-    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_MESH, call->name, strlen(call->name),
-                            &mesh, msg, sizeof msg);
-    if (rc)
-        return sdfd_call_fail(call, rc, "%s", msg);
+    sdf_mesh *mesh = sdfd_call_lookup(call, SDFD_ITEM_MESH, call->name);
+    if (!mesh)
+        return SDFD_CALL_READY;
     cJSON *json = report_json(call->name, mesh);
     sdf_mesh_release(mesh);
     return sdfd_call_json(call, 200, json);

@@ -202,12 +202,9 @@ static int subject_box(sdfd_call *call, sdfd_stored_volume *s, double lo[3], dou
             lo[a] = in.origin[a], hi[a] = in.origin[a] + (double)(in.dims[a] - 1) * in.spacing[a];
         return 0;
     }
-    void *mesh;
-    char msg[300];
-    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_MESH, call->name, strlen(call->name),
-                            &mesh, msg, sizeof msg);
-    if (rc)
-        return fail(call, rc, "%s", msg);
+    sdf_mesh *mesh = sdfd_call_lookup(call, SDFD_ITEM_MESH, call->name);
+    if (!mesh)
+        return call->result.code;
     sdf_mesh_report r;
     sdf_mesh_get_report(mesh, &r);
     sdf_mesh_release(mesh);
@@ -239,17 +236,10 @@ static int reserve(sdfd_call *call, size_t n)
 static void run_slice(sdfd_call *call)
 {
     slice_work *w = call->state;
-    void *item = NULL;
-    char msg[300];
-    int rc = w->params.volume ? sdfd_cache_get(call->srv->cache, SDFD_ITEM_VOLUME, call->name,
-                                               strlen(call->name), &item, msg, sizeof msg)
-                              : 0;
-    sdfd_stored_volume *s = item;
+    sdfd_stored_volume *s = NULL;
     double lo[3], hi[3];
-    if (rc) {
-        fail(call, rc, "%s", msg);
+    if (w->params.volume && !(s = sdfd_call_lookup(call, SDFD_ITEM_VOLUME, call->name)))
         return;
-    }
     if (subject_box(call, s, lo, hi)) {
         sdfd_volume_release(s);
         return;

@@ -27,12 +27,9 @@ int sdfd_op_volume_list(sdfd_call *call)
 /* The volume of the call's name as GET describes it, with `status`. */
 static int describe(sdfd_call *call, int status)
 {
-    void *s;
-    char msg[512];
-    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_VOLUME, call->name, strlen(call->name),
-                            &s, msg, sizeof msg);
-    if (rc)
-        return sdfd_call_fail(call, rc, "%s", msg);
+    sdfd_stored_volume *s = sdfd_call_lookup(call, SDFD_ITEM_VOLUME, call->name);
+    if (!s)
+        return SDFD_CALL_READY;
     cJSON *json = sdfd_cache_volume_json(s);
     sdfd_volume_release(s);
     return sdfd_call_json(call, status, json);
@@ -131,13 +128,9 @@ int sdfd_op_volume_data(sdfd_call *call)
     sdf_volume_file type;
     if (sdf_volume_file_from_name(format ? format : "exr", &type))
         return sdfd_call_fail(call, SDF_EINVAL, "unknown format '%s' (exr, npy, raw)", format);
-    void *item;
-    char msg[512];
-    int rc = sdfd_cache_get(call->srv->cache, SDFD_ITEM_VOLUME, call->name, strlen(call->name),
-                            &item, msg, sizeof msg);
-    if (rc)
-        return sdfd_call_fail(call, rc, "%s", msg);
-    sdfd_stored_volume *s = item;
+    sdfd_stored_volume *s = sdfd_call_lookup(call, SDFD_ITEM_VOLUME, call->name);
+    if (!s)
+        return SDFD_CALL_READY;
     describe_file(call, s, type);
     call->result.stream = s;
     call->result.file = type;
