@@ -18,7 +18,7 @@ copy() { # fresh copy of the tracked and new files into $tmp/repo
     git ls-files -co --exclude-standard -z | xargs -0 tar -cf - | tar -xf - -C "$tmp/repo"
     # and the npm packages .ci/deps installed here, so that its run in the copy fetches nothing
     local d
-    for d in tests/server/page deploy/k8s/check; do
+    for d in tests/server/page deploy/k8s/check tests/api; do
         [ ! -d "$d/node_modules" ] || cp -a "$d/node_modules" "$tmp/repo/$d/"
     done
 }
