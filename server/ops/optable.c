@@ -177,14 +177,14 @@ size_t sdfd_op_label_index(const sdfd_op *op, int binary)
     return binary ? SDFD_OP_COUNT + op->id : op->id;
 }
 
-static const char *frame_name(uint8_t type)
+const char *sdfd_op_frame_name(uint8_t type)
 {
     return type == SDF_PROTO_QUERY          ? "QUERY"
            : type == SDF_PROTO_VOLUME_QUERY ? "VOLUME_QUERY"
            : type == SDF_PROTO_HELLO        ? "HELLO"
            : type == SDF_PROTO_LIST_MESHES  ? "LIST_MESHES"
            : type == SDF_PROTO_AUTH         ? "AUTH"
-                                            : NULL;
+                                            : "UNKNOWN";
 }
 
 void sdfd_op_describe(FILE *out)
@@ -205,7 +205,7 @@ void sdfd_op_describe(FILE *out)
             fprintf(out, "%s\"%s\"", a ? ", " : "", sdfd_op_arg(op, a));
         fprintf(out, "], \"frame\": ");
         if (op->frame)
-            fprintf(out, "\"%s\"", frame_name(op->frame));
+            fprintf(out, "\"%s\"", sdfd_op_frame_name(op->frame));
         else
             fprintf(out, "null");
         if (bin_labels[i])

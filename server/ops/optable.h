@@ -67,6 +67,9 @@ int sdfd_op_match(const char *method, const char *url, const sdfd_op **op, char 
 /* The operation a binary frame type asks for, or NULL when none does. */
 const sdfd_op *sdfd_op_of_frame(uint8_t type);
 
+/* A frame type's name as the log and --describe-routes spell it ("QUERY"), or "UNKNOWN". */
+const char *sdfd_op_frame_name(uint8_t type);
+
 /* The methods the path of `op` takes, as an Allow header lists them ("GET, HEAD, PUT"). */
 const char *sdfd_op_allowed(const sdfd_op *op, char *buf, size_t cap);
 

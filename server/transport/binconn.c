@@ -85,12 +85,7 @@ void sdfd_bin_request_finished(sdfd_binary *b, connection *c)
 void sdfd_bin_frame_kind(uint8_t type, const sdfd_op **op, const char **what)
 {
     *op = sdfd_op_of_frame(type);
-    *what = type == SDF_PROTO_QUERY          ? "QUERY"
-            : type == SDF_PROTO_VOLUME_QUERY ? "VOLUME_QUERY"
-            : type == SDF_PROTO_HELLO        ? "HELLO"
-            : type == SDF_PROTO_LIST_MESHES  ? "LIST_MESHES"
-            : type == SDF_PROTO_AUTH         ? "AUTH"
-                                             : "UNKNOWN";
+    *what = sdfd_op_frame_name(type);
 }
 
 /* GnuTLS's result as recv/send's: a would-block is EAGAIN; the peer's close_notify, or a

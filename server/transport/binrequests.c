@@ -31,17 +31,13 @@ typedef struct bin_job {
     size_t bytes_in;
 } bin_job;
 
-static const char *frame_name(const sdfd_op *op)
-{
-    return op->id == SDFD_OP_QUERY ? "QUERY" : "VOLUME_QUERY";
-}
-
-/* Refuse a request: ERROR frame, metrics, log. */
-static void refuse(sdfd_binary *b, connection *c, const sdfd_op *op, const char *what,
-                   uint32_t id, int err, const char *message, double start, size_t bytes_in)
+/* Refuse a request of `op` (NULL: an unknown frame type): ERROR frame, metrics, log. */
+static void refuse(sdfd_binary *b, connection *c, const sdfd_op *op, uint32_t id, int err,
+                   const char *message, double start, size_t bytes_in)
 {
     sdfd_bin_send_error(c, id, err, message);
-    sdfd_bin_account(b, op, what, sdfd_http_status(err), 0, start, bytes_in, 0);
+    sdfd_bin_account(b, op, sdfd_op_frame_name(op ? op->frame : 0), sdfd_http_status(err), 0,
+                     start, bytes_in, 0);
 }
 
 /* The job's answer (status 0: its frame; else an ERROR frame with message) and its end. */
@@ -55,7 +51,8 @@ static void finish(bin_job *bj, int status, int refused, const char *message, si
     } else {
         sdfd_bin_enqueue(c, bj->frame, bj->frame_len);
     }
-    sdfd_bin_account(b, bj->op, frame_name(bj->op), status ? sdfd_http_status(status) : 200,
+    sdfd_bin_account(b, bj->op, sdfd_op_frame_name(bj->op->frame),
+                     status ? sdfd_http_status(status) : 200,
                      refused ? 0 : count, bj->start, bj->bytes_in, status ? 0 : bj->frame_len);
     sdfd_query_release(&bj->query);
     sdfd_volume_query_release(&bj->volume_query);
@@ -102,7 +99,7 @@ static bin_job *new_job(sdfd_binary *b, connection *c, const sdfd_op *op, uint32
         if (bj)
             free(bj->frame), free(bj->points);
         free(bj);
-        refuse(b, c, op, frame_name(op), id, SDF_ENOMEM, "out of memory", start, bytes_in);
+        refuse(b, c, op, id, SDF_ENOMEM, "out of memory", start, bytes_in);
         return NULL;
     }
     memcpy(bj->points, points, 12 * (size_t)count);
@@ -139,7 +136,7 @@ static void handle_query(sdfd_binary *b, connection *c, const sdfd_op *op, uint3
     const char *why;
     int rc = sdf_proto_decode_query(payload, len, (uint32_t)b->srv->cfg.max_points, &d, &why);
     if (rc) {
-        refuse(b, c, op, "QUERY", id, rc, why, start, SDF_PROTO_HEADER_SIZE + len);
+        refuse(b, c, op, id, rc, why, start, SDF_PROTO_HEADER_SIZE + len);
         return;
     }
     bin_job *bj = new_job(b, c, op, id, len, d.points, d.count, d.mode, start);
@@ -161,7 +158,7 @@ static void handle_volume_query(sdfd_binary *b, connection *c, const sdfd_op *op
     int rc = sdf_proto_decode_volume_query(payload, len, (uint32_t)b->srv->cfg.max_points, &d,
                                            &why);
     if (rc) {
-        refuse(b, c, op, "VOLUME_QUERY", id, rc, why, start, SDF_PROTO_HEADER_SIZE + len);
+        refuse(b, c, op, id, rc, why, start, SDF_PROTO_HEADER_SIZE + len);
         return;
     }
     sdf_proto_mode mode = d.gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED;
@@ -243,7 +240,7 @@ void sdfd_bin_handle_frame(sdfd_binary *b, connection *c, const sdf_proto_header
             snprintf(msg, sizeof msg, "this server needs AUTH with its token before queries");
         else if (rc == SDFD_EPROTO)
             snprintf(msg, sizeof msg, "unknown message type");
-        refuse(b, c, op, what, h->request_id, rc, msg, start, bytes_in);
+        refuse(b, c, op, h->request_id, rc, msg, start, bytes_in);
         return;
     }
     int status = 200;
