@@ -23,7 +23,10 @@ copy() { # fresh copy of the tracked and new files into $tmp/repo
     done
 }
 
-inject() { # C text appended to the test file
+# One copy and one release build serve every case: each injection starts from the pristine
+# test file, so only that file is rebuilt between them.
+inject() { # C text appended to the pristine test file
+    cp tests/io/test_npy.c "$tmp/repo/tests/io/test_npy.c"
     printf '%s\n' "$1" >>"$tmp/repo/tests/io/test_npy.c"
 }
 
