@@ -74,7 +74,8 @@ static const char SELECT_ITEM[] =
     "SELECT version, encode(hash, 'hex'), format, info, size FROM sdfd_items"
     " WHERE kind = $1 AND name = $2 AND hash IS NOT NULL";
 static const char SELECT_VERSIONS[] =
-    "SELECT name, version FROM sdfd_items WHERE kind = $1 AND hash IS NOT NULL ORDER BY name";
+    "SELECT name, version, hash IS NULL FROM sdfd_items WHERE kind = $1 AND version > 0"
+    " ORDER BY name";
 static const char BEGIN_WRITE[] = "BEGIN";
 static const char BEGIN_READ[] = "BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY";
 
@@ -506,6 +507,7 @@ static int versions_call(sdfd_catalog *c, PGconn *conn, void *arg, char *err, si
     for (size_t i = 0; !rc && i < rows; i++) {
         sdfd_catalog_version *v = &a->list[a->n++];
         v->version = strtoull(PQgetvalue(r, (int)i, 1), NULL, 10);
+        v->deleted = PQgetvalue(r, (int)i, 2)[0] == 't';
         if (PQgetlength(r, (int)i, 0) > SDFD_MAX_NAME) {
             snprintf(err, cap, "catalog: a name longer than %d bytes", SDFD_MAX_NAME);
             rc = SDF_EFORMAT;

@@ -89,11 +89,13 @@ int sdfd_catalog_read(sdfd_catalog *c, sdfd_item_kind kind, const char *name,
 int sdfd_catalog_read_blob(sdfd_catalog *c, const unsigned char hash[SDFD_CATALOG_HASH_BYTES],
                            size_t bytes, void **data, char *err, size_t cap);
 
-/* Every live item of a kind with its version, sorted by name: the start's list and the
- * check after a lost notification stream. On 0 *out holds *n entries (free it; NULL when
- * there are none). SDFD_EUNAVAILABLE, SDF_EIO, SDF_ENOMEM. */
+/* Every item of a kind with its version, live or a tombstone (deleted), sorted by name: the
+ * start's list and the check after a lost notification stream; the tombstones are what tells
+ * a listener that a name it holds was removed while it did not listen. On 0 *out holds *n
+ * entries (free it; NULL when there are none). SDFD_EUNAVAILABLE, SDF_EIO, SDF_ENOMEM. */
 typedef struct sdfd_catalog_version {
     uint64_t version;
+    int deleted;
     char name[SDFD_MAX_NAME + 1];
 } sdfd_catalog_version;
 int sdfd_catalog_versions(sdfd_catalog *c, sdfd_item_kind kind, sdfd_catalog_version **out,

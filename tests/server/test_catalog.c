@@ -318,17 +318,26 @@ static void test_versions(sdfd_catalog *c, const char *db)
     sdfd_catalog_version *list = NULL;
     size_t n = 0;
     CHECK(sdfd_catalog_versions(c, SDFD_ITEM_VOLUME, &list, &n, err, sizeof err) == 0, "%s", err);
-    long long live = pg_number(db, "SELECT count(*) FROM sdfd_items WHERE kind = 'volume' AND"
+    long long all = pg_number(db, "SELECT count(*) FROM sdfd_items WHERE kind = 'volume'"),
+              live = pg_number(db, "SELECT count(*) FROM sdfd_items WHERE kind = 'volume' AND"
                                    " hash IS NOT NULL");
-    CHECK((long long)n == live && n >= 1, "versions lists %zu, %lld live", n, live);
+    size_t listed_live = 0;
+    CHECK((long long)n == all && n >= 2, "versions lists %zu of %lld", n, all);
     for (size_t i = 0; i < n; i++) {
-        char sql[400];
+        char sql[400], dead[400];
         snprintf(sql, sizeof sql, "SELECT version FROM sdfd_items WHERE kind = 'volume' AND"
                  " name = '%s'", list[i].name);
-        CHECK(strcmp(list[i].name, "gone") && pg_number(db, sql) == (long long)list[i].version,
-              "versions: %s %llu", list[i].name, (unsigned long long)list[i].version);
+        snprintf(dead, sizeof dead, "SELECT count(*) FROM sdfd_items WHERE kind = 'volume' AND"
+                 " name = '%s' AND hash IS NULL", list[i].name);
+        listed_live += !list[i].deleted;
+        CHECK(pg_number(db, sql) == (long long)list[i].version &&
+                  list[i].deleted == pg_number(db, dead) &&
+                  (strcmp(list[i].name, "gone") || list[i].deleted),
+              "versions: %s %llu deleted %d", list[i].name, (unsigned long long)list[i].version,
+              list[i].deleted);
         CHECK(i == 0 || strcmp(list[i - 1].name, list[i].name) < 0, "sorted");
     }
+    CHECK((long long)listed_live == live, "%zu live listed, %lld live", listed_live, live);
     free(list);
     CHECK(sdfd_catalog_put(c, SDFD_ITEM_VOLUME, "gone", "y", 1, "exr", NULL, &va, NULL, err,
                            sizeof err) == 0 && va > vd, "put after the tombstone");
