@@ -15,6 +15,7 @@
 
 #include "core/log.h"
 #include "ops/optable.h"
+#include "state/backfile.h"
 #include "state/server.h"
 #include "transport/binary.h"
 #include "transport/http.h"
@@ -171,7 +172,10 @@ int main(int argc, char **argv)
         sdfd_log("error", "start", "--data-dir: %s", err);
         return 1;
     }
-    srv.cache = sdfd_cache_create(store, srv.registry, srv.volumes, srv.metrics,
+    sdfd_backing backing;
+    if (store)
+        sdfd_backfile_init(store, &backing);
+    srv.cache = sdfd_cache_create(store ? &backing : NULL, srv.registry, srv.volumes, srv.metrics,
                                   srv.cfg.max_resident_bytes, srv.cfg.max_total_triangles);
     if (!srv.registry || !srv.metrics || !srv.volumes || !srv.cache ||
         sdfd_workers_create(SDFD_IDLE_WORKERS, &srv.workers) ||

@@ -26,8 +26,9 @@ int sdfd_op_ready(sdfd_call *call)
         return status(call, 503, "draining");
     if (!atomic_load(&srv->ready))
         return status(call, 503, "loading");
-    return sdfd_cache_probe(srv->cache) ? status(call, 503, "store unreadable")
-                                        : status(call, 200, "ready");
+    char why[256];
+    return sdfd_cache_probe(srv->cache, why, sizeof why) ? status(call, 503, "store unreadable")
+                                                         : status(call, 200, "ready");
 }
 
 int sdfd_op_metrics(sdfd_call *call)

@@ -14,24 +14,43 @@
 
 struct sdfd_cache {
     sdfd_resident r; /* the table: its lock guards what the functions below read of it */
-    sdfd_loader *loader; /* with a store */
-    sdfd_store *store;
+    sdfd_loader *loader; /* with a backing */
+    sdfd_backing b;      /* b.ops NULL: memory only */
+    sdfd_store *store;   /* the file store's job records, or NULL */
     sdfd_registry *registry;
     sdfd_volumes *volumes;
 };
 
-sdfd_cache *sdfd_cache_create(sdfd_store *store, sdfd_registry *registry,
+/* Another replica changed (kind, name): the next lookup compares again. */
+static void changed(void *arg, sdfd_item_kind kind, const char *name)
+{
+    sdfd_cache *c = arg;
+    pthread_mutex_lock(&c->r.lock);
+    sdfd_cached *e = sdfd_resident_find(&c->r, kind, name, 0);
+    if (e)
+        e->changes++, e->checked = 0;
+    pthread_mutex_unlock(&c->r.lock);
+}
+
+sdfd_cache *sdfd_cache_create(const sdfd_backing *backing, sdfd_registry *registry,
                               sdfd_volumes *volumes, sdfd_metrics *metrics,
                               size_t max_resident_bytes, size_t max_triangles)
 {
     sdfd_cache *c = calloc(1, sizeof *c);
-    if (!c)
+    if (!c) {
+        if (backing)
+            backing->ops->close(backing->self);
         return NULL;
+    }
     sdfd_resident_init(&c->r, registry, volumes, max_resident_bytes);
-    c->store = store, c->registry = registry, c->volumes = volumes;
-    if (store && !(c->loader = sdfd_loader_create(store, &c->r, metrics, max_triangles))) {
-        sdfd_cache_destroy(c);
-        return NULL;
+    c->registry = registry, c->volumes = volumes;
+    if (backing) {
+        c->b = *backing, c->store = backing->store;
+        if (!(c->loader = sdfd_loader_create(&c->b, &c->r, metrics, max_triangles))) {
+            sdfd_cache_destroy(c);
+            return NULL;
+        }
+        c->b.ops->watch(c->b.self, changed, c);
     }
     return c;
 }
@@ -47,14 +66,16 @@ void sdfd_cache_destroy(sdfd_cache *c)
     if (!c)
         return;
     sdfd_loader_destroy(c->loader);
+    if (c->b.ops)
+        c->b.ops->close(c->b.self); /* no change is heard of after this */
     sdfd_resident_free(&c->r);
-    sdfd_store_close(c->store);
     free(c);
 }
 
-int sdfd_cache_has_store(const sdfd_cache *c) { return c->store != NULL; }
-
-int sdfd_cache_probe(sdfd_cache *c) { return c->store ? sdfd_store_probe(c->store) : 0; }
+int sdfd_cache_probe(sdfd_cache *c, char *msg, size_t cap)
+{
+    return c->b.ops ? c->b.ops->probe(c->b.self, msg, cap) : 0;
+}
 
 /* ---- lookups ----------------------------------------------------------------------------- */
 
@@ -117,20 +138,21 @@ static char *mesh_info(const sdf_mesh *m)
     return text;
 }
 
-/* Write `item` (a mesh or stored volume, the caller's reference) to the store, then make it
- * resident. */
+/* Write `item` (a mesh or stored volume, the caller's reference) to the backing, then make
+ * it resident. */
 static int put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
                const void *file, size_t n, const char *format, char *info, int *replaced,
                char *msg, size_t cap, int baked)
 {
-    if (strlen(name) > SDFD_STORE_MAX_NAME) {
+    if (strlen(name) > c->b.ops->max_name) {
         free(info);
-        snprintf(msg, cap, "with --data-dir a name is at most %d characters (the file system's "
-                 "limit on a file name)", SDFD_STORE_MAX_NAME);
+        snprintf(msg, cap, "with %s a name is at most %zu characters", c->b.ops->flag,
+                 c->b.ops->max_name);
         return SDF_EINVAL;
     }
     pthread_mutex_lock(&c->r.lock);
     sdfd_cached *e = sdfd_resident_claim(&c->r, kind, name);
+    unsigned changes = e ? e->changes : 0;
     pthread_mutex_unlock(&c->r.lock);
     if (!e) {
         free(info);
@@ -140,15 +162,17 @@ static int put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
     sdfd_sidecar meta = {.info = info};
     snprintf(meta.name, sizeof meta.name, "%s", name);
     snprintf(meta.format, sizeof meta.format, "%s", format);
-    sdfd_stamp stamp;
-    int existed = 0, rc = sdfd_store_write(c->store, kind, &meta, file, n, &existed, &stamp, msg,
-                                           cap);
+    sdfd_seen seen;
+    int existed = 0, rc = c->b.ops->write(c->b.self, kind, &meta, file, n, &existed, &seen, msg,
+                                          cap);
     free(info);
     pthread_mutex_lock(&c->r.lock);
     if (!rc) {
         *replaced = existed || e->pinned;
         e->pinned = 0;
-        e->hash = meta.hash, e->stamp = stamp, e->checked = sdfd_now(), e->used = ++c->r.tick;
+        e->hash = meta.hash, e->seen = seen, e->used = ++c->r.tick;
+        /* A change heard of meanwhile may be a later write: compare at the next lookup. */
+        e->checked = e->changes == changes ? sdfd_now() : 0;
         /* In the store, it is the client's: memory is a cache, so not fitting there is no
          * error (the next use loads it, and says why if it still cannot fit). */
         if (baked) /* the bake's job puts it in memory next */
@@ -168,7 +192,7 @@ static int put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
 static int put_mesh(sdfd_cache *c, const char *name, sdf_mesh *mesh, const void *file,
                     size_t n, int *replaced, char *msg, size_t cap)
 {
-    if (!c->store) {
+    if (!c->b.ops) {
         int rc = sdfd_registry_put(c->registry, name, mesh, replaced);
         if (rc == SDF_ELIMIT)
             snprintf(msg, cap, "loading it would exceed --max-meshes or --max-triangles");
@@ -185,7 +209,7 @@ static int put_mesh(sdfd_cache *c, const char *name, sdf_mesh *mesh, const void 
 static int put_volume(sdfd_cache *c, const char *name, sdf_volume *volume, const void *file,
                       size_t n, int *replaced, char *msg, size_t cap)
 {
-    if (!c->store) {
+    if (!c->b.ops) {
         int rc = sdfd_volumes_put(c->volumes, name, volume, "", replaced);
         if (rc)
             snprintf(msg, cap, "storing it would exceed --max-volumes or --max-volume-bytes");
@@ -225,9 +249,9 @@ static int remove_item(sdfd_cache *c, sdfd_item_kind kind, const char *name, cha
         snprintf(msg, cap, "out of memory");
         return SDF_ENOMEM;
     }
-    int rc = strlen(name) > SDFD_STORE_MAX_NAME
+    int rc = strlen(name) > c->b.ops->max_name
                  ? SDF_ENOTFOUND
-                 : sdfd_store_remove(c->store, kind, name, msg, cap);
+                 : c->b.ops->remove(c->b.self, kind, name, msg, cap);
     pthread_mutex_lock(&c->r.lock);
     if (e->pinned && rc == SDF_ENOTFOUND)
         rc = 0;
@@ -245,7 +269,7 @@ static int remove_item(sdfd_cache *c, sdfd_item_kind kind, const char *name, cha
 int sdfd_cache_remove(sdfd_cache *c, sdfd_item_kind kind, const char *name, char *msg,
                       size_t cap)
 {
-    if (c->store)
+    if (c->b.ops)
         return remove_item(c, kind, name, msg, cap);
     int rc = kind == SDFD_ITEM_MESH ? sdfd_registry_remove(c->registry, name)
                                     : sdfd_volumes_remove(c->volumes, name);
@@ -309,24 +333,28 @@ void sdfd_cache_pin(sdfd_cache *c, const char *name)
 
 void sdfd_cache_start(sdfd_cache *c)
 {
-    if (!c->store)
+    if (!c->b.ops)
         return;
-    sdfd_volumes_hooks hooks = {c, keep_baked, job_started, job_ended, job_forgotten};
+    sdfd_volumes_hooks hooks = {c, keep_baked, NULL, NULL, NULL};
+    if (c->store) {
+        hooks.started = job_started, hooks.ended = job_ended, hooks.forgotten = job_forgotten;
+        sdfd_jobrecords_restore(c->store, c->volumes);
+    }
     sdfd_volumes_set_hooks(c->volumes, &hooks);
-    sdfd_jobrecords_restore(c->store, c->volumes);
     for (int kind = SDFD_ITEM_MESH; kind <= SDFD_ITEM_VOLUME; kind++) {
         char(*names)[SDFD_MAX_NAME + 1];
-        size_t n = sdfd_store_scan(c->store, kind, &names);
+        size_t n = c->b.ops->names(c->b.self, kind, 1, &names);
         for (size_t i = 0; i < n; i++) {
             char msg[512];
             void *item = NULL;
             if (c->r.budget && sdfd_resident_bytes(&c->r) >= c->r.budget) {
-                /* Over the budget: the sidecar is checked now, the data when first used. */
+                /* Over the budget: the description is checked now, the data when first
+                 * used. */
                 sdfd_sidecar meta;
-                sdfd_stamp stamp;
-                if (sdfd_store_read(c->store, kind, names[i], &meta, NULL, &stamp, msg,
-                                    sizeof msg) == SDF_EFORMAT)
-                    sdfd_store_quarantine(c->store, kind, names[i], msg);
+                sdfd_seen seen;
+                if (c->b.ops->read(c->b.self, kind, names[i], &meta, NULL, &seen, msg,
+                                   sizeof msg) == SDF_EFORMAT)
+                    c->b.ops->quarantine(c->b.self, kind, names[i], msg);
                 free(meta.info);
                 continue;
             }
@@ -367,11 +395,11 @@ size_t sdfd_cache_list_meshes(sdfd_cache *c, sdfd_mesh_summary **out)
     sdfd_entry *list;
     size_t n = sdfd_registry_list(c->registry, &list), count = 0;
     char(*names)[SDFD_MAX_NAME + 1] = NULL;
-    size_t stored = c->store ? sdfd_store_names(c->store, SDFD_ITEM_MESH, &names) : 0;
+    size_t stored = c->b.ops ? c->b.ops->names(c->b.self, SDFD_ITEM_MESH, 0, &names) : 0;
     *out = malloc((n + stored + 1) * sizeof **out);
     for (size_t i = 0; *out && i < n; i++) {
         int pinned = 1;
-        if (c->store) {
+        if (c->b.ops) {
             pthread_mutex_lock(&c->r.lock);
             sdfd_cached *e = sdfd_resident_find(&c->r, SDFD_ITEM_MESH, list[i].name, 0);
             pinned = e && e->pinned;
@@ -387,14 +415,14 @@ size_t sdfd_cache_list_meshes(sdfd_cache *c, sdfd_mesh_summary **out)
     }
     sdfd_registry_free_list(list, n);
     for (size_t i = 0; *out && i < stored; i++) {
-        sdfd_sidecar meta;
-        sdfd_stamp stamp;
+        sdfd_sidecar meta = {0};
+        sdfd_seen seen;
         char why[64];
         int dup = 0;
         for (size_t k = 0; k < count; k++)
             dup |= !strcmp((*out)[k].name, names[i]);
-        if (!dup && !sdfd_store_read(c->store, SDFD_ITEM_MESH, names[i], &meta, NULL, &stamp, why,
-                                     sizeof why) &&
+        if (!dup && !c->b.ops->read(c->b.self, SDFD_ITEM_MESH, names[i], &meta, NULL, &seen, why,
+                                    sizeof why) &&
             !summary_from_info(names[i], meta.info, &(*out)[count]))
             count++;
         free(meta.info);
@@ -407,17 +435,17 @@ size_t sdfd_cache_list_meshes(sdfd_cache *c, sdfd_mesh_summary **out)
 
 cJSON *sdfd_cache_list_volumes(sdfd_cache *c)
 {
-    if (!c->store)
+    if (!c->b.ops)
         return NULL;
     char(*names)[SDFD_MAX_NAME + 1] = NULL;
-    size_t n = sdfd_store_names(c->store, SDFD_ITEM_VOLUME, &names);
+    size_t n = c->b.ops->names(c->b.self, SDFD_ITEM_VOLUME, 0, &names);
     cJSON *arr = cJSON_CreateArray();
     for (size_t i = 0; i < n; i++) {
-        sdfd_sidecar meta;
-        sdfd_stamp stamp;
+        sdfd_sidecar meta = {0};
+        sdfd_seen seen;
         char why[64];
-        if (!sdfd_store_read(c->store, SDFD_ITEM_VOLUME, names[i], &meta, NULL, &stamp, why,
-                             sizeof why)) {
+        if (!c->b.ops->read(c->b.self, SDFD_ITEM_VOLUME, names[i], &meta, NULL, &seen, why,
+                            sizeof why)) {
             cJSON *o = cJSON_Parse(meta.info);
             if (cJSON_IsObject(o))
                 cJSON_AddItemToArray(arr, o);

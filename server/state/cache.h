@@ -1,18 +1,20 @@
-/* cache.h - the meshes and volumes in memory as a cache of the store (--data-dir), and the
- * one place that reads, writes and checks the store for them.
+/* cache.h - the meshes and volumes in memory as a cache of the backing (backing.h: the file
+ * store of --data-dir, or the catalog of --catalog), and the one place that reads, writes and
+ * checks the backing for them.
  *
- * Without a store it passes every call straight to the registry and the volumes: memory
+ * Without a backing it passes every call straight to the registry and the volumes: memory
  * only, as if it were not there. With one:
- * - a lookup of a name not in memory loads it from the store on a loader thread (loader.h:
+ * - a lookup of a name not in memory loads it from the backing on a loader thread (loader.h:
  *   one load at a time per name; the lookups of that name wait for it), so an item another
  *   replica wrote is found;
- * - a lookup of a name in memory checks the sidecar's stamp at most once a second
- *   (SDFD_LOADER_RECHECK_SECONDS) and drops the item another replica deleted, or reloads the
- *   one it replaced (serving the old version until the new one is in);
+ * - a lookup of a name in memory compares its version with the backing's at most once a
+ *   second (SDFD_LOADER_RECHECK_SECONDS), and at once after the backing told of a change (the
+ *   catalog's notifications), and drops the item another replica deleted, or reloads the one
+ *   it replaced (serving the old version until the new one is in);
  * - with a byte budget, the items used least recently are dropped from memory once the
  *   resident bytes pass it (and reloaded on their next use);
- * - an item whose files fail their checks is logged and quarantined, never served;
- * - uploads and deletes go to the store first, and are answered once it has them.
+ * - an item that fails its checks is logged and set aside, never served;
+ * - uploads and deletes go to the backing first, and are answered once it has them.
  * Meshes named by --mesh/--mesh-dir are pinned: in memory only, never checked or dropped.
  * Thread-safe. sdfd_cache_lookup never waits for a load (the query handlers use it, on the
  * front ends' threads); sdfd_cache_get waits on its caller's. */
@@ -23,6 +25,7 @@
 #include <stddef.h>
 
 #include "core/metrics.h"
+#include "state/backing.h"
 #include "state/loader.h"
 #include "state/registry.h"
 #include "state/store.h"
@@ -30,21 +33,22 @@
 
 typedef struct sdfd_cache sdfd_cache;
 
-/* `store` may be NULL (memory only); the cache owns it. max_resident_bytes 0: no budget.
- * max_triangles: the loader's limit for one mesh. */
-sdfd_cache *sdfd_cache_create(sdfd_store *store, sdfd_registry *registry,
+/* `backing` may be NULL (memory only); the cache owns what it holds from now on (and closes it
+ * if creation fails). max_resident_bytes 0: no budget. max_triangles: the loader's limit for
+ * one mesh. */
+sdfd_cache *sdfd_cache_create(const sdfd_backing *backing, sdfd_registry *registry,
                               sdfd_volumes *volumes, sdfd_metrics *metrics,
                               size_t max_resident_bytes, size_t max_triangles);
 void sdfd_cache_destroy(sdfd_cache *c); /* NULL is a no-op */
 /* Shutdown: finish the loads under way and answer their lookups (before the batcher they
  * submit to stops); lookups that would load answer SDFD_EUNAVAILABLE from then on. */
 void sdfd_cache_stop_loads(sdfd_cache *c);
-int sdfd_cache_has_store(const sdfd_cache *c);
 
 /* A mesh put in the registry at start from the flags: kept in memory, never from the store. */
 void sdfd_cache_pin(sdfd_cache *c, const char *name);
-/* With a store: restore the jobs a restart interrupted (as failed), install the volumes'
- * hooks, and load what the store holds (while under the budget; the rest when first used). */
+/* With a backing: restore the jobs a restart interrupted (as failed; the file store's), install
+ * the volumes' hooks, and load what the backing holds (while under the budget; the rest when
+ * first used). */
 void sdfd_cache_start(sdfd_cache *c);
 
 /* Lookups of a `kind` (SDFD_ITEM_MESH: an sdf_mesh *, SDFD_ITEM_VOLUME: an
@@ -86,8 +90,8 @@ cJSON *sdfd_cache_volume_json(const sdfd_stored_volume *s);
  * 0 or SDF_ENOTFOUND. */
 int sdfd_cache_job(sdfd_cache *c, const char *id, sdfd_job_status *out);
 
-/* 0 when the store (if any) is readable, else an errno value. */
-int sdfd_cache_probe(sdfd_cache *c);
+/* 0 when the backing (if any) can be used now; else non-zero and why in msg. */
+int sdfd_cache_probe(sdfd_cache *c, char *msg, size_t cap);
 
 typedef struct sdfd_cache_stats {
     size_t resident_bytes, budget;

@@ -1,5 +1,5 @@
 /* loader.c - lookups that hand loads to a pool of threads (loader.h). A name whose item must
- * be read from the store is claimed (resident.h: busy) and queued; the lookups that find it
+ * be read from the backing is claimed (resident.h: busy) and queued; the lookups that find it
  * busy queue themselves on it, and the thread that ends the load answers them all with its
  * result. The slow parts (file reads, parsing, BVH builds) run on the pool's threads, outside
  * the table's lock. */
@@ -15,11 +15,11 @@
 #include "core/log.h"
 #include "state/batcher.h" /* sdfd_now */
 
-/* What a check found: the item must be read from the store (not an error code). */
+/* What a check found: the item must be read from the backing (not an error code). */
 #define NEED_LOAD 2
 
 struct sdfd_loader {
-    sdfd_store *store;
+    const sdfd_backing *b;
     sdfd_resident *r;
     sdfd_metrics *metrics;
     size_t max_triangles;
@@ -50,12 +50,6 @@ static int not_found(sdfd_lookup *l)
 }
 
 /* ---- reading an item --------------------------------------------------------------------- */
-
-static int same_stamp(const sdfd_stamp *a, const sdfd_stamp *b)
-{
-    return a->dev == b->dev && a->ino == b->ino && a->size == b->size &&
-           a->mtime_ns == b->mtime_ns;
-}
 
 /* A stored volume from an EXR and its sidecar's info. */
 static int parse_volume(const sdfd_sidecar *meta, const void *data, void **out, sdf_diag *diag)
@@ -105,12 +99,11 @@ static int parse_item(sdfd_loader *ld, const sdfd_sidecar *meta, const void *dat
     return rc;
 }
 
-/* Read and parse e's item from the store (e claimed, the lock not held): 0 with *item (one
- * reference) and the sidecar's hash and stamp; or an error with msg. A damaged item is
- * quarantined, unless its sidecar changed while it was read (another replica's write: read
- * again). */
-static int load(sdfd_loader *ld, sdfd_cached *e, void **item, uint64_t *hash,
-                sdfd_stamp *stamp, char *msg, size_t cap)
+/* Read and parse e's item from the backing (e claimed, the lock not held): 0 with *item (one
+ * reference) and its hash and version; or an error with msg. A damaged item is quarantined,
+ * unless it changed while it was read (another replica's write: read again). */
+static int load(sdfd_loader *ld, sdfd_cached *e, void **item, uint64_t *hash, sdfd_seen *seen,
+                char *msg, size_t cap)
 {
     char why[400];
     const char *kind = sdfd_kind_name(e->kind);
@@ -118,8 +111,8 @@ static int load(sdfd_loader *ld, sdfd_cached *e, void **item, uint64_t *hash,
         double t0 = sdfd_now();
         sdfd_sidecar meta;
         void *data = NULL;
-        int rc = sdfd_store_read(ld->store, e->kind, e->name, &meta, &data, stamp, why,
-                                 sizeof why);
+        int rc = ld->b->ops->read(ld->b->self, e->kind, e->name, &meta, &data, seen, why,
+                                  sizeof why);
         if (!rc) {
             rc = parse_item(ld, &meta, data, item, why, sizeof why) ? SDF_EFORMAT : 0;
             *hash = meta.hash;
@@ -129,8 +122,8 @@ static int load(sdfd_loader *ld, sdfd_cached *e, void **item, uint64_t *hash,
         if (!rc) {
             double seconds = sdfd_now() - t0;
             sdfd_metrics_store_load(ld->metrics, seconds);
-            sdfd_log("info", "store_loaded", "%s %s from the store in %.3f s", kind, e->name,
-                     seconds);
+            sdfd_log("info", "store_loaded", "%s %s from %s in %.3f s", kind, e->name,
+                     ld->b->ops->flag, seconds);
             return 0;
         }
         if (rc != SDF_EFORMAT) {
@@ -140,38 +133,43 @@ static int load(sdfd_loader *ld, sdfd_cached *e, void **item, uint64_t *hash,
                 snprintf(msg, cap, "%s", why);
             return rc;
         }
-        sdfd_stamp now;
+        sdfd_seen now;
         char ignored[64];
-        int moved = sdfd_store_stat(ld->store, e->kind, e->name, &now, ignored, sizeof ignored) ||
-                    !same_stamp(&now, stamp);
+        int moved = ld->b->ops->stat(ld->b->self, e->kind, e->name, &now, ignored,
+                                     sizeof ignored) ||
+                    ld->b->ops->changed(&now, seen);
         if (moved && attempt < 5)
             continue;
-        sdfd_store_quarantine(ld->store, e->kind, e->name, why);
+        ld->b->ops->quarantine(ld->b->self, e->kind, e->name, why);
         pthread_mutex_lock(&ld->r->lock);
         ld->r->quarantined++;
         pthread_mutex_unlock(&ld->r->lock);
-        snprintf(msg, cap, "no %s named '%s' (its files in the store were damaged and are "
-                 "quarantined: %.200s)", kind, e->name, why);
+        snprintf(msg, cap, "no %s named '%s' (what %s holds of it is damaged and set aside: "
+                 "%.200s)", kind, e->name, ld->b->ops->flag, why);
         return SDF_ENOTFOUND;
     }
 }
 
-/* Compare e (claimed, the lock not held) with its sidecar: 0 with l->item (what is in memory
- * is current, or the store cannot be read just now), an error in l, or NEED_LOAD. */
+/* Compare e (claimed, the lock not held) with the backing: 0 with l->item (what is in memory
+ * is current, or the backing cannot be read just now), an error in l, or NEED_LOAD. */
 static int check(sdfd_loader *ld, sdfd_cached *e, sdfd_lookup *l)
 {
     sdfd_resident *r = ld->r;
-    sdfd_stamp stamp;
-    int rc = sdfd_store_stat(ld->store, e->kind, e->name, &stamp, l->message, sizeof l->message);
+    sdfd_seen seen;
+    pthread_mutex_lock(&r->lock);
+    unsigned changes = e->changes;
+    pthread_mutex_unlock(&r->lock);
+    int rc = ld->b->ops->stat(ld->b->self, e->kind, e->name, &seen, l->message,
+                              sizeof l->message);
     pthread_mutex_lock(&r->lock);
     int resident = e->resident;
     uint64_t hash = e->hash;
     if (rc == SDF_ENOTFOUND && resident)
         sdfd_resident_drop(r, e); /* deleted, on this replica or another */
-    /* Serve what is in memory: unchanged, or a store that cannot be read just now. */
-    if (resident && (rc == SDFD_EUNAVAILABLE || (!rc && same_stamp(&stamp, &e->stamp))) &&
+    /* Serve what is in memory: unchanged, or a backing that cannot be read just now. */
+    if (resident && (rc == SDFD_EUNAVAILABLE || (!rc && !ld->b->ops->changed(&seen, &e->seen))) &&
         (l->item = sdfd_resident_get(r, e))) {
-        e->checked = sdfd_now();
+        e->checked = e->changes == changes ? sdfd_now() : 0;
         pthread_mutex_unlock(&r->lock);
         return 0;
     }
@@ -185,13 +183,13 @@ static int check(sdfd_loader *ld, sdfd_cached *e, sdfd_lookup *l)
     /* Rewritten: with the same content? */
     sdfd_sidecar meta;
     char why[64];
-    int same = !sdfd_store_read(ld->store, e->kind, e->name, &meta, NULL, &stamp, why,
-                                sizeof why) && meta.hash == hash;
+    int same = !ld->b->ops->read(ld->b->self, e->kind, e->name, &meta, NULL, &seen, why,
+                                 sizeof why) && meta.hash == hash;
     free(meta.info);
     if (!same)
         return NEED_LOAD;
     pthread_mutex_lock(&r->lock);
-    e->checked = sdfd_now(), e->stamp = stamp;
+    e->checked = e->changes == changes ? sdfd_now() : 0, e->seen = seen;
     l->item = sdfd_resident_get(r, e);
     pthread_mutex_unlock(&r->lock);
     return l->item ? 0 : NEED_LOAD;
@@ -232,16 +230,20 @@ static void run_load(sdfd_loader *ld, sdfd_cached *e)
     sdfd_resident *r = ld->r;
     void *item = NULL;
     uint64_t hash = 0;
-    sdfd_stamp stamp;
+    sdfd_seen seen;
     char msg[sizeof ((sdfd_lookup *)0)->message];
     sdfd_item_kind kind = e->kind;
-    int rc = load(ld, e, &item, &hash, &stamp, msg, sizeof msg);
+    pthread_mutex_lock(&r->lock);
+    unsigned changes = e->changes;
+    pthread_mutex_unlock(&r->lock);
+    int rc = load(ld, e, &item, &hash, &seen, msg, sizeof msg);
     pthread_mutex_lock(&r->lock);
     if (rc) {
         if (e->resident && rc == SDF_ENOTFOUND)
             sdfd_resident_drop(r, e);
     } else {
-        e->checked = sdfd_now(), e->stamp = stamp, e->hash = hash;
+        /* A change heard of during the load: compare again at the next lookup. */
+        e->checked = e->changes == changes ? sdfd_now() : 0, e->seen = seen, e->hash = hash;
         r->loads++;
         if ((rc = sdfd_resident_put(r, e, item)))
             snprintf(msg, sizeof msg, "%s %s does not fit in memory beside the items in use "
@@ -277,13 +279,13 @@ static void *loader_main(void *arg)
     return NULL;
 }
 
-sdfd_loader *sdfd_loader_create(sdfd_store *store, sdfd_resident *r, sdfd_metrics *metrics,
+sdfd_loader *sdfd_loader_create(const sdfd_backing *b, sdfd_resident *r, sdfd_metrics *metrics,
                                 size_t max_triangles)
 {
     sdfd_loader *ld = calloc(1, sizeof *ld);
     if (!ld)
         return NULL;
-    ld->store = store, ld->r = r, ld->metrics = metrics, ld->max_triangles = max_triangles;
+    ld->b = b, ld->r = r, ld->metrics = metrics, ld->max_triangles = max_triangles;
     pthread_cond_init(&ld->work, NULL);
     while (ld->started < SDFD_LOADER_THREADS &&
            !pthread_create(&ld->threads[ld->started], NULL, loader_main, ld))

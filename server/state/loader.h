@@ -1,21 +1,22 @@
-/* loader.h - lookups of the store's items that never hold their caller for a load: the cache
- * (cache.h) looks names up here when it has a store.
+/* loader.h - lookups of the backing's items (backing.h: the file store or the catalog) that
+ * never hold their caller for a load: the cache (cache.h) looks names up here when it has a
+ * backing.
  *
  * A lookup answers at once from memory when it can: the item is pinned, resident and
- * compared with its sidecar less than SDFD_LOADER_RECHECK_SECONDS ago, or resident while a
- * new version of it loads (the old one is served until the new one is ready). Otherwise it
- * compares the sidecar there and then (a stat, and a read of the small sidecar when the stat
- * changed), and when the item has to be read and parsed (not in memory, or replaced by a
- * different content) hands that to a pool of SDFD_LOADER_THREADS threads: one load per name,
- * its lookups queued on the name and answered through their `done` when it ends. So the
- * thread that looked up never waits for a parse or a BVH build, and lookups of other names
- * go on meanwhile. Thread-safe. */
+ * compared with the backing less than SDFD_LOADER_RECHECK_SECONDS ago (and no change of it
+ * heard of since), or resident while a new version of it loads (the old one is served until
+ * the new one is ready). Otherwise it compares with the backing there and then (its stat, and
+ * a read of the item's description when the version changed), and when the item has to be
+ * read and parsed (not in memory, or replaced by a different content) hands that to a pool
+ * of SDFD_LOADER_THREADS threads: one load per name, its lookups queued on the name and
+ * answered through their `done` when it ends. So the thread that looked up never waits for a
+ * parse or a BVH build, and lookups of other names go on meanwhile. Thread-safe. */
 #ifndef SDFD_LOADER_H
 #define SDFD_LOADER_H
 
 #include "core/metrics.h"
+#include "state/backing.h"
 #include "state/resident.h"
-#include "state/store.h"
 
 #define SDFD_LOADER_RECHECK_SECONDS 1.0
 #define SDFD_LOADER_THREADS 2
@@ -25,9 +26,9 @@
 
 typedef struct sdfd_loader sdfd_loader;
 
-/* The loader of `store` for the table `r` (both stay the caller's). max_triangles: the
+/* The loader of backing `b` for the table `r` (both stay the caller's). max_triangles: the
  * limit for one mesh. NULL if its threads cannot start. */
-sdfd_loader *sdfd_loader_create(sdfd_store *store, sdfd_resident *r, sdfd_metrics *metrics,
+sdfd_loader *sdfd_loader_create(const sdfd_backing *b, sdfd_resident *r, sdfd_metrics *metrics,
                                 size_t max_triangles);
 /* Finish the loads queued and stop the threads; lookups that would load answer
  * SDFD_EUNAVAILABLE from then on. */

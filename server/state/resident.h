@@ -13,6 +13,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "state/backing.h"
 #include "state/registry.h"
 #include "state/store.h"
 #include "state/volumes.h"
@@ -43,8 +44,10 @@ typedef struct sdfd_cached {
     int resident;       /* in the registry / the volumes, as the store's version `hash` */
     int pinned;         /* from the flags: memory only */
     uint64_t hash;
-    sdfd_stamp stamp;   /* the sidecar's, when last read */
-    double checked;     /* when the sidecar was last compared */
+    sdfd_seen seen;     /* the backing's version, when last read */
+    double checked;     /* when it was last compared with the backing's */
+    unsigned changes;   /* the backing's change notices so far (a load or write that saw
+                         * this count change while it ran must not trust what it read) */
     unsigned long long used;
     sdfd_lookup *waiting;      /* lookups to answer or retry once it is no longer busy */
     struct sdfd_cached *queued; /* the loader's queue */
