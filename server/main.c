@@ -15,6 +15,7 @@
 
 #include "core/log.h"
 #include "ops/optable.h"
+#include "state/backcat.h"
 #include "state/backfile.h"
 #include "state/server.h"
 #include "transport/binary.h"
@@ -86,7 +87,8 @@ static int load_meshes(sdfd_server *srv)
     if (srv->cfg.mesh_dir && load_dir(srv, srv->cfg.mesh_dir))
         return -1;
     /* The demo stands in for an empty server; a store is not one. */
-    if (srv->cfg.mesh_count == 0 && !srv->cfg.mesh_dir && !srv->cfg.data_dir) {
+    if (srv->cfg.mesh_count == 0 && !srv->cfg.mesh_dir && !srv->cfg.data_dir &&
+        !srv->cfg.catalog) {
         sdf_mesh *demo;
         if (sdf_mesh_create_demo(&demo) || sdfd_registry_put(srv->registry, "demo", demo, NULL))
             return -1;
@@ -172,10 +174,15 @@ int main(int argc, char **argv)
         sdfd_log("error", "start", "--data-dir: %s", err);
         return 1;
     }
-    sdfd_backing backing;
+    sdfd_backing backing = {0};
     if (store)
         sdfd_backfile_init(store, &backing);
-    srv.cache = sdfd_cache_create(store ? &backing : NULL, srv.registry, srv.volumes, srv.metrics,
+    if (srv.cfg.catalog &&
+        sdfd_backcat_create(srv.cfg.catalog, &srv.catalog_metrics, &backing, err, sizeof err)) {
+        sdfd_log("error", "start", "--catalog: %s", err);
+        return 1;
+    }
+    srv.cache = sdfd_cache_create(backing.ops ? &backing : NULL, srv.registry, srv.volumes, srv.metrics,
                                   srv.cfg.max_resident_bytes, srv.cfg.max_total_triangles);
     if (!srv.registry || !srv.metrics || !srv.volumes || !srv.cache ||
         sdfd_workers_create(SDFD_IDLE_WORKERS, &srv.workers) ||
@@ -198,7 +205,11 @@ int main(int argc, char **argv)
         sdfd_tls_destroy(srv.tls);
         return 1;
     }
-    sdfd_cache_start(srv.cache); /* the flags' meshes first: they win over the store's */
+    /* the flags' meshes first: they win over the store's */
+    if (sdfd_cache_start(srv.cache, err, sizeof err)) {
+        sdfd_log("error", "start", "%s: %s", srv.cfg.catalog ? "--catalog" : "--data-dir", err);
+        return 1;
+    }
     atomic_store(&srv.ready, 1);
     sdfd_log("info", "ready", "serving %zu meshes", sdfd_registry_count(srv.registry));
 

@@ -46,7 +46,8 @@ static const setting settings[] = {
     {"--max-bakes", "SDFD_MAX_BAKES", "N", "bake and ops jobs running at once; more wait queued (default 1)", UINT, AT(max_bakes), 1, 64},
     {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1, 1u << 16},
     {"--data-dir", "SDFD_DATA_DIR", "DIR", "keep meshes, volumes and bake jobs in DIR (shared by replicas; docs/api.md)", STRING, AT(data_dir), 0, 0},
-    {"--max-resident-bytes", "SDFD_MAX_RESIDENT_BYTES", "N", "with --data-dir: drop the least recently used meshes and volumes from memory past N bytes (default 0 = keep all)", SIZE, AT(max_resident_bytes), 0, 1ull << 44},
+    {"--catalog", "SDFD_CATALOG", "URI", "keep meshes and volumes in PostgreSQL (a libpq URI or key=value string; replicas share it; docs/deploy.md)", STRING, AT(catalog), 0, 0},
+    {"--max-resident-bytes", "SDFD_MAX_RESIDENT_BYTES", "N", "with --data-dir or --catalog: drop the least recently used meshes and volumes from memory past N bytes (default 0 = keep all)", SIZE, AT(max_resident_bytes), 0, 1ull << 44},
     {"--tls-cert", "SDFD_TLS_CERT", "FILE", "serve HTTPS (TLS 1.2+) with this PEM certificate chain; reread on SIGHUP", STRING, AT(tls_cert), 0, 0},
     {"--tls-key", "SDFD_TLS_KEY", "FILE", "the certificate's PEM private key (with --tls-cert)", STRING, AT(tls_key), 0, 0},
     {"--bin-tls", "SDFD_BIN_TLS", "", "the binary protocol over TLS too, with the same certificate", BOOL, AT(bin_tls), 0, 1},
@@ -212,6 +213,11 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
     }
     if (!cfg->tls_cert != !cfg->tls_key) {
         fprintf(stderr, "sdfd: --tls-cert and --tls-key go together: give both or neither\n");
+        return -1;
+    }
+    if (cfg->catalog && cfg->data_dir) {
+        fprintf(stderr, "sdfd: --catalog keeps everything in PostgreSQL: give --catalog or "
+                "--data-dir, not both\n");
         return -1;
     }
     if (cfg->bin_tls && !cfg->tls_cert) {

@@ -7,6 +7,12 @@
 
 #include "core/errors.h"
 
+static int start(void *self, char *err, size_t cap)
+{
+    (void)self, (void)err, (void)cap; /* opened, and brought to layout 2, by sdfd_store_open */
+    return 0;
+}
+
 static int probe(void *self, char *msg, size_t cap)
 {
     int e = sdfd_store_probe(self);
@@ -71,6 +77,7 @@ static void close_store(void *self) { sdfd_store_close(self); }
 static const sdfd_backing_ops ops = {
     .flag = "--data-dir",
     .max_name = SDFD_STORE_MAX_NAME,
+    .start = start,
     .probe = probe,
     .write = write_item,
     .remove = remove_item,

@@ -34,6 +34,9 @@ typedef struct sdfd_backing_ops {
     const char *flag;
     /* The longest name it stores. */
     size_t max_name;
+    /* Make it ready to use (connect, wait for the first list): 0, or an error it cannot
+     * recover from (err says why; sdfd stops). */
+    int (*start)(void *self, char *err, size_t cap);
     /* 0 when it can be read and written now; else why not, in msg, and non-zero. */
     int (*probe)(void *self, char *msg, size_t cap);
     /* Write an item (meta's name, format, info read; hash and bytes set): committed on 0,

@@ -331,10 +331,13 @@ void sdfd_cache_pin(sdfd_cache *c, const char *name)
     pthread_mutex_unlock(&c->r.lock);
 }
 
-void sdfd_cache_start(sdfd_cache *c)
+int sdfd_cache_start(sdfd_cache *c, char *err, size_t cap)
 {
     if (!c->b.ops)
-        return;
+        return 0;
+    int rc = c->b.ops->start(c->b.self, err, cap);
+    if (rc)
+        return rc;
     sdfd_volumes_hooks hooks = {c, keep_baked, NULL, NULL, NULL};
     if (c->store) {
         hooks.started = job_started, hooks.ended = job_ended, hooks.forgotten = job_forgotten;
@@ -365,6 +368,7 @@ void sdfd_cache_start(sdfd_cache *c)
         }
         free(names);
     }
+    return 0;
 }
 
 static int by_summary_name(const void *a, const void *b)

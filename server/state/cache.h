@@ -46,10 +46,11 @@ void sdfd_cache_stop_loads(sdfd_cache *c);
 
 /* A mesh put in the registry at start from the flags: kept in memory, never from the store. */
 void sdfd_cache_pin(sdfd_cache *c, const char *name);
-/* With a backing: restore the jobs a restart interrupted (as failed; the file store's), install
- * the volumes' hooks, and load what the backing holds (while under the budget; the rest when
- * first used). */
-void sdfd_cache_start(sdfd_cache *c);
+/* With a backing: make it ready (the catalog: connect, retrying while PostgreSQL cannot be
+ * reached), restore the jobs a restart interrupted (as failed; the file store's), install the
+ * volumes' hooks, and load what the backing holds (while under the budget; the rest when
+ * first used). 0, or an error the backing cannot recover from (err says why). */
+int sdfd_cache_start(sdfd_cache *c, char *err, size_t cap);
 
 /* Lookups of a `kind` (SDFD_ITEM_MESH: an sdf_mesh *, SDFD_ITEM_VOLUME: an
  * sdfd_stored_volume *): a retained reference in *out and 0; SDF_ENOTFOUND;

@@ -10,6 +10,7 @@
 #include "core/metrics.h"
 #include "state/batcher.h"
 #include "state/cache.h"
+#include "state/catmetrics.h"
 #include "state/registry.h"
 #include "state/volumes.h"
 #include "state/workers.h"
@@ -21,6 +22,7 @@ typedef struct sdfd_server {
     sdfd_batcher *batcher;
     sdfd_volumes *volumes;   /* baked volumes and bake jobs */
     sdfd_cache *cache;       /* lookups, uploads and deletes of both, through the store if any */
+    sdfd_catalog_metrics catalog_metrics; /* with --catalog: its talks with PostgreSQL */
     struct sdfd_tls *tls;    /* --tls-cert and --tls-key, or NULL: no TLS (transport/tls.h) */
     sdfd_workers *workers;   /* threads for uploads, slices and volume queries */
     atomic_int ready;        /* meshes loaded: /readyz 200 */

@@ -38,7 +38,7 @@ typedef enum sdfd_item_kind { SDFD_ITEM_MESH, SDFD_ITEM_VOLUME } sdfd_item_kind;
 typedef struct sdfd_sidecar {
     char name[SDFD_MAX_NAME + 1];
     char file[SDFD_MAX_NAME + 64]; /* the data file, in the kind's data/ directory */
-    char format[8];                /* obj, ply, stl, off; exr */
+    char format[16];               /* obj, ply, stl, off; exr */
     uint64_t hash;                 /* FNV-1a 64 of the data file */
     size_t bytes;
     char *info;                    /* malloc'd JSON text, or NULL */

@@ -11,6 +11,7 @@ server program runs as that user through `setpriv`; otherwise it runs as the cal
         connect(pg.uri)           # postgresql://postgres@127.0.0.1:PORT/postgres
         pg.stop(); pg.start()     # fast shutdown; the same data directory and port
         pg.kill()                 # SIGKILL the postmaster (start() recovers from it)
+        pg.sql("SELECT 1")        # one statement through psql: its rows as text
 
 PgServer(tls=(cert, key)) also serves TLS with that certificate (plain connections too).
 
@@ -28,7 +29,7 @@ import tempfile
 import time
 
 BINDIR_DEFAULT = "/usr/lib/postgresql/15/bin"
-PROGRAMS = ("initdb", "postgres")
+PROGRAMS = ("initdb", "postgres", "psql")
 
 
 class PgServerError(RuntimeError):
@@ -111,6 +112,15 @@ class PgServer:
 
     def uri_for(self, dbname):
         return "postgresql://postgres@127.0.0.1:%d/%s" % (self.port, dbname)
+
+    def sql(self, query, dbname="postgres"):
+        """Run one statement with psql; its rows as text, one a line, fields split by '|'."""
+        done = subprocess.run([os.path.join(self.bindir, "psql"), "-X", "-A", "-t", "-q",
+                               "-v", "ON_ERROR_STOP=1", "-c", query, self.uri_for(dbname)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd="/")
+        if done.returncode != 0:
+            raise PgServerError("psql %r failed: %s" % (query, done.stderr.decode(errors="replace")))
+        return done.stdout.decode()
 
     def _program(self, name):
         return self._prefix + [os.path.join(self.bindir, name)]
