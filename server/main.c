@@ -12,8 +12,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "core/log.h"
+#include "ops/opjobs.h"
 #include "ops/optable.h"
 #include "state/backcat.h"
 #include "state/backfile.h"
@@ -145,6 +147,9 @@ int main(int argc, char **argv)
     int rc = sdfd_config_parse(&srv.cfg, argc, argv);
     if (rc)
         return rc > 0 ? 0 : 2;
+    static char host[64];
+    if (!srv.cfg.replica_id) /* jobs name the replica that runs them */
+        srv.cfg.replica_id = gethostname(host, sizeof host - 1) ? "sdfd" : host;
     sigset_t signals;
     sigemptyset(&signals);
     sigaddset(&signals, SIGTERM);
@@ -210,6 +215,13 @@ int main(int argc, char **argv)
         sdfd_log("error", "start", "%s: %s", srv.cfg.catalog ? "--catalog" : "--data-dir", err);
         return 1;
     }
+    if (srv.cfg.catalog &&
+        !(srv.jobs = sdfd_jobrunner_create(sdfd_backcat_catalog(&backing), srv.cache,
+                                           srv.volumes, srv.cfg.replica_id, srv.cfg.max_bakes,
+                                           sdfd_op_start_shared, &srv))) {
+        sdfd_log("error", "start", "cannot start the job runner");
+        return 1;
+    }
     atomic_store(&srv.ready, 1);
     sdfd_log("info", "ready", "serving %zu meshes", sdfd_registry_count(srv.registry));
 
@@ -218,6 +230,7 @@ int main(int argc, char **argv)
         reload_tls(&srv);
     sdfd_log("info", "shutdown", "%s: draining", sig == SIGTERM ? "SIGTERM" : "SIGINT");
     atomic_store(&srv.draining, 1);
+    sdfd_jobrunner_stop(srv.jobs); /* before the volumes cancel what it claimed */
     sdfd_volumes_close(srv.volumes); /* bakes stop at their next slab */
     sdfd_http_quiesce(http);
     sdfd_binary_quiesce(bin);
@@ -232,6 +245,7 @@ int main(int argc, char **argv)
     sdfd_http_stop(http);
     sdfd_workers_destroy(srv.workers); /* their tasks ended with the requests they served */
     sdfd_volumes_destroy(srv.volumes);
+    sdfd_jobrunner_destroy(srv.jobs); /* after the volumes: their hooks report to it */
     sdfd_cache_destroy(srv.cache);
     sdfd_registry_destroy(srv.registry);
     sdfd_metrics_destroy(srv.metrics);

@@ -422,3 +422,8 @@ int sdfd_backcat_create(const char *conninfo, sdfd_catalog_metrics *m, sdfd_back
     *out = (sdfd_backing){.ops = &ops, .self = b};
     return 0;
 }
+
+sdfd_catalog *sdfd_backcat_catalog(const sdfd_backing *b)
+{
+    return ((backcat *)b->self)->cat;
+}

@@ -17,6 +17,7 @@
 #define SDFD_BACKCAT_H
 
 #include "state/backing.h"
+#include "state/catalog.h"
 #include "state/catmetrics.h"
 
 #define SDFD_BACKCAT_RESYNC_SECONDS 30.0
@@ -26,5 +27,9 @@
  * lives). 0 or SDF_EINVAL, SDF_ENOMEM. */
 int sdfd_backcat_create(const char *conninfo, sdfd_catalog_metrics *m, sdfd_backing *out,
                         char *err, size_t cap);
+
+/* The catalog of a started backing made by sdfd_backcat_create (for its other tables:
+ * jobs); NULL before ops->start returned 0. */
+sdfd_catalog *sdfd_backcat_catalog(const sdfd_backing *b);
 
 #endif

@@ -280,10 +280,8 @@ int sdfd_cache_remove(sdfd_cache *c, sdfd_item_kind kind, const char *name, char
 
 /* ---- bake jobs --------------------------------------------------------------------------- */
 
-/* A finished bake's volume, into the store before its job says done. */
-static int keep_baked(void *user, const sdfd_stored_volume *s, char *err, size_t cap)
+int sdfd_cache_keep_baked(sdfd_cache *c, const sdfd_stored_volume *s, char *err, size_t cap)
 {
-    sdfd_cache *c = user;
     void *exr = NULL;
     size_t n = 0;
     sdf_diag diag = {0};
@@ -298,6 +296,11 @@ static int keep_baked(void *user, const sdfd_stored_volume *s, char *err, size_t
                            &replaced, err, cap, 1);
     free(exr);
     return rc;
+}
+
+static int keep_baked(void *user, const sdfd_stored_volume *s, char *err, size_t cap)
+{
+    return sdfd_cache_keep_baked(user, s, err, cap);
 }
 
 static int job_started(void *user, const sdfd_job_status *s)
@@ -338,12 +341,11 @@ int sdfd_cache_start(sdfd_cache *c, char *err, size_t cap)
     int rc = c->b.ops->start(c->b.self, err, cap);
     if (rc)
         return rc;
-    sdfd_volumes_hooks hooks = {c, keep_baked, NULL, NULL, NULL};
-    if (c->store) {
-        hooks.started = job_started, hooks.ended = job_ended, hooks.forgotten = job_forgotten;
+    if (c->store) { /* the catalog's jobs are the job runner's (jobrunner.h) */
+        sdfd_volumes_hooks hooks = {c, keep_baked, job_started, job_ended, job_forgotten};
         sdfd_jobrecords_restore(c->store, c->volumes);
+        sdfd_volumes_set_hooks(c->volumes, &hooks);
     }
-    sdfd_volumes_set_hooks(c->volumes, &hooks);
     for (int kind = SDFD_ITEM_MESH; kind <= SDFD_ITEM_VOLUME; kind++) {
         char(*names)[SDFD_MAX_NAME + 1];
         size_t n = c->b.ops->names(c->b.self, kind, 1, &names);

@@ -47,9 +47,10 @@ void sdfd_cache_stop_loads(sdfd_cache *c);
 /* A mesh put in the registry at start from the flags: kept in memory, never from the store. */
 void sdfd_cache_pin(sdfd_cache *c, const char *name);
 /* With a backing: make it ready (the catalog: connect, retrying while PostgreSQL cannot be
- * reached), restore the jobs a restart interrupted (as failed; the file store's), install the
- * volumes' hooks, and load what the backing holds (while under the budget; the rest when
- * first used). 0, or an error the backing cannot recover from (err says why). */
+ * reached); with the file store, restore the jobs a restart interrupted (as failed) and
+ * install the volumes' hooks (the catalog's are the job runner's); then load what the
+ * backing holds (while under the budget; the rest when first used). 0, or an error the
+ * backing cannot recover from (err says why). */
 int sdfd_cache_start(sdfd_cache *c, char *err, size_t cap);
 
 /* Lookups of a `kind` (SDFD_ITEM_MESH: an sdf_mesh *, SDFD_ITEM_VOLUME: an
@@ -86,6 +87,10 @@ size_t sdfd_cache_list_meshes(sdfd_cache *c, sdfd_mesh_summary **out); /* free *
 cJSON *sdfd_cache_list_volumes(sdfd_cache *c);
 /* Describe a stored volume as GET /v1/volumes/{name} does (a new object). */
 cJSON *sdfd_cache_volume_json(const sdfd_stored_volume *s);
+
+/* A finished job's volume `s`, into the backing (and memory) before its job says done: 0 or
+ * an error with err (the job fails with it). The volumes' `keep` hook. */
+int sdfd_cache_keep_baked(sdfd_cache *c, const sdfd_stored_volume *s, char *err, size_t cap);
 
 /* A job no longer (or never) in this process's memory, from its record in the store:
  * 0 or SDF_ENOTFOUND. */

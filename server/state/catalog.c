@@ -532,6 +532,24 @@ int sdfd_catalog_versions(sdfd_catalog *c, sdfd_item_kind kind, sdfd_catalog_ver
     return 0;
 }
 
+typedef struct transact_args {
+    sdfd_catalog_fn fn;
+    void *arg;
+} transact_args;
+
+static int transact_call(sdfd_catalog *c, PGconn *conn, void *arg, char *err, size_t cap)
+{
+    transact_args *a = arg;
+    return a->fn(conn, c->metrics, a->arg, err, cap);
+}
+
+int sdfd_catalog_transact(sdfd_catalog *c, int write, sdfd_catalog_fn fn, void *arg, char *err,
+                          size_t cap)
+{
+    transact_args a = {fn, arg};
+    return run(c, write ? BEGIN_WRITE : BEGIN_READ, transact_call, &a, err, cap);
+}
+
 /* ---- the sweeper ------------------------------------------------------------------------ */
 
 typedef struct sweep_args {

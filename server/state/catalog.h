@@ -18,6 +18,7 @@
 #ifndef SDFD_CATALOG_H
 #define SDFD_CATALOG_H
 
+#include <libpq-fe.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -100,6 +101,16 @@ typedef struct sdfd_catalog_version {
 } sdfd_catalog_version;
 int sdfd_catalog_versions(sdfd_catalog *c, sdfd_item_kind kind, sdfd_catalog_version **out,
                           size_t *n, char *err, size_t cap);
+
+/* For the catalog's other tables (catjobs.h): run fn as one transaction on a pooled
+ * connection (write: READ COMMITTED; else a REPEATABLE READ READ ONLY snapshot), run again
+ * as a whole after a deadlock or serialization failure, as every call here is. fn sends its
+ * statements with sdfd_catconn_exec(m, conn, ...) and returns 0 or a code of catconn.h with
+ * err set; the result is 0 or an sdfd error code. */
+typedef int (*sdfd_catalog_fn)(PGconn *conn, sdfd_catalog_metrics *m, void *arg, char *err,
+                               size_t cap);
+int sdfd_catalog_transact(sdfd_catalog *c, int write, sdfd_catalog_fn fn, void *arg, char *err,
+                          size_t cap);
 
 /* Delete the blobs no item refers to that no write has touched for grace_seconds; *deleted
  * (may be NULL) counts them. Safe beside any number of writers on any replica. 0,

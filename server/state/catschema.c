@@ -52,8 +52,30 @@ static const char *const version_1[] = {
     NULL,
 };
 
+/* Jobs (catjobs.h): one row each, the request that started it, who runs it and until when. */
+static const char *const version_2[] = {
+    "CREATE TABLE sdfd_jobs ("
+    " id text PRIMARY KEY,"
+    " kind text NOT NULL CHECK (kind IN ('bake', 'ops')),"
+    " state text NOT NULL CHECK (state IN ('queued', 'running', 'done', 'failed', 'canceled')),"
+    " target text NOT NULL,"
+    " request bytea NOT NULL,"
+    " mesh text NOT NULL, source text NOT NULL, volume text NOT NULL,"
+    " has_ops boolean NOT NULL,"
+    " progress double precision NOT NULL DEFAULT 0,"
+    " owner text, attempts integer NOT NULL DEFAULT 0, lease_until timestamptz,"
+    " cancel_requested boolean NOT NULL DEFAULT false,"
+    " error integer NOT NULL DEFAULT 0, message text NOT NULL DEFAULT '',"
+    " caveats integer NOT NULL DEFAULT 0, warning text NOT NULL DEFAULT '',"
+    " created timestamptz NOT NULL, ended timestamptz)",
+    "CREATE INDEX sdfd_jobs_queued ON sdfd_jobs (created) WHERE state = 'queued'",
+    "CREATE INDEX sdfd_jobs_running ON sdfd_jobs (lease_until) WHERE state = 'running'",
+    "CREATE INDEX sdfd_jobs_created ON sdfd_jobs (created)",
+    NULL,
+};
+
 /* steps[v - 1] takes the schema from version v - 1 to v. */
-static const char *const *const steps[SDFD_CATSCHEMA_VERSION] = {version_1};
+static const char *const *const steps[SDFD_CATSCHEMA_VERSION] = {version_1, version_2};
 
 static int run(sdfd_catalog_metrics *m, PGconn *conn, const char *sql, char *err, size_t cap)
 {

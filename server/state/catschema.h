@@ -13,7 +13,7 @@
 
 #include "state/catmetrics.h"
 
-#define SDFD_CATSCHEMA_VERSION 1 /* the version this sdfd writes */
+#define SDFD_CATSCHEMA_VERSION 2 /* the version this sdfd writes */
 
 /* Bring conn's database to SDFD_CATSCHEMA_VERSION. 0 with *applied = the steps this call
  * applied (0 when it was current), or an error code (catconn.h) with err set; SDF_EFORMAT

@@ -7,7 +7,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "core/errors.h"
 #include "core/log.h"
@@ -86,9 +88,12 @@ sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_
     v->max_jobs = max_jobs ? max_jobs : 1;
     v->max_queries = max_queries;
     v->threads = threads;
-    struct timespec t;
-    clock_gettime(CLOCK_REALTIME, &t);
-    v->id_prefix = (unsigned)(t.tv_sec * 1000003u ^ t.tv_nsec); /* ids differ across restarts */
+    /* Ids differ across restarts and across replicas that share jobs (catjobs.h). */
+    if (getrandom(&v->id_prefix, sizeof v->id_prefix, 0) != sizeof v->id_prefix) {
+        struct timespec t;
+        clock_gettime(CLOCK_REALTIME, &t);
+        v->id_prefix = (unsigned)(t.tv_sec * 1000003u ^ t.tv_nsec ^ (unsigned)getpid() << 16);
+    }
     return v;
 }
 
@@ -567,8 +572,10 @@ static int enqueue(sdfd_volumes *v, job *j, size_t volume, size_t working, char 
         rc = SDFD_EBUSY, snprintf(err, err_cap, "%zu jobs are unfinished; retry later",
                                  v->job_count);
     if (!rc) {
-        snprintf(j->status.id, sizeof j->status.id, "%08x-%lu", v->id_prefix,
-                 atomic_fetch_add(&v->next_id, 1) + 1);
+        if (id[0]) /* a shared job's own */
+            snprintf(j->status.id, sizeof j->status.id, "%.23s", id);
+        else
+            sdfd_volumes_new_id(v, j->status.id);
         j->status.state = SDFD_JOB_QUEUED;
         j->started = sdfd_now();
         j->reserved = need;
@@ -608,13 +615,71 @@ static int check_bake_ops(const sdf_volume_info *planned, char *err, size_t err_
     return SDF_EINVAL;
 }
 
+/* The bake j (its request set, o's callbacks installed) as the library plans it: 0 with
+ * *planned and the *working bytes besides the volume, or an error with err. */
+static int plan_bake(sdfd_volumes *v, const sdf_mesh *mesh, const sdfd_bake_request *req,
+                     const sdf_bake_options *o, sdf_volume_info *planned, size_t *working,
+                     char *err, size_t err_cap)
+{
+    sdf_diag diag = {0};
+    int rc;
+    if ((rc = sdf_volume_plan(mesh, o, planned, &diag)) ||
+        (rc = sdf_volume_bake_scratch(mesh, o, working, &diag)))
+        snprintf(err, err_cap, "%s", diag.message);
+    else if (!(rc = check_queries(v, mesh, planned, req, err, err_cap)) && req->ops.count)
+        rc = check_bake_ops(planned, err, err_cap);
+    if (!rc && req->ops.count) { /* the ops run after the bake's working memory is freed */
+        size_t ops = sdfd_ops_bytes(planned->dims[0] * planned->dims[1] * planned->dims[2],
+                                    &req->ops);
+        *working = *working > ops ? *working : ops;
+    }
+    return rc;
+}
+
+/* The options the library gets for request `req` (a copy the job owns, or the caller's). */
+static void bake_options(sdfd_volumes *v, sdfd_bake_request *req, job *j)
+{
+    sdf_bake_options *o = &req->options;
+    o->filter = req->filtered ? &req->filter : NULL;
+    if (req->filtered)
+        req->filter.smooth.mesh = req->smoothing_mesh;
+    o->progress = on_progress;
+    o->user = j;
+    o->query.threads = v->threads;
+}
+
+/* Over --max-volume-bytes by itself, whatever else is held. */
+static int check_alone(const sdfd_volumes *v, size_t need, char *err, size_t err_cap)
+{
+    if (need <= v->max_bytes)
+        return 0;
+    snprintf(err, err_cap, "the job needs %zu bytes, over --max-volume-bytes %zu", need,
+             v->max_bytes);
+    return SDF_ELIMIT;
+}
+
+void sdfd_volumes_new_id(sdfd_volumes *v, char id[24])
+{
+    snprintf(id, 24, "%08x-%lu", v->id_prefix, atomic_fetch_add(&v->next_id, 1) + 1);
+}
+
+int sdfd_volumes_check_bake(sdfd_volumes *v, const sdf_mesh *mesh, const sdfd_bake_request *req,
+                            char *err, size_t err_cap)
+{
+    sdfd_bake_request copy = *req;
+    sdf_volume_info planned = {0};
+    size_t working = 0;
+    bake_options(v, &copy, NULL);
+    int rc = plan_bake(v, mesh, &copy, &copy.options, &planned, &working, err, err_cap);
+    return rc ? rc : check_alone(v, volume_bytes(&planned) + working, err, err_cap);
+}
+
 int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
                       const char *volume_name, sdfd_bake_request *req, char id[24], char *err,
                       size_t err_cap)
 {
     job *j = calloc(1, sizeof *j);
     int rc = j ? 0 : SDF_ENOMEM;
-    sdf_bake_options *o = j ? &j->req.options : NULL;
     sdf_volume_info planned = {0};
     size_t working = 0; /* the bake's working memory besides the volume (sdf.h) */
     if (!rc) {
@@ -623,31 +688,14 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         j->owner = v;
         j->status.kind = SDFD_JOB_BAKE;
         j->status.has_ops = req->ops.count > 0;
-        o->filter = j->req.filtered ? &j->req.filter : NULL;
-        if (j->req.filtered)
-            j->req.filter.smooth.mesh = j->req.smoothing_mesh;
-        o->progress = on_progress;
-        o->user = j;
-        o->query.threads = v->threads;
+        bake_options(v, &j->req, j);
         /* The library's own checks and defaults say what the bake will make. */
-        sdf_diag diag = {0};
-        if ((rc = sdf_volume_plan(mesh, o, &planned, &diag)) ||
-            (rc = sdf_volume_bake_scratch(mesh, o, &working, &diag)))
-            snprintf(err, err_cap, "%s", diag.message);
-        else if (!(rc = check_queries(v, mesh, &planned, &j->req, err, err_cap)) &&
-                 req->ops.count)
-            rc = check_bake_ops(&planned, err, err_cap);
+        rc = plan_bake(v, mesh, &j->req, &j->req.options, &planned, &working, err, err_cap);
         snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
         snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
     }
-    size_t volume = rc ? 0 : volume_bytes(&planned);
-    if (!rc && req->ops.count) { /* the ops run after the bake's working memory is freed */
-        size_t ops = sdfd_ops_bytes(planned.dims[0] * planned.dims[1] * planned.dims[2],
-                                    &req->ops);
-        working = working > ops ? working : ops;
-    }
     if (!rc)
-        rc = enqueue(v, j, volume, working, id, err, err_cap);
+        rc = enqueue(v, j, volume_bytes(&planned), working, id, err, err_cap);
     if (rc) {
         if (rc == SDF_ENOMEM)
             snprintf(err, err_cap, "out of memory");
@@ -673,6 +721,14 @@ static int check_source(const sdf_volume *in, const sdfd_ops_request *req, char 
     sdf_volume_destroy(out);
     snprintf(err, err_cap, "%s", diag.message);
     return rc ? rc : SDF_EINVAL;
+}
+
+int sdfd_volumes_check_ops(sdfd_volumes *v, const sdfd_stored_volume *source,
+                           const sdfd_ops_request *req, char *err, size_t err_cap)
+{
+    int rc = check_source(source->volume, req, err, err_cap);
+    size_t bytes = sdf_volume_data_bytes(source->volume);
+    return rc ? rc : check_alone(v, sdfd_ops_bytes(bytes / 4, req), err, err_cap);
 }
 
 int sdfd_volumes_ops(sdfd_volumes *v, sdfd_stored_volume *source, const char *volume_name,

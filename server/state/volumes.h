@@ -99,6 +99,8 @@ typedef struct sdfd_job_status {
     int error;                    /* FAILED: the SDF_E* code */
     char message[256];            /* FAILED: why */
     int cancel_requested;         /* QUEUED or RUNNING, canceled: it ends at its next step */
+    char owner[64];               /* the replica running or last running it ("" none yet) */
+    int attempts;                 /* times a replica started it */
 } sdfd_job_status;
 
 /* Field operations to apply (sdf_volume_apply_ops): count 0 = none. */
@@ -126,7 +128,8 @@ typedef struct sdfd_bake_request {
 } sdfd_bake_request;
 
 /* Start a job baking `mesh` (a retained reference handed over, like req->smoothing_mesh,
- * released when the job ends) into the volume `volume_name`. Writes the job id into id.
+ * released when the job ends) into the volume `volume_name`. id: on input empty, or the id
+ * the job must take (a shared job's, catjobs.h); on 0, the job's id.
  * Every admission rule is here: SDF_EINVAL for options the library refuses (its message)
  * and for ops on a bake that is not order 0 float32, SDF_ELIMIT when the bake would cost
  * more distance queries than max_queries or break the byte limit (the volume, plus the more
@@ -138,13 +141,26 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
                       size_t err_cap);
 
 /* Start a job applying req's field operations to `source` (a retained reference handed
- * over, released when the job ends) into the volume `volume_name`. Admission as for bakes:
+ * over, released when the job ends) into the volume `volume_name`; id as for bakes.
+ * Admission as for bakes:
  * SDF_EINVAL when the library refuses the source (first order, packed; its message),
  * SDF_ELIMIT (the result plus the scratch, sdfd_ops_bytes, over the byte limit),
  * SDFD_EBUSY, SDFD_EUNAVAILABLE; on failure the reference is released. Values of the ops
  * (an r the library refuses) fail the job with the library's message. */
 int sdfd_volumes_ops(sdfd_volumes *v, sdfd_stored_volume *source, const char *volume_name,
                      const sdfd_ops_request *req, char id[24], char *err, size_t err_cap);
+
+/* A new job id: "PREFIX-N", PREFIX random for this process. */
+void sdfd_volumes_new_id(sdfd_volumes *v, char id[24]);
+
+/* The checks of the request alone that sdfd_volumes_bake and sdfd_volumes_ops make (the
+ * library's, the query limit, ops on the right kind of grid, the byte limit for the job by
+ * itself), without starting anything or taking any reference: 0, or the code and err a start
+ * would give. For a job that another replica may run (catjobs.h). */
+int sdfd_volumes_check_bake(sdfd_volumes *v, const sdf_mesh *mesh, const sdfd_bake_request *req,
+                            char *err, size_t err_cap);
+int sdfd_volumes_check_ops(sdfd_volumes *v, const sdfd_stored_volume *source,
+                           const sdfd_ops_request *req, char *err, size_t err_cap);
 
 /* What a server with a store (--data-dir) does besides: keep a finished bake's volume
  * before its job says done, and record jobs so a restart can tell what it interrupted.

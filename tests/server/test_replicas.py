@@ -318,6 +318,103 @@ class Replicas(unittest.TestCase):
                     self.assertEqual(c.query(name, POINTS)["distance"].shape, (64,))
             c.close()
 
+    # ---- jobs -------------------------------------------------------------------------------
+
+    def post(self, server, path, body):
+        return request(server.ports["http"], "POST", path, json.dumps(body).encode())
+
+    def job(self, server, job_id):
+        status, body = request(server.ports["http"], "GET", "/v1/jobs/" + job_id)
+        self.assertEqual(status, 200, body)
+        return body
+
+    def wait_job(self, server, job_id, states, timeout=120):
+        deadline = time.monotonic() + timeout
+        while True:
+            j = self.job(server, job_id)
+            if j["state"] in states:
+                return j
+            if time.monotonic() > deadline:
+                self.fail("job %s still %s after %d s" % (job_id, j, timeout))
+            time.sleep(0.02)
+
+    def test_jobs_shared(self):
+        """Bakes posted on one replica spread over both; the job list is the same on both;
+        a cancel on one replica stops a job the other runs."""
+        a = self.start("--replica-id", "a", "--threads", "1")
+        b = self.start("--replica-id", "b", "--threads", "1")
+        self.assertEqual(request(a.ports["http"], "PUT", "/v1/meshes/f",
+                                 open(os.path.join(DATA, "fandisk.off"), "rb").read())[0], 201)
+        wait_until(lambda: served(b, "f") == 12946, 10)
+        ids = []
+        for i in range(4):
+            status, job = self.post(a, "/v1/meshes/f/bake", {"resolution": 24, "volume": "v%d" % i,
+                                                             "field": "filtered"})
+            self.assertEqual(status, 202, job)
+            self.assertIsNone(job["owner"])
+            ids.append(job["id"])
+        status, slow = self.post(b, "/v1/meshes/f/bake", {"resolution": 64, "field": "filtered",
+                                                          "volume": "slow"})
+        self.assertEqual(status, 202, slow)
+        running = self.wait_job(a, slow["id"], ("running",))
+        status, asked = request((a, b)[running["owner"] == "a"].ports["http"], "DELETE",
+                                "/v1/jobs/" + slow["id"])
+        self.assertEqual((status, asked.get("cancel_requested")), (200, True), asked)
+        self.assertEqual(self.wait_job(b, slow["id"], ("canceled", "done", "failed"))["state"],
+                         "canceled")
+        done = [self.wait_job(b, i, ("done", "failed", "canceled")) for i in ids]
+        self.assertEqual([j["state"] for j in done], ["done"] * 4, done)
+        self.assertEqual({j["owner"] for j in done}, {"a", "b"}, "the bakes did not spread")
+        self.assertEqual({j["attempts"] for j in done}, {1})
+
+        def listing(server):
+            return [(j["id"], j["state"], j["owner"], j["attempts"])
+                    for j in request(server.ports["http"], "GET", "/v1/jobs")[1]["jobs"]]
+        self.assertEqual(listing(a), listing(b))
+        self.assertEqual(len(listing(a)), 5)
+        for i in range(4):  # each volume, committed before its job said done, on both
+            for s in (a, b):
+                self.assertEqual(request(s.ports["http"], "GET", "/v1/volumes/v%d" % i)[0], 200)
+        # A finished job is forgotten from any replica.
+        self.assertEqual(request(b.ports["http"], "DELETE", "/v1/jobs/" + ids[0])[0], 200)
+        self.assertEqual(request(a.ports["http"], "GET", "/v1/jobs/" + ids[0])[0], 404)
+
+    def test_job_owner_killed(self):
+        """The replica running a bake is SIGKILLed: the other runs it again under the same id
+        to done; a second loss fails it with "owner replica lost"."""
+        a = self.start("--replica-id", "a", "--threads", "1")
+        self.assertEqual(request(a.ports["http"], "PUT", "/v1/meshes/f",
+                                 open(os.path.join(DATA, "fandisk.off"), "rb").read())[0], 201)
+        status, job = self.post(a, "/v1/meshes/f/bake", {"resolution": 32, "field": "filtered",
+                                                         "volume": "again"})
+        self.assertEqual(status, 202, job)
+        self.assertEqual(self.wait_job(a, job["id"], ("running",))["owner"], "a")
+        a.stop(signal.SIGKILL)
+        b = self.start("--replica-id", "b", "--threads", "1")
+        self.assertEqual(self.job(b, job["id"])["state"], "running")  # a's lease still holds
+        end = self.wait_job(b, job["id"], ("done", "failed", "canceled"), timeout=300)
+        self.assertEqual((end["state"], end["owner"], end["attempts"]), ("done", "b", 2), end)
+        self.assertEqual(request(b.ports["http"], "GET", "/v1/volumes/again")[0], 200)
+        a2 = self.start("--replica-id", "a")
+        self.assertEqual(self.job(a2, job["id"])["state"], "done")
+        # Two losses: b and then c die running it; the next replica fails it.
+        a2.stop(signal.SIGKILL)
+        status, job = self.post(b, "/v1/meshes/f/bake", {"resolution": 64, "field": "filtered",
+                                                         "volume": "lost"})
+        self.assertEqual(self.wait_job(b, job["id"], ("running",))["owner"], "b")
+        b.stop(signal.SIGKILL)
+        c = self.start("--replica-id", "c", "--threads", "1")
+        deadline = time.monotonic() + 60
+        while self.wait_job(c, job["id"], ("running",))["owner"] != "c":  # b's lease ends first
+            self.assertLess(time.monotonic(), deadline, "c never took the job over")
+            time.sleep(0.05)
+        c.stop(signal.SIGKILL)
+        e = self.start("--replica-id", "e")
+        end = self.wait_job(e, job["id"], ("done", "failed", "canceled"), timeout=60)
+        self.assertEqual((end["state"], end["attempts"], end["error"]["code"]),
+                         ("failed", 2, "EUNAVAILABLE"), end)
+        self.assertIn("owner replica lost", end["error"]["message"])
+
 
 if __name__ == "__main__":
     unittest.main()

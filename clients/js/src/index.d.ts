@@ -120,6 +120,10 @@ export interface Job {
   mesh: string;
   volume: string;
   seconds?: number;
+  /** the replica running it, or that last ran it (null: a shared job not started yet) */
+  owner?: string | null;
+  /** how many times a replica started it */
+  attempts?: number;
   cancel_requested?: boolean;
   error?: { code: string; message: string };
   /** "ops" for volumeOps's jobs */
