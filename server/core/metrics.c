@@ -226,6 +226,11 @@ char *sdfd_metrics_render(sdfd_metrics *m, const sdfd_gauges *g, size_t *len)
     render_histogram(&o, &m->batch_points);
     render_histogram(&o, &m->batch_seconds);
     render_histogram(&o, &m->store_load_seconds);
+    emit(&o, "# HELP sdfd_store_hits_total Lookups of stored items answered from memory "
+             "(the misses are sdfd_store_loads_total).\n"
+             "# TYPE sdfd_store_hits_total counter\nsdfd_store_hits_total %llu\n", g->store_hits);
+    if (g->extra)
+        emit(&o, "%.*s", (int)g->extra_len, g->extra);
     *len = o.len;
     return o.s;
 }

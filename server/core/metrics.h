@@ -29,6 +29,9 @@ typedef struct sdfd_gauges {
     size_t workers_idle, workers_started; /* worker threads waiting; started since start */
     size_t resident_bytes, resident_budget; /* meshes and volumes in memory; the budget */
     unsigned long long store_loads, store_evictions, store_quarantined;
+    unsigned long long store_hits; /* lookups answered from memory */
+    const char *extra;             /* more series, in the text format, appended; or NULL */
+    size_t extra_len;
 } sdfd_gauges;
 
 /* Render everything (plus the given gauges) into a new string. */

@@ -45,9 +45,18 @@ int sdfd_op_metrics(sdfd_call *call)
     sdfd_cache_stats_get(srv->cache, &st);
     g.resident_bytes = st.resident_bytes, g.resident_budget = st.budget;
     g.store_loads = st.loads, g.store_evictions = st.evictions;
-    g.store_quarantined = st.quarantined;
+    g.store_quarantined = st.quarantined, g.store_hits = st.hits;
+    char *catalog = NULL;
+    if (srv->cfg.catalog) {
+        sdfd_catalog_job_counts jobs = {0};
+        if (srv->jobs)
+            sdfd_jobrunner_counts_get(srv->jobs, &jobs);
+        catalog = sdfd_catalog_metrics_render(&srv->catalog_metrics, &jobs, &g.extra_len);
+        g.extra = catalog;
+    }
     sdfd_result *r = &call->result;
     r->bytes = sdfd_metrics_render(srv->metrics, &g, &r->len);
+    free(catalog);
     if (!r->bytes)
         return sdfd_call_fail(call, SDF_ENOMEM, "out of memory");
     r->status = 200;

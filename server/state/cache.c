@@ -468,6 +468,6 @@ void sdfd_cache_stats_get(sdfd_cache *c, sdfd_cache_stats *out)
 {
     pthread_mutex_lock(&c->r.lock);
     *out = (sdfd_cache_stats){sdfd_resident_bytes(&c->r), c->r.budget, c->r.loads,
-                              c->r.evictions, c->r.quarantined};
+                              c->r.evictions, c->r.quarantined, c->r.hits};
     pthread_mutex_unlock(&c->r.lock);
 }

@@ -101,7 +101,7 @@ int sdfd_cache_probe(sdfd_cache *c, char *msg, size_t cap);
 
 typedef struct sdfd_cache_stats {
     size_t resident_bytes, budget;
-    unsigned long long loads, evictions, quarantined;
+    unsigned long long loads, evictions, quarantined, hits;
 } sdfd_cache_stats;
 void sdfd_cache_stats_get(sdfd_cache *c, sdfd_cache_stats *out);
 

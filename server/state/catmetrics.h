@@ -3,12 +3,13 @@
  *
  * The caller owns the struct (zeroed: static, or calloc) and hands the same one to
  * sdfd_catalog_open and sdfd_catlisten_start; the modules only add to it, with atomics, from
- * any thread, so /metrics reads it whenever it likes without a lock. A header alone: the
- * struct and one inline recorder, nothing to link. */
+ * any thread, so /metrics reads it whenever it likes without a lock (sdfd_catalog_metrics_render
+ * writes it in Prometheus's text format). */
 #ifndef SDFD_CATMETRICS_H
 #define SDFD_CATMETRICS_H
 
 #include <stdatomic.h>
+#include <stddef.h>
 
 /* Upper bounds, in seconds, of the round-trip histogram's buckets (+Inf implied), for
  * `static const double b[] = SDFD_CATALOG_RT_BOUNDS;`. */
@@ -41,5 +42,14 @@ static inline void sdfd_catalog_metrics_round_trip(sdfd_catalog_metrics *m, doub
     atomic_fetch_add(&m->round_trips, 1);
     atomic_fetch_add(&m->round_trip_ns, (unsigned long long)(seconds * 1e9));
 }
+
+/* The counters as Prometheus text (sdfd_catalog_*), with the shared jobs' counts (claimed,
+ * re-queued, failed as lost; NULL: none): a malloc'd string, *len bytes, or NULL on out of
+ * memory. */
+typedef struct sdfd_catalog_job_counts {
+    unsigned long long claimed, requeued, lost;
+} sdfd_catalog_job_counts;
+char *sdfd_catalog_metrics_render(sdfd_catalog_metrics *m, const sdfd_catalog_job_counts *jobs,
+                                  size_t *len);
 
 #endif

@@ -32,7 +32,7 @@ struct sdfd_jobrunner {
     claim claims[MAX_CLAIMS];
     size_t nclaims;
     int stopping, poked;
-    sdfd_jobrunner_counts counts;
+    sdfd_catalog_job_counts counts;
     pthread_t thread;
 };
 
@@ -242,7 +242,7 @@ sdfd_catalog *sdfd_jobrunner_catalog(sdfd_jobrunner *r) { return r->cat; }
 
 const char *sdfd_jobrunner_owner(const sdfd_jobrunner *r) { return r->owner; }
 
-void sdfd_jobrunner_counts_get(sdfd_jobrunner *r, sdfd_jobrunner_counts *out)
+void sdfd_jobrunner_counts_get(sdfd_jobrunner *r, sdfd_catalog_job_counts *out)
 {
     pthread_mutex_lock(&r->lock);
     *out = r->counts;

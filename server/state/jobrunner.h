@@ -25,9 +25,6 @@ typedef struct sdfd_jobrunner sdfd_jobrunner;
 typedef int (*sdfd_jobrunner_start_fn)(void *user, const sdfd_catjob *job, char *err,
                                        size_t cap);
 
-typedef struct sdfd_jobrunner_counts {
-    unsigned long long claimed, requeued, lost; /* lost: failed by expiry */
-} sdfd_jobrunner_counts;
 
 /* The runner of replica `owner` over catalog c (both the caller's, kept while it runs);
  * installs the volumes' hooks (so call it before the first job). NULL if its thread cannot
@@ -45,6 +42,7 @@ void sdfd_jobrunner_destroy(sdfd_jobrunner *r);
 void sdfd_jobrunner_poke(sdfd_jobrunner *r);
 sdfd_catalog *sdfd_jobrunner_catalog(sdfd_jobrunner *r);
 const char *sdfd_jobrunner_owner(const sdfd_jobrunner *r);
-void sdfd_jobrunner_counts_get(sdfd_jobrunner *r, sdfd_jobrunner_counts *out);
+/* What it claimed, and re-queued or failed as lost (expiry). */
+void sdfd_jobrunner_counts_get(sdfd_jobrunner *r, sdfd_catalog_job_counts *out);
 
 #endif

@@ -337,6 +337,7 @@ int sdfd_loader_lookup(sdfd_loader *ld, sdfd_lookup *l)
                                                              SDFD_LOADER_RECHECK_SECONDS);
     if (current && (l->item = sdfd_resident_get(r, e))) {
         e->used = ++r->tick;
+        r->hits++;
         pthread_mutex_unlock(&r->lock);
         return 0;
     }

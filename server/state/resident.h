@@ -61,7 +61,7 @@ typedef struct sdfd_resident {
     size_t budget;
     sdfd_cached **entries;
     size_t count, cap;
-    unsigned long long tick, loads, evictions, quarantined;
+    unsigned long long tick, loads, evictions, quarantined, hits;
 } sdfd_resident;
 
 void sdfd_resident_init(sdfd_resident *r, sdfd_registry *registry, sdfd_volumes *volumes,

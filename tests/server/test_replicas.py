@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
-from harness import DATA, Server, wait_until  # noqa: E402
+from harness import DATA, Server, metric, wait_until  # noqa: E402
 from pgserver import PgServer  # noqa: E402
 
 SANITIZED = os.environ.get("SDF_SANITIZE", "none") != "none"
@@ -53,6 +53,15 @@ def request(port, method, path, body=None, timeout=30):
             return r.status, json.loads(data) if data else None
         except ValueError:
             return r.status, None
+    finally:
+        conn.close()
+
+
+def request_text(port, path):
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    try:
+        conn.request("GET", path)
+        return conn.getresponse().read().decode()
     finally:
         conn.close()
 
@@ -375,6 +384,15 @@ class Replicas(unittest.TestCase):
         for i in range(4):  # each volume, committed before its job said done, on both
             for s in (a, b):
                 self.assertEqual(request(s.ports["http"], "GET", "/v1/volumes/v%d" % i)[0], 200)
+        claimed = 0
+        for s in (a, b):
+            text = request_text(s.ports["http"], "/metrics")
+            self.assertEqual(metric(text, "sdfd_catalog_up"), 1)
+            self.assertGreater(metric(text, "sdfd_catalog_round_trip_seconds_count"), 0)
+            claimed += metric(text, "sdfd_jobs_claimed_total")
+        self.assertEqual(claimed, 5)
+        self.assertGreater(metric(request_text(b.ports["http"], "/metrics"),
+                                  "sdfd_catalog_notifications_total"), 0)
         # A finished job is forgotten from any replica.
         self.assertEqual(request(b.ports["http"], "DELETE", "/v1/jobs/" + ids[0])[0], 200)
         self.assertEqual(request(a.ports["http"], "GET", "/v1/jobs/" + ids[0])[0], 404)
