@@ -218,7 +218,8 @@ int main(int argc, char **argv)
     if (srv.cfg.catalog &&
         !(srv.jobs = sdfd_jobrunner_create(sdfd_backcat_catalog(&backing), srv.cache,
                                            srv.volumes, srv.cfg.replica_id, srv.cfg.max_bakes,
-                                           sdfd_op_start_shared, &srv))) {
+                                           srv.cfg.catalog_grace_seconds, sdfd_op_start_shared,
+                                           &srv))) {
         sdfd_log("error", "start", "cannot start the job runner");
         return 1;
     }

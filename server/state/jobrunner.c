@@ -11,6 +11,7 @@
 
 #include "core/errors.h"
 #include "core/log.h"
+#include "state/batcher.h" /* sdfd_now */
 
 #define MAX_CLAIMS 64 /* --max-bakes is at most 64 */
 
@@ -25,6 +26,7 @@ struct sdfd_jobrunner {
     sdfd_volumes *volumes;
     char owner[64];
     unsigned max_running;
+    double grace, next_sweep; /* blobs: their grace; when to sweep next */
     sdfd_jobrunner_start_fn start;
     void *user;
     pthread_mutex_t lock; /* guards what follows */
@@ -154,6 +156,21 @@ static void expire(sdfd_jobrunner *r)
     pthread_mutex_unlock(&r->lock);
 }
 
+static void sweep(sdfd_jobrunner *r)
+{
+    double now = sdfd_now();
+    if (now < r->next_sweep)
+        return;
+    double period = r->grace / 2 < 1 ? 1 : r->grace / 2;
+    r->next_sweep = now + (period < SDFD_JOBRUNNER_SWEEP_MAX ? period : SDFD_JOBRUNNER_SWEEP_MAX);
+    size_t deleted = 0;
+    char err[512];
+    if (sdfd_catalog_sweep(r->cat, r->grace, &deleted, err, sizeof err))
+        sdfd_log("warn", "catalog_sweep", "%s", err);
+    else if (deleted)
+        sdfd_log("info", "catalog_sweep", "%zu blobs no item refers to deleted", deleted);
+}
+
 static void wait_tick(sdfd_jobrunner *r)
 {
     struct timespec ts;
@@ -172,6 +189,7 @@ static void *runner_main(void *arg)
     while (!r->stopping) {
         pthread_mutex_unlock(&r->lock);
         expire(r);
+        sweep(r);
         pthread_mutex_lock(&r->lock);
         tend_claims(r);
         claim_jobs(r);
@@ -185,7 +203,7 @@ static void *runner_main(void *arg)
 /* ---- life ------------------------------------------------------------------------------- */
 
 sdfd_jobrunner *sdfd_jobrunner_create(sdfd_catalog *c, sdfd_cache *cache, sdfd_volumes *v,
-                                      const char *owner, unsigned max_running,
+                                      const char *owner, unsigned max_running, double grace,
                                       sdfd_jobrunner_start_fn start, void *user)
 {
     sdfd_jobrunner *r = calloc(1, sizeof *r);
@@ -193,6 +211,7 @@ sdfd_jobrunner *sdfd_jobrunner_create(sdfd_catalog *c, sdfd_cache *cache, sdfd_v
         return NULL;
     r->cat = c, r->cache = cache, r->volumes = v, r->start = start, r->user = user;
     r->max_running = max_running < MAX_CLAIMS ? max_running : MAX_CLAIMS;
+    r->grace = grace;
     snprintf(r->owner, sizeof r->owner, "%s", owner);
     pthread_mutex_init(&r->lock, NULL);
     pthread_cond_init(&r->wake, NULL);

@@ -7,7 +7,9 @@
  *   `start`, the operations layer, which reads its request again.
  * It also takes the volumes' hooks: a job's volume is kept through the cache before the job
  * says done, and its end is written to its row (retried each tick while PostgreSQL is away).
- * Thread-safe. */
+ * And it sweeps the catalog's blobs that no item has referred to for `grace` seconds, every
+ * grace / 2 seconds (at least 1, at most SDFD_JOBRUNNER_SWEEP_MAX): any replica may, safely
+ * beside every writer (catalog.h). Thread-safe. */
 #ifndef SDFD_JOBRUNNER_H
 #define SDFD_JOBRUNNER_H
 
@@ -17,6 +19,7 @@
 
 #define SDFD_JOB_LEASE_SECONDS 10.0
 #define SDFD_JOBRUNNER_TICK 1.0
+#define SDFD_JOBRUNNER_SWEEP_MAX 300.0
 
 typedef struct sdfd_jobrunner sdfd_jobrunner;
 
@@ -30,7 +33,7 @@ typedef int (*sdfd_jobrunner_start_fn)(void *user, const sdfd_catjob *job, char 
  * installs the volumes' hooks (so call it before the first job). NULL if its thread cannot
  * start. */
 sdfd_jobrunner *sdfd_jobrunner_create(sdfd_catalog *c, sdfd_cache *cache, sdfd_volumes *v,
-                                      const char *owner, unsigned max_running,
+                                      const char *owner, unsigned max_running, double grace,
                                       sdfd_jobrunner_start_fn start, void *user);
 /* Shutdown: stop the thread before the volumes cancel their jobs, so that no row says
  * canceled for a job nobody canceled: the claims still held lapse with their leases and

@@ -327,6 +327,26 @@ class Replicas(unittest.TestCase):
                     self.assertEqual(c.query(name, POINTS)["distance"].shape, (64,))
             c.close()
 
+    def test_unreferenced_bytes_swept(self):
+        """Bytes no item refers to any more are deleted once --catalog-grace has passed; the
+        bytes items hold stay."""
+        a = self.start("--catalog-grace", "1")
+        port = a.ports["http"]
+        for k in (5, 6, 7):  # three contents for x, of which the last stays
+            self.assertIn(request(port, "PUT", "/v1/meshes/x", bipyramid(k))[0], (200, 201))
+        self.assertEqual(request(port, "PUT", "/v1/meshes/y", bipyramid(8))[0], 201)
+        self.assertEqual(request(port, "DELETE", "/v1/meshes/y")[0], 204)
+
+        def blobs():
+            return int(self.pg.sql("SELECT count(*) FROM sdfd_blobs", self.dbname))
+        self.assertEqual(blobs(), 4)
+        wait_until(lambda: blobs() == 1, 30)
+        self.assertEqual(served(a, "x"), 14)
+        c = sdfclient.Client(a.url)
+        self.assertEqual(c.query("x", POINTS)["distance"].shape, (64,))
+        c.close()
+        self.assertTrue(any(e.get("event") == "catalog_sweep" for e in a.logs))
+
     # ---- jobs -------------------------------------------------------------------------------
 
     def post(self, server, path, body):
