@@ -19,6 +19,7 @@
 #include "ops/optable.h"
 #include "state/backcat.h"
 #include "state/backfile.h"
+#include "state/catimport.h"
 #include "state/server.h"
 #include "transport/binary.h"
 #include "transport/http.h"
@@ -99,6 +100,26 @@ static int load_meshes(sdfd_server *srv)
     return 0;
 }
 
+/* sdfd --catalog URI --import DIR: 0 when every item was copied (or was there already, or
+ * was damaged and left out, logged), 1 otherwise. */
+static int import_store(const sdfd_config *cfg)
+{
+    sdfd_catalog *c = NULL;
+    sdfd_catimport_counts n;
+    char err[512];
+    int rc = sdfd_catalog_open(cfg->catalog, NULL, &c, err, sizeof err);
+    if (!rc)
+        rc = sdfd_catimport_run(cfg->import_dir, c, &n, err, sizeof err);
+    sdfd_catalog_close(c);
+    if (rc) {
+        sdfd_log("error", "import", "%s", err);
+        return 1;
+    }
+    sdfd_log("info", "import", "%s: %zu items copied, %zu already there, %zu damaged (left "
+             "out)", cfg->import_dir, n.copied, n.unchanged, n.damaged);
+    return 0;
+}
+
 static void drain(sdfd_server *srv)
 {
     double deadline = sdfd_now() + srv->cfg.drain_seconds;
@@ -147,6 +168,8 @@ int main(int argc, char **argv)
     int rc = sdfd_config_parse(&srv.cfg, argc, argv);
     if (rc)
         return rc > 0 ? 0 : 2;
+    if (srv.cfg.import_dir)
+        return import_store(&srv.cfg);
     static char host[64];
     if (!srv.cfg.replica_id) /* jobs name the replica that runs them */
         srv.cfg.replica_id = gethostname(host, sizeof host - 1) ? "sdfd" : host;

@@ -47,6 +47,7 @@ static const setting settings[] = {
     {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1, 1u << 16},
     {"--data-dir", "SDFD_DATA_DIR", "DIR", "keep meshes, volumes and bake jobs in DIR (shared by replicas; docs/api.md)", STRING, AT(data_dir), 0, 0},
     {"--catalog", "SDFD_CATALOG", "URI", "keep meshes, volumes and jobs in PostgreSQL (a libpq URI or key=value string; replicas share it; docs/deploy.md)", STRING, AT(catalog), 0, 0},
+    {"--import", "SDFD_IMPORT", "DIR", "with --catalog: copy the file store DIR (a --data-dir) into the catalog, then exit", STRING, AT(import_dir), 0, 0},
     {"--catalog-grace", "SDFD_CATALOG_GRACE", "SECONDS", "with --catalog: delete stored bytes no item has referred to for this long (default 600)", UINT, AT(catalog_grace_seconds), 1, 864000},
     {"--replica-id", "SDFD_REPLICA_ID", "ID", "this replica's name in the jobs it runs (default: the host name)", STRING, AT(replica_id), 0, 0},
     {"--max-resident-bytes", "SDFD_MAX_RESIDENT_BYTES", "N", "with --data-dir or --catalog: drop the least recently used meshes and volumes from memory past N bytes (default 0 = keep all)", SIZE, AT(max_resident_bytes), 0, 1ull << 44},
@@ -221,6 +222,11 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
     if (cfg->catalog && cfg->data_dir) {
         fprintf(stderr, "sdfd: --catalog keeps everything in PostgreSQL: give --catalog or "
                 "--data-dir, not both\n");
+        return -1;
+    }
+    if (cfg->import_dir && !cfg->catalog) {
+        fprintf(stderr, "sdfd: --import copies a file store into the catalog: it needs "
+                "--catalog\n");
         return -1;
     }
     if (cfg->bin_tls && !cfg->tls_cert) {

@@ -42,6 +42,7 @@ typedef struct sdfd_config {
     const char *catalog;          /* PostgreSQL's conninfo, or NULL (never with data_dir) */
     const char *replica_id;       /* the owner jobs name; NULL: the host name (main.c) */
     unsigned catalog_grace_seconds; /* blobs unreferenced this long are swept */
+    const char *import_dir;       /* --import: copy this file store into the catalog, exit */
     size_t max_resident_bytes;    /* with a store: meshes and volumes kept in memory; 0 = all */
     const char *tls_cert;         /* PEM certificate (chain): HTTPS on http_addr; NULL = HTTP */
     const char *tls_key;          /* its PEM private key; given with tls_cert or not at all */

@@ -9,8 +9,11 @@ import http.client
 import json
 import os
 import random
+import shutil
 import signal
+import subprocess
 import sys
+import tempfile
 import threading
 import time
 import unittest
@@ -19,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
-from harness import DATA, Server, metric, wait_until  # noqa: E402
+from harness import DATA, SDFD, Server, metric, wait_until  # noqa: E402
 from pgserver import PgServer  # noqa: E402
 
 SANITIZED = os.environ.get("SDF_SANITIZE", "none") != "none"
@@ -346,6 +349,40 @@ class Replicas(unittest.TestCase):
         self.assertEqual(c.query("x", POINTS)["distance"].shape, (64,))
         c.close()
         self.assertTrue(any(e.get("event") == "catalog_sweep" for e in a.logs))
+
+    def test_import_file_store(self):
+        """sdfd --catalog URI --import DIR copies a --data-dir store; again, it copies
+        nothing."""
+        store = tempfile.mkdtemp(prefix="sdfd-import-")
+        self.addCleanup(shutil.rmtree, store, True)
+        f = Server("--data-dir", store)
+        c = sdfclient.Client(f.url)
+        c.upload("part", os.path.join(DATA, "fandisk.off"))
+        self.assertEqual(request(f.ports["http"], "PUT", "/v1/meshes/tiny", bipyramid(4))[0],
+                         201)
+        c.wait(c.bake("part", resolution=12, volume="part12"), timeout=60)
+        exr = c.download("part12", format="exr")
+        want = c.query("part", POINTS)["distance"]
+        c.close()
+        self.assertEqual(f.stop(), 0)
+
+        def run_import():
+            done = subprocess.run([SDFD, "--catalog", self.uri, "--import", store],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120)
+            self.assertEqual(done.returncode, 0, done.stderr.decode())
+            return [json.loads(line) for line in done.stderr.decode().splitlines()]
+        last = run_import()[-1]
+        self.assertIn("3 items copied, 0 already there, 0 damaged", last["message"])
+        a = self.start()
+        ca = sdfclient.Client(a.url)
+        self.assertTrue(np.array_equal(ca.query("part", POINTS)["distance"], want))
+        self.assertEqual(served(a, "tiny"), 8)
+        self.assertEqual(ca.download("part12", format="exr"), exr)
+        ca.close()
+        self.assertIn("0 items copied, 3 already there", run_import()[-1]["message"])
+        done = subprocess.run([SDFD, "--import", store], stderr=subprocess.PIPE)
+        self.assertEqual(done.returncode, 2)
+        self.assertIn(b"needs --catalog", done.stderr)
 
     # ---- jobs -------------------------------------------------------------------------------
 
