@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
-"""failover.py - sdfd replicas on one shared --data-dir behind HAProxy or nginx lose no request
-when one dies.
+"""failover.py - sdfd replicas sharing one PostgreSQL catalog behind HAProxy or nginx lose no
+request and no acknowledged write when one dies.
 
-Starts N replicas of the built sdfd on loopback, sharing one --data-dir (with a
+Starts a PostgreSQL of its own (tests/server/pgserver.py: Debian's postgresql, initdb into a
+temporary directory), N replicas of the built sdfd on loopback sharing it (--catalog, with a
 --max-resident-bytes below what they are given, so that items leave memory and come back from
-the store), a reference sdfd that loads the same mesh files itself (no store), and the load
+the catalog), a reference sdfd that loads the same mesh files itself (no catalog), and the load
 balancer from deploy/lb/ (its own file, with only the addresses and the routing mode changed).
 Through the balancer it uploads the meshes (PUT) and bakes a volume, and checks with
 deploy/shared_store.py that every replica answers them bit-equal to the reference and sees a
@@ -16,8 +17,11 @@ clients/js/test/loadworker.js, a BinaryClient) and C (sdfc-load, built from
 tests/clients/sdfc_load.c with libsdfclient, opts.resend) -- each of which sends a query once
 more on a new connection when its connection dies or a draining replica refuses it, and
 compares every answer bit for bit with the reference's. Mid-run one replica is SIGKILLed and started again, and later another is
-SIGTERMed (it drains and exits). It passes when:
+SIGTERMed (it drains and exits), while a writer PUTs and DELETEs other names through the
+balancer. It passes when:
   - the shared-store checks pass;
+  - afterwards every replica serves the writer's last acknowledged write of each name (or a
+    later one whose answer the kill lost), all of them the same;
   - no request failed and every answer is byte-equal to the reference's, over HTTP and over
     the binary protocol from every client (0 lost binary answers; the report counts sent,
     answered, lost and mismatched per language);
@@ -62,7 +66,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
+sys.path.insert(0, os.path.join(ROOT, "tests", "server"))
 import loadgen  # noqa: E402
+import pgserver  # noqa: E402
 import sdfclient  # noqa: E402
 import shared_store  # noqa: E402
 
@@ -70,6 +76,7 @@ MESH_FILES = ("cow.off", "knot1.off", "fandisk.off", "elephant-with-holes.off", 
               "bear.off")
 RECOVERY_SECONDS = 4.0  # a restarted replica is back in rotation by then (checks, fail_timeout)
 TOKEN = "failover-token"
+WRITTEN = ("written0", "written1", "written2")  # the writer's names
 BAKED = ("fandisk", "fandisk-sdf", 40)  # mesh, volume, resolution
 QUERY_ROUTES = ("/v1/meshes/{name}/query", "/v1/volumes/{name}/query")
 BINARY_QUERIES = ("QUERY", "VOLUME_QUERY")
@@ -368,7 +375,10 @@ def finish_worker(proc, lang, seconds):
 def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n, external):
     """The HTTP and the binary load with their two events; a dict of what happened when.
     `external`: [(worker, language, manifest)], the JS and C binary workers."""
-    ev = {}
+    ev = {"written": {}}
+    stop_writer = threading.Event()
+    writer = threading.Thread(target=shared_store.write_loop,
+                              args=(lb_url, WRITTEN, TOKEN, stop_writer, ev["written"]))
     load = threading.Thread(target=lambda: ev.setdefault(
         "stats", loadgen.run(lb_url, reqs, a.workers, a.seconds, a.max_requests)))
     bin_load = threading.Thread(target=lambda: ev.setdefault(
@@ -378,6 +388,7 @@ def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n, external):
     ev["t0"] = time.time()
     load.start()
     bin_load.start()
+    writer.start()
     procs = [(w, lang, subprocess.Popen(worker_command(a, lang, bin_port, m, w),
                                         stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                         text=True, cwd=os.path.join(ROOT, "clients", "js")))
@@ -403,6 +414,10 @@ def run_load(a, lb_url, bin_port, replicas, reqs, bin_reqs, n, external):
     ev["t_exit"] = time.time()
     load.join()
     bin_load.join()
+    stop_writer.set()
+    writer.join()
+    ev["written_problems"] = shared_store.check_written(
+        [r.url for r in replicas if r.proc.poll() is None], ev["written"])
     ev["external"] = {w: (lang, finish_worker(p, lang, a.seconds)) for w, lang, p in procs}
     ev["t_end"] = time.time()
     ev["rss"] = [r.peak_rss() if r.proc.poll() is None else None for r in replicas]
@@ -438,18 +453,20 @@ def binary_items(a, names, sizes):
 
 
 def scenario(a, tmp):
-    mesh_dir, data_dir = os.path.join(tmp, "meshes"), os.path.join(tmp, "data")
+    mesh_dir = os.path.join(tmp, "meshes")
     os.mkdir(mesh_dir)
     for f in MESH_FILES:
         shutil.copy(os.path.join(ROOT, "tests", "data", f), mesh_dir)
     names = [os.path.splitext(f)[0] for f in MESH_FILES] + [BAKED[1]]
     n = len(names)
     ref = Sdfd(a.sdfd, "reference", ["--mesh-dir", mesh_dir], tmp)
-    procs, lb = [ref], None
+    procs, lb, pg = [ref], None, pgserver.PgServer()
     try:
+        pg.start()
         ref.start()
         sizes, budget = prepare(a, tmp, ref)
-        replicas = [Sdfd(a.sdfd, f"replica{i}", ["--data-dir", data_dir,
+        replicas = [Sdfd(a.sdfd, f"replica{i}", ["--catalog", pg.uri, "--replica-id",
+                                                 f"replica{i}",
                                                  "--max-resident-bytes", str(budget)], tmp)
                     for i in range(a.replicas)]
         procs += replicas
@@ -481,6 +498,8 @@ def scenario(a, tmp):
             lb.wait(timeout=10)
         for p in procs:
             p.stop()
+        pg.stop()
+        pg.cleanup()
     return judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness,
                  store_problems, binary_ok)
 
@@ -585,7 +604,9 @@ def judge(a, tmp, replicas, ev, n, names, budget, sizes, staleness, store_proble
         "lb_retried": lb_retries(tmp, a.lb), "seconds": round(ev["t_end"] - t0, 1),
         "items_bytes": sum(sizes.values()), "budget_bytes": budget, **staleness,
     }
-    problems = list(store_problems)
+    problems = list(store_problems) + ev["written_problems"]
+    report["written_acknowledged"] = sum(ok for h in ev["written"].values() for _, ok in h)
+    report["written_unknown"] = sum(not ok for h in ev["written"].values() for _, ok in h)
     if stats.failed or stats.mismatched:
         problems.append(f"{stats.failed} failed, {stats.mismatched} mismatched requests")
     if stats.ok < 100 or report["ok_after_kill"] == 0 or report["ok_after_term"] == 0:
