@@ -1,5 +1,5 @@
 /* jobrecords.c - jobs' records in the store (jobrecords.h): a job's status as one JSON
- * object, written when the job is accepted and when it ends, read back by any replica. The
+ * object, written when the job is accepted and when it ends, read back after a restart. The
  * keys an ops job added ("kind", "source", "ops", "caveats", "warning") are optional when
  * read: a record without them is a bake's. */
 #include "state/jobrecords.h"
@@ -131,7 +131,7 @@ void sdfd_jobrecords_restore(sdfd_store *store, sdfd_volumes *volumes)
             continue;
         int fd = sdfd_store_lock_job(store, s.id);
         if (fd < 0)
-            continue; /* a live replica runs it */
+            continue; /* a live process runs it */
         /* Its owner may have ended it (record, then unlock) since the record was read. */
         text = sdfd_store_read_job(store, ids[i]);
         ok = text && !parse_job(text, &s) && !strcmp(s.id, ids[i]) &&

@@ -1,15 +1,15 @@
 /* jobrecords.h - jobs' records (bakes and field operations) in the store (DIR/jobs/ID.json,
- * store.h), so that every replica reads a job's state and a restart knows which jobs it
- * interrupted. The cache (cache.h) calls these from the volumes' job hooks. */
+ * store.h), so that a job's state and result outlive the process and a restart knows which
+ * jobs it interrupted. The cache (cache.h) calls these from the volumes' job hooks. */
 #ifndef SDFD_JOBRECORDS_H
 #define SDFD_JOBRECORDS_H
 
 #include "state/store.h"
 #include "state/volumes.h"
 
-/* A job was accepted: lock its record (before it says queued, so a restart elsewhere does
- * not take it for interrupted), then write it. Returns the lock's fd (or -1), the token
- * sdfd_jobrecords_ended takes. */
+/* A job was accepted: lock its record (before it says queued, so that only a record whose
+ * lock no live process holds is taken for interrupted), then write it. Returns the lock's fd
+ * (or -1), the token sdfd_jobrecords_ended takes. */
 int sdfd_jobrecords_started(sdfd_store *store, const sdfd_job_status *s);
 /* A job ended: its final record, then the lock released. */
 void sdfd_jobrecords_ended(sdfd_store *store, const sdfd_job_status *s, int token);

@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -27,9 +28,11 @@
 /* A file's path: the directory's (under 4096) and a name. */
 #define FILE_PATH 4608
 #define MARKER SDFD_STORE_MARKER
+#define LOCK_FILE "sdfd-store.lock"
 
 struct sdfd_store {
     char dir[3072];
+    int lock_fd;              /* DIR/sdfd-store.lock, flock'ed for the process's life */
     atomic_ulong quarantined; /* makes quarantine names unique within the process */
 };
 
@@ -71,6 +74,44 @@ static int write_atomic(const char *dir, const char *file, const void *data, siz
     return SDFD_ENOSPACE;
 }
 
+/* Take DIR's lock for the life of the process (a flock, which the kernel drops with the
+ * process, however it ends; NFS carries it as a lock on the whole file), and write who holds
+ * it into the file for the message another sdfd gives. 0, or -1 with err set. */
+static int lock_store(sdfd_store *s, char *err, size_t cap)
+{
+    char path[FILE_PATH];
+    path_of(s, path, sizeof path, LOCK_FILE, NULL);
+    s->lock_fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (s->lock_fd < 0) {
+        snprintf(err, cap, "cannot open %s: %s", path, strerror(errno));
+        return -1;
+    }
+    if (!flock(s->lock_fd, LOCK_EX | LOCK_NB)) {
+        char host[128] = "";
+        gethostname(host, sizeof host - 1);
+        char text[200];
+        int n = snprintf(text, sizeof text, "pid %d on %s\n", (int)getpid(), host);
+        if (ftruncate(s->lock_fd, 0) || pwrite(s->lock_fd, text, (size_t)n, 0) != n)
+            sdfd_log("warn", "store_lock", "cannot write %s: %s", path, strerror(errno));
+        return 0;
+    }
+    int e = errno;
+    char holder[128] = "";
+    ssize_t got = e == EWOULDBLOCK ? pread(s->lock_fd, holder, sizeof holder - 1, 0) : -1;
+    for (ssize_t i = 0; i < got; i++) /* one printable line, whatever the file holds */
+        if (holder[i] < ' ' || holder[i] > '~')
+            holder[i] = '\0';
+    close(s->lock_fd);
+    s->lock_fd = -1;
+    if (e != EWOULDBLOCK)
+        snprintf(err, cap, "cannot lock %s: %s", path, strerror(e));
+    else
+        snprintf(err, cap, "%s is in use by another sdfd (%s): a data directory serves one sdfd "
+                 "at a time; replicas are to share their state through PostgreSQL (--catalog "
+                 "URI), not a directory", s->dir, holder[0] ? holder : "holder unknown");
+    return -1;
+}
+
 int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
 {
     *out = NULL;
@@ -81,6 +122,7 @@ int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
         return -1;
     }
     snprintf(s->dir, sizeof s->dir, "%s", dir);
+    s->lock_fd = -1;
     static const char *const subs[] = {"",     "meshes",     "volumes",   "meshes/data",
                                        "volumes/data", "jobs", "quarantine"};
     for (size_t i = 0; i < sizeof subs / sizeof subs[0]; i++) {
@@ -88,7 +130,11 @@ int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
         path_of(s, p, sizeof p, subs[i], NULL);
         if (mkdir(p, 0755) && errno != EEXIST) {
             snprintf(err, cap, "cannot create %s: %s", p, strerror(errno));
-            free(s);
+            sdfd_store_close(s);
+            return -1;
+        }
+        if (i == 0 && lock_store(s, err, cap)) { /* before anything in DIR is touched */
+            sdfd_store_close(s);
             return -1;
         }
     }
@@ -100,7 +146,12 @@ int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap)
     return 0;
 }
 
-void sdfd_store_close(sdfd_store *s) { free(s); }
+void sdfd_store_close(sdfd_store *s)
+{
+    if (s && s->lock_fd >= 0)
+        close(s->lock_fd); /* the lock goes with it */
+    free(s);
+}
 
 int sdfd_store_probe(sdfd_store *s)
 {

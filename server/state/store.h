@@ -1,5 +1,7 @@
-/* store.h - sdfd's files under --data-dir: one directory that several replicas may share
- * (a ReadWriteMany volume, NFS), so every rule here holds for a reader in another process.
+/* store.h - sdfd's files under --data-dir: the single-node store. One sdfd at a time holds
+ * it (a flock on DIR/sdfd-store.lock, taken at open and held until the process ends): a
+ * second one refuses to start, since nothing here coordinates writers. Replicas that share
+ * their state are to use PostgreSQL (--catalog), not a shared directory.
  *
  * Layout 2 (docs/api.md, "Data directory"): DIR/sdfd-store.json marks the store and its
  * layout; DIR/meshes/NAME.json and DIR/volumes/NAME.json are the sidecars, each naming its
@@ -14,7 +16,8 @@
  * renamed over the final name, and the directory fsynced, so a crash at any instant leaves
  * the old or the new item whole, plus at most an unreferenced data file (an "orphan"), which
  * is never served and is deleted by a later start once older than SDFD_STORE_GRACE_SECONDS
- * (younger ones may be another replica's write in progress). Thread-safe. */
+ * (a margin for a write that lands late: NFS may hand the lock to a new holder while a
+ * partitioned old one still has writes in flight). Thread-safe. */
 #ifndef SDFD_STORE_H
 #define SDFD_STORE_H
 
@@ -50,10 +53,11 @@ typedef struct sdfd_stamp {
     long long mtime_ns;
 } sdfd_stamp;
 
-/* Open (creating what is missing) the store at dir and bring it to layout 2. 0, or -1 with
- * err set (a layout newer than 2). */
+/* Open (creating what is missing) the store at dir, take its lock and bring it to layout 2.
+ * 0, or -1 with err set (another sdfd holds the lock: err names its pid and host, and
+ * --catalog; or a layout newer than 2). */
 int sdfd_store_open(const char *dir, sdfd_store **out, char *err, size_t cap);
-void sdfd_store_close(sdfd_store *s); /* NULL is a no-op */
+void sdfd_store_close(sdfd_store *s); /* releases the lock; NULL is a no-op */
 
 /* Is the store readable (its marker file and directories)? 0, or an errno value. */
 int sdfd_store_probe(sdfd_store *s);

@@ -413,7 +413,7 @@ static int work(job *j, sdf_volume **out, sdf_diag *diag)
 }
 
 /* The finished volume as a stored one, kept by the hook (the store) first, before the job
- * says done, so a client that saw "done" finds it after a restart, and on every replica.
+ * says done, so a client that saw "done" finds it after a restart.
  * NULL with *rc and diag set when it cannot be. Takes `volume` over. */
 static sdfd_stored_volume *keep(job *j, sdf_volume *volume, int *rc, sdf_diag *diag)
 {

@@ -11,7 +11,7 @@
  * sdf_volume_bake and sdf_volume_apply_ops. Finished jobs stay listed (their state and
  * error) until `max_jobs` newer ones push the oldest finished out. This module holds what is
  * in memory; with a store (cache.h) its hooks keep a finished job's volume there before the
- * job says done, and record every job, so other replicas and a restart see both. Thread-safe. */
+ * job says done, and record every job, so a restart sees both. Thread-safe. */
 #ifndef SDFD_VOLUMES_H
 #define SDFD_VOLUMES_H
 
