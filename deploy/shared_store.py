@@ -30,6 +30,10 @@ import urllib.request
 
 import numpy as np
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests",
+                                "server"))
+from meshgen import bipyramid  # noqa: E402
+
 # docs/api.md: a write is seen by the other replicas within tens of milliseconds, plus a reload;
 # this allows a loaded two-core machine's scheduling, and more is a fault.
 STALENESS_LIMIT_S = 1.0
@@ -178,13 +182,6 @@ def check_staleness(lb, replicas, ref, token, old, new, name="swap"):
     return out, problems
 
 
-def bipyramid(k):
-    """A closed mesh of 2k triangles (k >= 3) as OFF text: its triangle count names it."""
-    ring = [(np.cos(2 * np.pi * i / k), np.sin(2 * np.pi * i / k), 0.0) for i in range(k)]
-    v = ring + [(0, 0, 1), (0, 0, -1)]
-    f = [(i, (i + 1) % k, k) for i in range(k)] + [((i + 1) % k, i, k + 1) for i in range(k)]
-    lines = ["OFF", f"{len(v)} {len(f)} 0"] + ["%.6f %.6f %.6f" % p for p in v]
-    return ("\n".join(lines + ["3 %d %d %d" % t for t in f]) + "\n").encode()
 
 
 def write_loop(lb, names, token, stop, history, seed=3):

@@ -2,7 +2,7 @@
 """report.py - every table of docs/performance.md from one run on one commit: it runs the
 benchmarks behind each table (compare.sh, the filtered and sign runs of sdf-bench, scale.sh,
 bake-compare.sh, server-compare.sh, slices through sdfd, deploy/lb_bench.py,
-store_first_answer.py) and prints the tables in Markdown, headed by the commit and the machine,
+store_first_answer.py, catalog_bench.py) and prints the tables in Markdown, headed by the commit and the machine,
 then the targets those tables decide.
 
     tests/bench/report.py [--quick] [--only SECTION,...] [--write docs/performance.md]
@@ -221,9 +221,17 @@ def store(s, found):
             f"{name(meshes[0])} {name(meshes[1])}"), out
 
 
+def catalog(s, found):
+    n, seconds = (50, 3) if s["repeat"] > 1 else (5, 0.5)
+    text = run(["/usr/bin/python3", "tests/bench/catalog_bench.py", "--n", n, "--seconds",
+                seconds], {"SDFD": str(Path(s["build"]) / "server" / "sdfd")})
+    return (f"SDFD=build/server/sdfd /usr/bin/python3 tests/bench/catalog_bench.py --n {n} "
+            f"--seconds {seconds}"), text.strip().splitlines()
+
+
 SECTIONS = {"peers": peers, "filtered": filtered, "scale": scale, "volumes": volumes,
             "server": server, "slices": slices, "balancers": balancers, "signs": signs,
-            "index": index, "store": store}
+            "index": index, "store": store, "catalog": catalog}
 
 
 # ---- the targets --------------------------------------------------------------------------

@@ -23,6 +23,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python"))
 import sdfclient  # noqa: E402
 from harness import DATA, SDFD, Server, metric, wait_until  # noqa: E402
+from meshgen import bipyramid  # noqa: E402
 from pgserver import PgServer  # noqa: E402
 
 SANITIZED = os.environ.get("SDF_SANITIZE", "none") != "none"
@@ -32,15 +33,6 @@ VISIBLE = 0.1 if not SANITIZED else 2.0
 POINTS = (np.random.default_rng(3).random((64, 3), dtype=np.float32) * 2 - 1).astype(np.float32)
 
 
-def bipyramid(k, scale=1.0):
-    """A closed mesh of 2k triangles (k >= 3) as OFF text: its triangle count names it."""
-    ring = [(scale * np.cos(2 * np.pi * i / k), scale * np.sin(2 * np.pi * i / k), 0.0)
-            for i in range(k)]
-    v = ring + [(0, 0, scale), (0, 0, -scale)]
-    f = [(i, (i + 1) % k, k) for i in range(k)] + [((i + 1) % k, i, k + 1) for i in range(k)]
-    lines = ["OFF", f"{len(v)} {len(f)} 0"] + ["%.6f %.6f %.6f" % p for p in v]
-    lines += ["3 %d %d %d" % t for t in f]
-    return ("\n".join(lines) + "\n").encode()
 
 
 def request(port, method, path, body=None, timeout=30):
