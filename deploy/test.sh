@@ -244,36 +244,61 @@ image_store() { # meshes-dir container-name
     rm -rf "$data"
 }
 
-# Mutated copies of deploy/k8s/deployment.yaml, each broken one way, for the checks to refuse.
+# Copies of deploy/k8s, each broken one way, for the checks to refuse.
 broken_manifests() { # dir
+    local k
+    for k in kustomize memory no-catalog rwx data-dir pg-service pg-password; do
+        mkdir "$1/$k"
+        cp -r deploy/k8s/kustomization.yaml deploy/k8s/base deploy/k8s/postgres \
+            deploy/k8s/with-postgres "$1/$k"
+    done
     $PY - "$1" <<'PYEOF'
 import sys, yaml
 out = sys.argv[1]
-base = yaml.safe_load(open("deploy/k8s/deployment.yaml"))
-def save(name, doc):
-    yaml.safe_dump(doc, open(f"{out}/{name}.yaml", "w"), sort_keys=False)
+base = yaml.safe_load(open("deploy/k8s/base/deployment.yaml"))
+def save(path, doc):
+    yaml.safe_dump(doc, open(f"{out}/{path}", "w"), sort_keys=False)
 d = yaml.safe_load(yaml.safe_dump(base))
 c = d["spec"]["template"]["spec"]["containers"][0]
 c["readinessprobe"] = c.pop("readinessProbe")  # a misspelt field
-save("unknown-field", d)
+save("unknown-field.yaml", d)
 d = yaml.safe_load(yaml.safe_dump(base))
 del d["spec"]["template"]["spec"]["containers"][0]["name"]  # a required field
-save("missing-field", d)
+save("missing-field.yaml", d)
+# the catalog's Secret gone
+k = yaml.safe_load(open(f"{out}/no-catalog/base/kustomization.yaml"))
+k["resources"].remove("catalog-secret.yaml")
+save("no-catalog/base/kustomization.yaml", k)
+# a ReadWriteMany claim mounted, as the replicas once shared a data directory
+k = yaml.safe_load(open(f"{out}/rwx/base/kustomization.yaml"))
+k["resources"].append("pvc.yaml")
+save("rwx/base/kustomization.yaml", k)
+save("rwx/base/pvc.yaml", {"apiVersion": "v1", "kind": "PersistentVolumeClaim",
+                           "metadata": {"name": "sdfd-data"},
+                           "spec": {"accessModes": ["ReadWriteMany"],
+                                    "resources": {"requests": {"storage": "10Gi"}}}})
+d = yaml.safe_load(yaml.safe_dump(base))
+pod = d["spec"]["template"]["spec"]
+pod["volumes"].append({"name": "data", "persistentVolumeClaim": {"claimName": "sdfd-data"}})
+pod["containers"][0]["volumeMounts"].append({"name": "data", "mountPath": "/data"})
+save("rwx/base/deployment.yaml", d)
+# a data directory beside the catalog
+cm = yaml.safe_load(open("deploy/k8s/base/configmap.yaml"))
+cm["data"]["SDFD_DATA_DIR"] = "/data"
+save("data-dir/base/configmap.yaml", cm)
+# the PostgreSQL StatefulSet's serviceName no Service
+s = yaml.safe_load(open("deploy/k8s/postgres/statefulset.yaml"))
+s["spec"]["serviceName"] = "postgres"
+save("pg-service/postgres/statefulset.yaml", s)
+# the catalog URI's password not PostgreSQL's
+s = yaml.safe_load(open("deploy/k8s/postgres/secret.yaml"))
+s["stringData"]["password"] = "another"
+save("pg-password/postgres/secret.yaml", s)
 PYEOF
     printf 'apiVersion: v1\nkind: ConfigMap\nmetadata:\n  name: a\n  name: b\n' >"$1/lint.yaml"
-    mkdir "$1/kustomize"
-    cp deploy/k8s/*.yaml "$1/kustomize"
     sed -i 's/terminationGracePeriodSeconds: .*/terminationGracePeriodSeconds: 25/' \
-        "$1/kustomize/deployment.yaml"
-    local k
-    for k in store-ro memory; do
-        mkdir "$1/$k"
-        cp deploy/k8s/*.yaml "$1/$k"
-    done
-    # the store mounted read-only; a memory limit under the ConfigMap's budgets
-    sed -i 's|mountPath: /data|mountPath: /data\n              readOnly: true|' \
-        "$1/store-ro/deployment.yaml"
-    sed -i 's/memory: 1Gi/memory: 768Mi/' "$1/memory/deployment.yaml"
+        "$1/kustomize/base/deployment.yaml"
+    sed -i 's/memory: 1Gi/memory: 768Mi/' "$1/memory/base/deployment.yaml"
 }
 
 part_k8s() {
@@ -285,34 +310,45 @@ part_k8s() {
                "package-lock.json: run .ci/deps (it runs npm ci there)"
           check "deploy/k8s/check/node_modules from package-lock.json" false; return; }
     shopt -s nullglob
-    local manifests=(deploy/k8s/*.yaml deploy/podman/*.yaml) bad
+    local manifests=(deploy/k8s/*.yaml deploy/k8s/{base,postgres,with-postgres}/*.yaml
+                     deploy/podman/*.yaml) bad
+    local cm="$PY deploy/k8s/check/check_manifests.py"
     check "yamllint" yamllint -s -c deploy/k8s/check/yamllint.yaml "${manifests[@]}"
     check "kubernetes-models: types and required fields" \
         node deploy/k8s/check/validate.mjs "${manifests[@]}"
-    check "python3-kubernetes: no unknown field; the manifests hang together" \
-        $PY deploy/k8s/check/check_manifests.py --kustomize deploy/k8s
+    check "python3-kubernetes: no unknown field; deploy/k8s hangs together" \
+        $cm --kustomize deploy/k8s
+    check "python3-kubernetes: no unknown field; deploy/k8s/with-postgres hangs together" \
+        $cm --kustomize deploy/k8s/with-postgres
     [ ! -e deploy/podman ] || check "python3-kubernetes: no unknown field in deploy/podman" \
-        $PY deploy/k8s/check/check_manifests.py deploy/podman/*.yaml
+        $cm deploy/podman/*.yaml
     bad=$(mktemp -d)
     broken_manifests "$bad"
+    refused() { # description, directory, what the check must say
+        check "$1 fails the kustomize check" bash -c \
+            "if $cm --kustomize $2 >$bad/out; then echo 'it passed'; false;
+             else grep -qF -- '$3' $bad/out || { cat $bad/out; false; }; fi"
+    }
     check "an unknown field fails the field check" \
-        bash -c "! $PY deploy/k8s/check/check_manifests.py $bad/unknown-field.yaml"
+        bash -c "! $cm $bad/unknown-field.yaml"
     check "a missing required field fails kubernetes-models" \
         bash -c "! node deploy/k8s/check/validate.mjs $bad/missing-field.yaml"
     check "a duplicate key fails yamllint" \
         bash -c "! yamllint -s -c deploy/k8s/check/yamllint.yaml $bad/lint.yaml >/dev/null"
-    check "a grace period shorter than preStop + drain fails the kustomize check" \
-        bash -c "! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/kustomize"
-    check "a read-only store fails the kustomize check" bash -c \
-        "grep -q 'readOnly: true' $bad/store-ro/deployment.yaml &&
-         ! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/store-ro"
-    check "a memory limit under the budgets fails the kustomize check" bash -c \
-        "grep -q 'memory: 768Mi' $bad/memory/deployment.yaml &&
-         ! $PY deploy/k8s/check/check_manifests.py --kustomize $bad/memory"
-    check "the unbroken copy passes the kustomize check" bash -c \
+    refused "a grace period shorter than preStop + drain" "$bad/kustomize" \
+        "terminationGracePeriodSeconds is not above"
+    refused "a memory limit under the budgets" "$bad/memory" "memory limit 768Mi under"
+    refused "no catalog Secret" "$bad/no-catalog" "no Secret sdfd-catalog with key catalog"
+    refused "a ReadWriteMany volume" "$bad/rwx" "volume data: a ReadWriteMany claim"
+    refused "SDFD_DATA_DIR beside the catalog" "$bad/data-dir" "SDFD_DATA_DIR is set"
+    refused "a PostgreSQL StatefulSet without its Service" "$bad/pg-service/with-postgres" \
+        "no Service postgres (its serviceName)"
+    refused "a catalog URI with another password than PostgreSQL's" \
+        "$bad/pg-password/with-postgres" "password is not that of StatefulSet sdfd-postgres"
+    check "the unbroken copy passes the kustomize check, with PostgreSQL too" bash -c \
         "sed -i 's/terminationGracePeriodSeconds: 25/terminationGracePeriodSeconds: 40/' \
-         $bad/kustomize/deployment.yaml && $PY deploy/k8s/check/check_manifests.py \
-         --kustomize $bad/kustomize"
+         $bad/kustomize/base/deployment.yaml && $cm --kustomize $bad/kustomize &&
+         $cm --kustomize $bad/kustomize/with-postgres"
     rm -rf "$bad"
 }
 
