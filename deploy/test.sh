@@ -1,17 +1,18 @@
 #!/bin/bash
 # test.sh - tests what deploy/ ships, on one Debian 12 machine with no container registry:
 #   lb     HAProxy and nginx (deploy/lb/) in both routing modes in front of 3 sdfd replicas
-#          sharing one --data-dir: meshes uploaded and a volume baked through the balancer are
-#          answered by every replica; under load, one replica SIGKILLed and restarted, another
-#          SIGTERMed: no failed request, every answer equal to a reference sdfd's
+#          sharing one PostgreSQL catalog: meshes uploaded and a volume baked through the
+#          balancer are answered by every replica; under load, one replica SIGKILLed and
+#          restarted, another SIGTERMed, while a writer PUTs and DELETEs: no failed request,
+#          every answer equal to a reference sdfd's, every acknowledged write kept
 #          (deploy/failover.py, deploy/shared_store.py)
 #   image  deploy/Dockerfile built from a clean copy of the repository (git ls-files): size,
 #          a query, the HEALTHCHECK, a drain on `podman stop`, non-root, read-only root, a
 #          store on a volume that outlives the container
 #   k8s    deploy/k8s/ passes yamllint and two schema checks, and broken manifests fail them
-#   pod    deploy/podman/sdfd-pod.yaml under `podman kube play`: a mesh uploaded and a volume
-#          baked through HAProxy answer through it and on each replica as sdfd's own, and
-#          again after the pod is replaced
+#   pod    deploy/podman/sdfd-pod.yaml under `podman kube play` (two replicas, HAProxy and
+#          PostgreSQL): a mesh uploaded and a volume baked through HAProxy answer through it
+#          and on each replica as sdfd's own, and again after the pod is replaced
 #
 #   deploy/test.sh [PART...]       (default: all four; run as root)
 #
@@ -66,7 +67,7 @@ sdfd_binary() {
 }
 
 part_lb() {
-    deps haproxy nginx-light libnginx-mod-stream python3-numpy
+    deps haproxy nginx-light libnginx-mod-stream python3-numpy postgresql
     command -v node >/dev/null || deps nodejs # failover.py's JS binary worker
     sdfd_binary
     check "haproxy.cfg parses" haproxy -c -q -f deploy/lb/haproxy.cfg
@@ -352,20 +353,20 @@ part_k8s() {
     rm -rf "$bad"
 }
 
-# deploy/podman/sdfd-pod.yaml with free ports for its six, and a pod name and a volume (its
-# store) of its own.
+# deploy/podman/sdfd-pod.yaml with free ports for its seven, and a pod name and a volume (its
+# PostgreSQL's data) of its own.
 render_pod() { # out-file pod-name
     $PY - "$1" "$2" <<'PYEOF'
 import re, socket, sys
 out, name = sys.argv[1:3]
 text = open("deploy/podman/sdfd-pod.yaml").read()
 ports = {}
-for p in ("8080", "9090", "8081", "9091", "8082", "9092"):
+for p in ("8080", "9090", "8081", "9091", "8082", "9092", "5432"):
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
     ports[p] = str(s.getsockname()[1])
     s.close()
-text = re.sub(r"\b(8080|9090|8081|9091|8082|9092)\b", lambda m: ports[m.group(1)], text)
+text = re.sub(r"\b(8080|9090|8081|9091|8082|9092|5432)\b", lambda m: ports[m.group(1)], text)
 text = text.replace("\n  name: sdfd\n", f"\n  name: {name}\n", 1)
 if text.count("claimName: sdfd-data\n") != 1:
     sys.exit("sdfd-pod.yaml: expected one claimName: sdfd-data")
@@ -392,6 +393,8 @@ part_pod() {
     check "the sdfd image builds" build_image || return
     check "the haproxy image builds" build_image deploy/lb/haproxy.Dockerfile \
         localhost/sdfd-haproxy:latest || return
+    check "the postgres image builds" build_image deploy/postgres/postgres.Dockerfile \
+        localhost/sdfd-postgres:latest || return
     local yaml name=sdfd-test-$$ lb lbbin r1 r2 meshes ref refpid
     yaml=$(mktemp --suffix .yaml)
     read -r lb lbbin r1 r2 < <(render_pod "$yaml" "$name")
