@@ -49,7 +49,8 @@ int sdfd_op_metrics(sdfd_call *call)
     char *catalog = NULL;
     if (srv->cfg.catalog) {
         sdfd_catalog_job_counts jobs = {0};
-        if (srv->jobs)
+        /* /metrics answers while sdfd loads; main sets srv->jobs before `ready`. */
+        if (atomic_load(&srv->ready) && srv->jobs)
             sdfd_jobrunner_counts_get(srv->jobs, &jobs);
         catalog = sdfd_catalog_metrics_render(&srv->catalog_metrics, &jobs, &g.extra_len);
         g.extra = catalog;

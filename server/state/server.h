@@ -24,7 +24,8 @@ typedef struct sdfd_server {
     sdfd_volumes *volumes;   /* baked volumes and bake jobs */
     sdfd_cache *cache;       /* lookups, uploads and deletes of both, through the store if any */
     sdfd_catalog_metrics catalog_metrics; /* with --catalog: its talks with PostgreSQL */
-    sdfd_jobrunner *jobs;    /* with --catalog: the shared jobs (jobrunner.h); else NULL */
+    sdfd_jobrunner *jobs;    /* with --catalog: the shared jobs (jobrunner.h); else NULL;
+                              * set before `ready`, so read it only once ready */
     struct sdfd_tls *tls;    /* --tls-cert and --tls-key, or NULL: no TLS (transport/tls.h) */
     sdfd_workers *workers;   /* threads for uploads, slices and volume queries */
     atomic_int ready;        /* meshes loaded: /readyz 200 */
