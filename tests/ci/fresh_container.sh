@@ -23,9 +23,15 @@ trap cleanup EXIT
 git clone -q "$PWD" "$work/repo"
 podman=(podman --runtime runc)
 limits=(--ulimit nofile=1024:1024 --ulimit nproc=4000:4000 --privileged)
+# The host's trusted certificates for npm (node's NODE_EXTRA_CA_CERTS), so that a network
+# behind a TLS-intercepting proxy, which the host trusts and a fresh container does not,
+# still reaches the npm registry.
+cas=()
+[ ! -f /etc/ssl/certs/ca-certificates.crt ] ||
+    cas=(-v /etc/ssl/certs/ca-certificates.crt:/host-ca.crt:ro -e NODE_EXTRA_CA_CERTS=/host-ca.crt)
 echo "== fresh_container: .ci/deps in debian:bookworm-slim, with the network"
-"${podman[@]}" run "${limits[@]}" --name "$name" --network=host -v "$work/repo:/repo" \
-    docker.io/library/debian:bookworm-slim bash -c 'cd /repo && .ci/deps'
+"${podman[@]}" run "${limits[@]}" "${cas[@]}" --name "$name" --network=host \
+    -v "$work/repo:/repo" docker.io/library/debian:bookworm-slim bash -c 'cd /repo && .ci/deps'
 "${podman[@]}" commit -q "$name" "localhost/$name" >/dev/null
 "${podman[@]}" rm "$name" >/dev/null
 echo "== fresh_container: .ci/test, the network cut"
