@@ -327,7 +327,13 @@ def targets(found):
 # ---- the report ---------------------------------------------------------------------------
 
 def git(*args):
-    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    """git's answer, or "" where git is not installed (a copy of the tree on a bare machine:
+    the report then names no commit)."""
+    try:
+        return subprocess.run(["git", *args], cwd=ROOT, capture_output=True,
+                              text=True).stdout.strip()
+    except FileNotFoundError:
+        return ""
 
 
 def package_versions():
