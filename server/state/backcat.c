@@ -261,8 +261,8 @@ static int write_item(void *self, sdfd_item_kind kind, sdfd_sidecar *meta, const
         snprintf(err, cap, "cannot hash the bytes (GnuTLS)");
         return SDF_EIO;
     }
-    int rc = sdfd_catalog_put(b->cat, kind, meta->name, data, n, meta->format, meta->info,
-                              &version, existed, err, cap);
+    int rc = sdfd_catalog_put_hashed(b->cat, kind, meta->name, data, n, sha, meta->format,
+                                     meta->info, &version, existed, err, cap);
     if (rc)
         return rc;
     memcpy(&meta->hash, sha, sizeof meta->hash);

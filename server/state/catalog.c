@@ -299,12 +299,11 @@ static int put_call(sdfd_catalog *c, PGconn *conn, void *arg, char *err, size_t 
     return rc;
 }
 
-int sdfd_catalog_put(sdfd_catalog *c, sdfd_item_kind kind, const char *name, const void *bytes,
-                     size_t n, const char *format, const char *info, uint64_t *version,
-                     int *replaced, char *err, size_t cap)
+/* A put's arguments: 0, or SDF_EINVAL / SDF_ELIMIT with err. */
+static int check_put_args(sdfd_catalog *c, sdfd_item_kind kind, const char *name,
+                          const void *bytes, size_t n, const char *format, const char *info,
+                          char *err, size_t cap)
 {
-    put_args a = {.kind = kind, .name = name, .format = format, .info = info,
-                  .bytes = bytes, .n = n};
     int rc = check_name(kind, name, err, cap);
     if (!rc)
         rc = check_put(c, n, format, info, err, cap);
@@ -312,10 +311,35 @@ int sdfd_catalog_put(sdfd_catalog *c, sdfd_item_kind kind, const char *name, con
         snprintf(err, cap, "no bytes to store");
         rc = SDF_EINVAL;
     }
-    if (!rc && sdfd_catblob_hash(bytes ? bytes : "", n, a.hash)) {
+    return rc;
+}
+
+int sdfd_catalog_put(sdfd_catalog *c, sdfd_item_kind kind, const char *name, const void *bytes,
+                     size_t n, const char *format, const char *info, uint64_t *version,
+                     int *replaced, char *err, size_t cap)
+{
+    unsigned char hash[SDFD_CATALOG_HASH_BYTES];
+    int rc = check_put_args(c, kind, name, bytes, n, format, info, err, cap);
+    if (rc) /* before hashing what would be refused */
+        return rc;
+    if (sdfd_catblob_hash(bytes ? bytes : "", n, hash)) {
         snprintf(err, cap, "cannot compute SHA-256 (GnuTLS)");
-        rc = SDF_EIO;
+        return SDF_EIO;
     }
+    return sdfd_catalog_put_hashed(c, kind, name, bytes, n, hash, format, info, version,
+                                   replaced, err, cap);
+}
+
+int sdfd_catalog_put_hashed(sdfd_catalog *c, sdfd_item_kind kind, const char *name,
+                            const void *bytes, size_t n,
+                            const unsigned char hash[SDFD_CATALOG_HASH_BYTES],
+                            const char *format, const char *info, uint64_t *version,
+                            int *replaced, char *err, size_t cap)
+{
+    put_args a = {.kind = kind, .name = name, .format = format, .info = info,
+                  .bytes = bytes, .n = n};
+    memcpy(a.hash, hash, sizeof a.hash);
+    int rc = check_put_args(c, kind, name, bytes, n, format, info, err, cap);
     if (!rc)
         rc = run(c, BEGIN_WRITE, put_call, &a, err, cap);
     if (rc)

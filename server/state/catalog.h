@@ -63,6 +63,14 @@ int sdfd_catalog_put(sdfd_catalog *c, sdfd_item_kind kind, const char *name, con
                      size_t n, const char *format, const char *info, uint64_t *version,
                      int *replaced, char *err, size_t cap);
 
+/* The same, for a caller that has the bytes' SHA-256 already (sdfd_catblob_hash's): it is
+ * trusted here, and a read checks it. */
+int sdfd_catalog_put_hashed(sdfd_catalog *c, sdfd_item_kind kind, const char *name,
+                            const void *bytes, size_t n,
+                            const unsigned char hash[SDFD_CATALOG_HASH_BYTES],
+                            const char *format, const char *info, uint64_t *version,
+                            int *replaced, char *err, size_t cap);
+
 /* Delete `name`, leaving a tombstone: 0 with *version the tombstone's; SDF_ENOTFOUND when
  * the name holds nothing live; SDF_EINVAL, SDFD_EUNAVAILABLE, SDF_EIO. */
 int sdfd_catalog_remove(sdfd_catalog *c, sdfd_item_kind kind, const char *name,

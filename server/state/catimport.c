@@ -10,18 +10,16 @@
 #include "state/catblob.h"
 #include "state/store.h"
 
-/* Does the catalog hold `name` with exactly these bytes? */
-static int unchanged(sdfd_catalog *c, sdfd_item_kind kind, const char *name, const void *data,
-                     size_t n)
+/* Does the catalog hold `name` with exactly n bytes of this hash? */
+static int unchanged(sdfd_catalog *c, sdfd_item_kind kind, const char *name, size_t n,
+                     const unsigned char hash[SDFD_CATALOG_HASH_BYTES])
 {
     sdfd_catalog_item item;
-    unsigned char hash[SDFD_CATALOG_HASH_BYTES];
     char err[256];
     if (sdfd_catalog_read(c, kind, name, &item, NULL, err, sizeof err))
         return 0;
     free(item.info);
-    return item.bytes == n && !sdfd_catblob_hash(data, n, hash) &&
-           !memcmp(hash, item.hash, sizeof hash);
+    return item.bytes == n && !memcmp(hash, item.hash, SDFD_CATALOG_HASH_BYTES);
 }
 
 /* One item: 0 (counted), or an error that stops the import. */
@@ -43,12 +41,16 @@ static int import_one(sdfd_store *s, sdfd_catalog *c, sdfd_item_kind kind, const
         snprintf(err, cap, "%s", why);
         return rc;
     }
-    if (unchanged(c, kind, name, data, meta.bytes)) {
+    unsigned char hash[SDFD_CATALOG_HASH_BYTES];
+    if (sdfd_catblob_hash(data, meta.bytes, hash)) {
+        snprintf(err, cap, "cannot compute SHA-256 (GnuTLS)");
+        rc = SDF_EIO;
+    } else if (unchanged(c, kind, name, meta.bytes, hash)) {
         counts->unchanged++;
     } else {
         uint64_t version;
-        rc = sdfd_catalog_put(c, kind, name, data, meta.bytes, meta.format, meta.info, &version,
-                              NULL, err, cap);
+        rc = sdfd_catalog_put_hashed(c, kind, name, data, meta.bytes, hash, meta.format,
+                                     meta.info, &version, NULL, err, cap);
         if (!rc) {
             counts->copied++;
             sdfd_log("info", "import", "%s %s: %zu bytes, version %llu",
