@@ -122,8 +122,8 @@ static void claim_jobs(sdfd_jobrunner *r)
         if (rc)
             return; /* none queued, or PostgreSQL away: the next tick tries again */
         r->counts.claimed++;
-        claim *c = &r->claims[r->nclaims++];
-        *c = (claim){.status = job.status};
+        size_t at = r->nclaims++; /* only this thread moves claims */
+        r->claims[at] = (claim){.status = job.status};
         pthread_mutex_unlock(&r->lock);
         sdfd_log("info", "job_claimed", "job %s (%s of %s), attempt %d", job.status.id,
                  sdfd_job_kind_name(job.status.kind), job.target, job.status.attempts);
@@ -131,13 +131,10 @@ static void claim_jobs(sdfd_jobrunner *r)
         free(job.request);
         pthread_mutex_lock(&r->lock);
         if (rc) { /* it never ran: its end is a failure, written with the others */
-            for (size_t i = 0; i < r->nclaims; i++)
-                if (!strcmp(r->claims[i].status.id, job.status.id)) {
-                    sdfd_job_status *s = &r->claims[i].status;
-                    s->state = SDFD_JOB_FAILED, s->error = rc;
-                    snprintf(s->message, sizeof s->message, "%.255s", err);
-                    r->claims[i].ended = 1;
-                }
+            sdfd_job_status *s = &r->claims[at].status;
+            s->state = SDFD_JOB_FAILED, s->error = rc;
+            snprintf(s->message, sizeof s->message, "%.255s", err);
+            r->claims[at].ended = 1;
         }
     }
 }

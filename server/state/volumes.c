@@ -615,12 +615,12 @@ static int check_bake_ops(const sdf_volume_info *planned, char *err, size_t err_
     return SDF_EINVAL;
 }
 
-/* The bake j (its request set, o's callbacks installed) as the library plans it: 0 with
+/* The bake of `req` (its options made by bake_options) as the library plans it: 0 with
  * *planned and the *working bytes besides the volume, or an error with err. */
 static int plan_bake(sdfd_volumes *v, const sdf_mesh *mesh, const sdfd_bake_request *req,
-                     const sdf_bake_options *o, sdf_volume_info *planned, size_t *working,
-                     char *err, size_t err_cap)
+                     sdf_volume_info *planned, size_t *working, char *err, size_t err_cap)
 {
+    const sdf_bake_options *o = &req->options;
     sdf_diag diag = {0};
     int rc;
     if ((rc = sdf_volume_plan(mesh, o, planned, &diag)) ||
@@ -670,7 +670,7 @@ int sdfd_volumes_check_bake(sdfd_volumes *v, const sdf_mesh *mesh, const sdfd_ba
     sdf_volume_info planned = {0};
     size_t working = 0;
     bake_options(v, &copy, NULL);
-    int rc = plan_bake(v, mesh, &copy, &copy.options, &planned, &working, err, err_cap);
+    int rc = plan_bake(v, mesh, &copy, &planned, &working, err, err_cap);
     return rc ? rc : check_alone(v, volume_bytes(&planned) + working, err, err_cap);
 }
 
@@ -690,7 +690,7 @@ int sdfd_volumes_bake(sdfd_volumes *v, sdf_mesh *mesh, const char *mesh_name,
         j->status.has_ops = req->ops.count > 0;
         bake_options(v, &j->req, j);
         /* The library's own checks and defaults say what the bake will make. */
-        rc = plan_bake(v, mesh, &j->req, &j->req.options, &planned, &working, err, err_cap);
+        rc = plan_bake(v, mesh, &j->req, &planned, &working, err, err_cap);
         snprintf(j->status.mesh, sizeof j->status.mesh, "%s", mesh_name);
         snprintf(j->status.volume, sizeof j->status.volume, "%s", volume_name);
     }
