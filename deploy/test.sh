@@ -283,10 +283,12 @@ pod = d["spec"]["template"]["spec"]
 pod["volumes"].append({"name": "data", "persistentVolumeClaim": {"claimName": "sdfd-data"}})
 pod["containers"][0]["volumeMounts"].append({"name": "data", "mountPath": "/data"})
 save("rwx/base/deployment.yaml", d)
-# a data directory beside the catalog
-cm = yaml.safe_load(open("deploy/k8s/base/configmap.yaml"))
-cm["data"]["SDFD_DATA_DIR"] = "/data"
-save("data-dir/base/configmap.yaml", cm)
+# the local copies' directory on no emptyDir (the root file system, read-only)
+d = yaml.safe_load(yaml.safe_dump(base))
+for e in d["spec"]["template"]["spec"]["containers"][0]["env"]:
+    if e["name"] == "SDFD_DATA_DIR":
+        e["value"] = "/data"
+save("data-dir/base/deployment.yaml", d)
 # the PostgreSQL StatefulSet's serviceName no Service
 s = yaml.safe_load(open("deploy/k8s/postgres/statefulset.yaml"))
 s["spec"]["serviceName"] = "postgres"
@@ -341,7 +343,8 @@ part_k8s() {
     refused "a memory limit under the budgets" "$bad/memory" "memory limit 768Mi under"
     refused "no catalog Secret" "$bad/no-catalog" "no Secret sdfd-catalog with key catalog"
     refused "a ReadWriteMany volume" "$bad/rwx" "volume data: a ReadWriteMany claim"
-    refused "SDFD_DATA_DIR beside the catalog" "$bad/data-dir" "SDFD_DATA_DIR is set"
+    refused "SDFD_DATA_DIR on no emptyDir" "$bad/data-dir" \
+        "SDFD_DATA_DIR /data is not the mount of an emptyDir"
     refused "a PostgreSQL StatefulSet without its Service" "$bad/pg-service/with-postgres" \
         "no Service postgres (its serviceName)"
     refused "a catalog URI with another password than PostgreSQL's" \

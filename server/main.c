@@ -198,7 +198,7 @@ int main(int argc, char **argv)
         sdfd_log("error", "start", "%s", err);
         return 2;
     }
-    if (srv.cfg.data_dir && sdfd_store_open(srv.cfg.data_dir, &store, err, sizeof err)) {
+    if (srv.cfg.data_dir && !srv.cfg.catalog && sdfd_store_open(srv.cfg.data_dir, &store, err, sizeof err)) {
         sdfd_log("error", "start", "--data-dir: %s", err);
         return 1;
     }
@@ -206,7 +206,8 @@ int main(int argc, char **argv)
     if (store)
         sdfd_backfile_init(store, &backing);
     if (srv.cfg.catalog &&
-        sdfd_backcat_create(srv.cfg.catalog, &srv.catalog_metrics, &backing, err, sizeof err)) {
+        sdfd_backcat_create(srv.cfg.catalog, srv.cfg.data_dir, srv.cfg.cache_bytes,
+                            &srv.catalog_metrics, &backing, err, sizeof err)) {
         sdfd_log("error", "start", "--catalog: %s", err);
         return 1;
     }

@@ -45,10 +45,11 @@ static const setting settings[] = {
     {"--max-bake-queries", "SDFD_MAX_BAKE_QUERIES", "N", "distance queries one bake may cost (default 1073741824)", SIZE, AT(max_bake_queries), 0, 1ull << 40},
     {"--max-bakes", "SDFD_MAX_BAKES", "N", "bake and ops jobs running at once; more wait queued (default 1)", UINT, AT(max_bakes), 1, 64},
     {"--max-jobs", "SDFD_MAX_JOBS", "N", "bake jobs remembered, finished or not (default 64)", SIZE, AT(max_jobs), 1, 1u << 16},
-    {"--data-dir", "SDFD_DATA_DIR", "DIR", "keep meshes, volumes and bake jobs in DIR (shared by replicas; docs/api.md)", STRING, AT(data_dir), 0, 0},
+    {"--data-dir", "SDFD_DATA_DIR", "DIR", "keep meshes, volumes and bake jobs in DIR (one sdfd per DIR; docs/api.md); with --catalog, local copies of the catalog's bytes", STRING, AT(data_dir), 0, 0},
     {"--catalog", "SDFD_CATALOG", "URI", "keep meshes, volumes and jobs in PostgreSQL (a libpq URI or key=value string; replicas share it; docs/deploy.md)", STRING, AT(catalog), 0, 0},
     {"--import", "SDFD_IMPORT", "DIR", "with --catalog: copy the file store DIR (a --data-dir) into the catalog, then exit", STRING, AT(import_dir), 0, 0},
     {"--catalog-grace", "SDFD_CATALOG_GRACE", "SECONDS", "with --catalog: delete stored bytes no item has referred to for this long (default 600)", UINT, AT(catalog_grace_seconds), 1, 864000},
+    {"--cache-bytes", "SDFD_CACHE_BYTES", "N", "with --catalog and --data-dir: bytes of local copies kept, least recently used dropped first (default 8589934592; 0 = no bound)", SIZE, AT(cache_bytes), 0, 1ull << 50},
     {"--replica-id", "SDFD_REPLICA_ID", "ID", "this replica's name in the jobs it runs (default: the host name)", STRING, AT(replica_id), 0, 0},
     {"--max-resident-bytes", "SDFD_MAX_RESIDENT_BYTES", "N", "with --data-dir or --catalog: drop the least recently used meshes and volumes from memory past N bytes (default 0 = keep all)", SIZE, AT(max_resident_bytes), 0, 1ull << 44},
     {"--tls-cert", "SDFD_TLS_CERT", "FILE", "serve HTTPS (TLS 1.2+) with this PEM certificate chain; reread on SIGHUP", STRING, AT(tls_cert), 0, 0},
@@ -161,6 +162,7 @@ static void defaults(sdfd_config *cfg)
         .timeout_seconds = 30,
         .max_meshes = 64,
         .catalog_grace_seconds = 600,
+        .cache_bytes = (size_t)8 << 30,
         .max_total_triangles = 50000000,
         .batch_window_us = 200,
         .batch_max_points = 262144,
@@ -217,11 +219,6 @@ int sdfd_config_parse(sdfd_config *cfg, int argc, char **argv)
     }
     if (!cfg->tls_cert != !cfg->tls_key) {
         fprintf(stderr, "sdfd: --tls-cert and --tls-key go together: give both or neither\n");
-        return -1;
-    }
-    if (cfg->catalog && cfg->data_dir) {
-        fprintf(stderr, "sdfd: --catalog keeps everything in PostgreSQL: give --catalog or "
-                "--data-dir, not both\n");
         return -1;
     }
     if (cfg->import_dir && !cfg->catalog) {

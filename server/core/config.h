@@ -39,7 +39,8 @@ typedef struct sdfd_config {
     unsigned max_bakes;           /* bakes running at once */
     size_t max_jobs;              /* bake jobs remembered */
     const char *data_dir;         /* the store, or NULL: memory only */
-    const char *catalog;          /* PostgreSQL's conninfo, or NULL (never with data_dir) */
+    const char *catalog;          /* PostgreSQL's conninfo, or NULL (data_dir: its blob cache) */
+    size_t cache_bytes;           /* with catalog and data_dir: bound on the blob cache */
     const char *replica_id;       /* the owner jobs name; NULL: the host name (main.c) */
     unsigned catalog_grace_seconds; /* blobs unreferenced this long are swept */
     const char *import_dir;       /* --import: copy this file store into the catalog, exit */

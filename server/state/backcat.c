@@ -14,6 +14,7 @@
 #include "core/errors.h"
 #include "core/log.h"
 #include "state/catalog.h"
+#include "state/blobcache.h"
 #include "state/catblob.h"
 #include "state/catconn.h"
 #include "state/catlisten.h"
@@ -32,6 +33,7 @@ typedef struct known {
 typedef struct backcat {
     char *conninfo;
     sdfd_catalog_metrics *m;
+    sdfd_blobcache *blobs; /* local copies of blobs, or NULL */
     sdfd_catalog *cat;
     sdfd_catlisten *listen;
     sdfd_backing_changed changed;
@@ -307,6 +309,26 @@ static int changed(const sdfd_seen *now, const sdfd_seen *loaded)
     return now->version > loaded->version;
 }
 
+/* The item's row, then its bytes from the local copy when one checks, else from the
+ * catalog (and kept as a copy). A blob that went between the two reads (the item was
+ * replaced, and the old bytes swept) is read again with its item, in one transaction. */
+static int read_cached(backcat *b, sdfd_item_kind kind, const char *name,
+                       sdfd_catalog_item *item, void **data, char *err, size_t cap)
+{
+    int rc = sdfd_catalog_read(b->cat, kind, name, item, NULL, err, cap);
+    if (rc || !sdfd_blobcache_get(b->blobs, item->hash, item->bytes, data))
+        return rc;
+    rc = sdfd_catalog_read_blob(b->cat, item->hash, item->bytes, data, err, cap);
+    if (rc == SDF_ENOTFOUND) {
+        free(item->info);
+        rc = sdfd_catalog_read(b->cat, kind, name, item, data, err, cap);
+    }
+    char why[256];
+    if (!rc && sdfd_blobcache_put(b->blobs, item->hash, *data, item->bytes, why, sizeof why))
+        sdfd_log("warn", "blob_cache", "%s (read from the catalog instead)", why);
+    return rc;
+}
+
 static int read_item(void *self, sdfd_item_kind kind, const char *name, sdfd_sidecar *meta,
                      void **data, sdfd_seen *seen, char *err, size_t cap)
 {
@@ -314,7 +336,8 @@ static int read_item(void *self, sdfd_item_kind kind, const char *name, sdfd_sid
     sdfd_catalog_item item = {0};
     *meta = (sdfd_sidecar){0};
     *seen = (sdfd_seen){0};
-    int rc = sdfd_catalog_read(b->cat, kind, name, &item, data, err, cap);
+    int rc = b->blobs && data ? read_cached(b, kind, name, &item, data, err, cap)
+                              : sdfd_catalog_read(b->cat, kind, name, &item, data, err, cap);
     if (rc)
         return rc;
     snprintf(meta->name, sizeof meta->name, "%s", name);
@@ -380,6 +403,7 @@ static void close_catalog(void *self)
     pthread_cond_destroy(&b->synced_cond);
     pthread_cond_destroy(&b->wake);
     pthread_mutex_destroy(&b->lock);
+    sdfd_blobcache_close(b->blobs);
     free(b->conninfo);
     free(b);
 }
@@ -400,22 +424,27 @@ static const sdfd_backing_ops ops = {
     .close = close_catalog,
 };
 
-int sdfd_backcat_create(const char *conninfo, sdfd_catalog_metrics *m, sdfd_backing *out,
-                        char *err, size_t cap)
+int sdfd_backcat_create(const char *conninfo, const char *cache_dir, uint64_t cache_bytes,
+                        sdfd_catalog_metrics *m, sdfd_backing *out, char *err, size_t cap)
 {
     int rc = sdfd_catconn_check(conninfo, err, cap);
     if (rc)
         return rc;
+    sdfd_blobcache *blobs = NULL;
+    if (cache_dir && sdfd_blobcache_open(cache_dir, cache_bytes, m, &blobs, err, cap))
+        return SDF_EIO;
+    m->cache_on = blobs != NULL;
     backcat *b = calloc(1, sizeof *b);
     if (!b || !(b->conninfo = strdup(conninfo)) ||
         !(b->buckets = calloc(b->nbuckets = 64, sizeof *b->buckets))) {
         if (b)
             free(b->conninfo);
         free(b);
+        sdfd_blobcache_close(blobs);
         snprintf(err, cap, "out of memory");
         return SDF_ENOMEM;
     }
-    b->m = m;
+    b->m = m, b->blobs = blobs;
     pthread_mutex_init(&b->lock, NULL);
     pthread_cond_init(&b->wake, NULL);
     pthread_cond_init(&b->synced_cond, NULL);

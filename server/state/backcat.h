@@ -16,6 +16,8 @@
 #ifndef SDFD_BACKCAT_H
 #define SDFD_BACKCAT_H
 
+#include <stdint.h>
+
 #include "state/backing.h"
 #include "state/catalog.h"
 #include "state/catmetrics.h"
@@ -23,10 +25,12 @@
 #define SDFD_BACKCAT_RESYNC_SECONDS 30.0
 
 /* A backing for conninfo (checked here: SDF_EINVAL with err for a bad string; nothing
- * connects before ops->start). m: the caller's counters (zeroed, kept while the backing
- * lives). 0 or SDF_EINVAL, SDF_ENOMEM. */
-int sdfd_backcat_create(const char *conninfo, sdfd_catalog_metrics *m, sdfd_backing *out,
-                        char *err, size_t cap);
+ * connects before ops->start). cache_dir: NULL, or a directory whose blobs/ keeps local
+ * copies of the blobs read (blobcache.h), at most cache_bytes of them (0: no bound). m: the
+ * caller's counters (zeroed, kept while the backing lives). 0 or SDF_EINVAL, SDF_ENOMEM,
+ * SDF_EIO (the cache directory cannot be made or read). */
+int sdfd_backcat_create(const char *conninfo, const char *cache_dir, uint64_t cache_bytes,
+                        sdfd_catalog_metrics *m, sdfd_backing *out, char *err, size_t cap);
 
 /* The catalog of a started backing made by sdfd_backcat_create (for its other tables:
  * jobs); NULL before ops->start returned 0. */

@@ -59,6 +59,25 @@ static void round_trips(text *t, sdfd_catalog_metrics *m)
         atomic_load(&m->round_trips));
 }
 
+static void blob_cache(text *t, sdfd_catalog_metrics *m)
+{
+    counter(t, "sdfd_blob_cache_hits_total", "Items read from a local copy of their bytes.",
+            atomic_load(&m->cache_hits));
+    counter(t, "sdfd_blob_cache_misses_total",
+            "Items read from PostgreSQL: no local copy of their bytes.",
+            atomic_load(&m->cache_misses));
+    counter(t, "sdfd_blob_cache_fills_total", "Local copies written.",
+            atomic_load(&m->cache_fills));
+    counter(t, "sdfd_blob_cache_evictions_total", "Local copies removed past --cache-bytes.",
+            atomic_load(&m->cache_evictions));
+    counter(t, "sdfd_blob_cache_damaged_total",
+            "Local copies removed because their size or SHA-256 was wrong.",
+            atomic_load(&m->cache_damaged));
+    add(t, "# HELP sdfd_blob_cache_bytes Bytes of the local copies kept now.\n"
+           "# TYPE sdfd_blob_cache_bytes gauge\nsdfd_blob_cache_bytes %llu\n",
+        atomic_load(&m->cache_bytes));
+}
+
 char *sdfd_catalog_metrics_render(sdfd_catalog_metrics *m, const sdfd_catalog_job_counts *jobs,
                                   size_t *len)
 {
@@ -78,6 +97,8 @@ char *sdfd_catalog_metrics_render(sdfd_catalog_metrics *m, const sdfd_catalog_jo
             atomic_load(&m->connect_failures));
     counter(&t, "sdfd_catalog_unavailable_total", "Calls refused: PostgreSQL unreachable.",
             atomic_load(&m->unavailable));
+    if (m->cache_on)
+        blob_cache(&t, m);
     if (jobs) {
         counter(&t, "sdfd_jobs_claimed_total", "Shared jobs this replica claimed.",
                 jobs->claimed);

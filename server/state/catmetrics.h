@@ -28,6 +28,14 @@ typedef struct sdfd_catalog_metrics {
     atomic_ullong migrations;      /* schema steps this process applied */
     atomic_ullong notifications;   /* changes the listener passed on */
     atomic_ullong resyncs;         /* resync callbacks (each LISTEN put in place) */
+    /* The local copies of blobs (--data-dir with --catalog, blobcache.h). */
+    atomic_ullong cache_hits;      /* reads answered by a copy whose hash checked */
+    atomic_ullong cache_misses;    /* reads that found no copy */
+    atomic_ullong cache_fills;     /* copies written */
+    atomic_ullong cache_evictions; /* copies removed past the size bound */
+    atomic_ullong cache_damaged;   /* copies removed because their size or hash was wrong */
+    atomic_ullong cache_bytes;     /* bytes of the copies kept now */
+    int cache_on;                  /* set once at start: render the cache's lines */
     atomic_int up;                 /* 1: the last attempt to reach PostgreSQL worked */
     atomic_int listening;          /* 1: the listener's LISTEN is in place */
 } sdfd_catalog_metrics;

@@ -376,6 +376,64 @@ class Replicas(unittest.TestCase):
         self.assertEqual(done.returncode, 2)
         self.assertIn(b"needs --catalog", done.stderr)
 
+    def test_local_copies(self):
+        """--data-dir with --catalog keeps local copies of the bytes read: a replica restarted
+        on the same directory reads them from there; a damaged copy is never served (the bytes
+        come from PostgreSQL again and replace it); --cache-bytes bounds them."""
+        cache = tempfile.mkdtemp(prefix="sdfd-cache-")
+        self.addCleanup(shutil.rmtree, cache, True)
+        w = self.start()
+        fandisk = open(os.path.join(DATA, "fandisk.off"), "rb").read()
+        self.assertEqual(request(w.ports["http"], "PUT", "/v1/meshes/part", fandisk)[0], 201)
+        self.assertEqual(request(w.ports["http"], "PUT", "/v1/meshes/tiny", bipyramid(4))[0],
+                         201)
+        want = {}
+        cw = sdfclient.Client(w.url)
+        for name in ("part", "tiny"):
+            want[name] = cw.query(name, POINTS)["distance"]
+        cw.close()
+
+        def run_replica(*flags):
+            s = Server("--catalog", self.uri, "--data-dir", cache, *flags)
+            c = sdfclient.Client(s.url)
+            for name in ("part", "tiny"):
+                self.assertTrue(np.array_equal(c.query(name, POINTS)["distance"], want[name]),
+                                name)
+            c.close()
+            text = request_text(s.ports["http"], "/metrics")
+            self.assertEqual(s.stop(), 0)
+            return {k: metric(text, "sdfd_blob_cache_" + k) for k in
+                    ("hits_total", "misses_total", "fills_total", "damaged_total",
+                     "evictions_total", "bytes")}
+
+        first = run_replica()
+        self.assertEqual((first["misses_total"], first["fills_total"], first["hits_total"]),
+                         (2, 2, 0), first)
+        copies = sorted(os.listdir(os.path.join(cache, "blobs")))
+        self.assertEqual(len(copies), 2, copies)
+        self.assertTrue(all(len(c) == 64 for c in copies), copies)
+        self.assertEqual(first["bytes"], len(fandisk) + len(bipyramid(4)))
+        self.assertEqual(run_replica()["hits_total"], 2, "a restart reads the copies")
+        # One byte of fandisk's copy changed: refused, read from PostgreSQL, copied again.
+        big = [c for c in copies if os.path.getsize(os.path.join(cache, "blobs", c))
+               == len(fandisk)][0]
+        with open(os.path.join(cache, "blobs", big), "r+b") as f:
+            f.seek(len(fandisk) // 2)
+            byte = f.read(1)
+            f.seek(len(fandisk) // 2)
+            f.write(bytes([byte[0] ^ 0x20]))
+        damaged = run_replica()
+        self.assertEqual((damaged["damaged_total"], damaged["fills_total"], damaged["hits_total"]),
+                         (1, 1, 1), damaged)
+        with open(os.path.join(cache, "blobs", big), "rb") as f:
+            self.assertEqual(f.read(), fandisk, "the copy is whole again")
+        # A bound under fandisk's size: at start the copies go oldest first (tiny's, then
+        # fandisk's, rewritten last) until they fit; fandisk's is not kept again, tiny's is.
+        small = run_replica("--cache-bytes", str(len(fandisk) - 1))
+        self.assertEqual((small["evictions_total"], small["misses_total"], small["fills_total"]),
+                         (2, 2, 1), small)
+        self.assertEqual(small["bytes"], len(bipyramid(4)))
+
     # ---- jobs -------------------------------------------------------------------------------
 
     def post(self, server, path, body):

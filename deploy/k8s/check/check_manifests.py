@@ -26,7 +26,8 @@
    - the one Deployment (sdfd): its grace period outlasts the preStop sleep plus
      SDFD_DRAIN_SECONDS; the Prometheus annotation names the HTTP port; SDFD_THREADS fits the
      CPU limit; SDFD_CATALOG comes from a key of a Secret (not a ConfigMap or a literal: the URI
-     holds a password); SDFD_DATA_DIR is not set (sdfd refuses it with --catalog);
+     holds a password); SDFD_DATA_DIR, if set, is the mount of an emptyDir (a cache of the
+     replica's own: the replicas share the catalog, no file system);
      SDFD_REPLICA_ID is the pod's name (fieldRef metadata.name); no volume is a ReadWriteMany
      claim (the replicas share the catalog, no file system); the memory limit covers
      16 MiB + 2.9 x SDFD_MAX_RESIDENT_BYTES + SDFD_MAX_BUFFERED_BYTES + SDFD_MAX_VOLUME_BYTES
@@ -376,6 +377,7 @@ def check_sdfd(dep, names):
         if int(plain.get("SDFD_THREADS", 0)) == 0 or int(plain["SDFD_THREADS"]) > max(cpus, 1):
             problems.append("SDFD_THREADS must be set, at most the CPU limit")
         problems += check_catalog(c, env, names)
+        problems += check_cache(c, env, spec)
         problems += check_memory(c, plain)
     return problems
 
@@ -393,12 +395,23 @@ def check_catalog(c, env, names):
         uri = names["Secret"].get(value[0], {}).get(value[1])
         if uri:
             problems += check_catalog_uri(uri, names)
-    if "SDFD_DATA_DIR" in env:
-        problems.append(f"{c['name']}: SDFD_DATA_DIR is set: sdfd refuses it with --catalog")
     if env.get("SDFD_REPLICA_ID") != ("field", "metadata.name"):
         problems.append(f"{c['name']}: SDFD_REPLICA_ID must be the pod's name (fieldRef "
                         f"metadata.name), which jobs show as their owner")
     return problems
+
+
+def check_cache(c, env, spec):
+    """With the catalog, SDFD_DATA_DIR holds local copies of its bytes: each replica's own."""
+    source, value = env.get("SDFD_DATA_DIR", (None, None))
+    if source is None:
+        return []
+    own = {v["name"] for v in spec.get("volumes", []) if "emptyDir" in v}
+    mounts = {m["mountPath"]: m["name"] for m in c.get("volumeMounts", [])}
+    if source != "value" or mounts.get(value) not in own:
+        return [f"{c['name']}: SDFD_DATA_DIR {value} is not the mount of an emptyDir (with the "
+                f"catalog it holds the replica's own copies of its bytes)"]
+    return []
 
 
 def check_catalog_uri(uri, names):
