@@ -270,9 +270,13 @@ class Replicas(unittest.TestCase):
 
     def test_replicas_killed(self):
         """SIGKILL either replica at random moments (30 kills, fixed seed) while one writer
-        per name uploads and deletes through both: afterwards both serve, for every name, its
-        last acknowledged write or a later unacknowledged one, and nothing partial."""
+        per name uploads and deletes through both, and a baker posts bakes to both: afterwards
+        both serve, for every name, its last acknowledged write or a later unacknowledged one,
+        and nothing partial; every accepted bake ended (done, or failed as its owner was lost
+        twice), and a done bake's volume is served whole by both."""
         servers = [self.start(), self.start()]
+        self.assertEqual(request(servers[0].ports["http"], "PUT", "/v1/meshes/base",
+                                 bipyramid(20))[0], 201)
         rng = random.Random(5)
         names = ["k%d" % i for i in range(4)]
         history = {n: [] for n in names}  # per name: (triangles or None, acknowledged)
@@ -297,7 +301,25 @@ class Replicas(unittest.TestCase):
                 if status is None or status == 503:
                     time.sleep(0.02)  # a killed or starting replica
 
+        bakes = []  # (job id, volume) of the accepted bakes
+
+        def baker():
+            r = random.Random(9)
+            while not stop.is_set():
+                s = servers[r.randrange(2)]
+                volume = "kv%d" % len(bakes)
+                try:
+                    status, job = request(s.ports["http"], "POST", "/v1/meshes/base/bake",
+                                          json.dumps({"resolution": 12, "volume": volume}).encode(),
+                                          timeout=5)
+                except (OSError, http.client.HTTPException, KeyError):
+                    status = None
+                if status == 202:
+                    bakes.append((job["id"], volume))
+                time.sleep(0.2)
+
         writers = [threading.Thread(target=writer, args=(n, i)) for i, n in enumerate(names)]
+        writers.append(threading.Thread(target=baker))
         for w in writers:
             w.start()
         try:
@@ -321,6 +343,27 @@ class Replicas(unittest.TestCase):
                 if self.committed(name) is not None:
                     self.assertEqual(c.query(name, POINTS)["distance"].shape, (64,))
             c.close()
+        self.assertGreater(len(bakes), 5, "too few bakes were accepted to prove anything")
+        done = 0
+        for job_id, volume in bakes:
+            j = self.wait_job(servers[0], job_id, ("done", "failed"), timeout=60)
+            if j["state"] == "failed":
+                self.assertIn("owner replica lost", j["error"]["message"], j)
+                continue
+            done += 1
+            metas = []
+            for s in servers:
+                status, meta = request(s.ports["http"], "GET", "/v1/volumes/" + volume)
+                self.assertEqual(status, 200, (volume, meta))
+                self.assertEqual(meta["mesh"], "base", meta)
+                metas.append(meta)
+                status, _ = request(s.ports["http"], "POST", "/v1/volumes/%s/query" % volume,
+                                    POINTS.tobytes())  # octets: request() says so
+                self.assertEqual(status, 200, volume)
+            self.assertEqual(metas[0], metas[1], "the replicas describe %s alike" % volume)
+        print("30 kills: %d writes acknowledged, %d bakes accepted, %d done, %d failed as lost"
+              % (acked, len(bakes), done, len(bakes) - done), file=sys.stderr)
+        self.assertGreater(done, 0)
 
     def test_unreferenced_bytes_swept(self):
         """Bytes no item refers to any more are deleted once --catalog-grace has passed; the
