@@ -4,6 +4,7 @@
 #include "proto.h"
 
 #include <string.h>
+#include <strings.h>
 
 static const unsigned char magic[4] = {'S', 'D', 'F', 'P'};
 
@@ -49,7 +50,7 @@ static const char *const mode_names[] = {"signed",   "distance", "gradient",
 int sdf_proto_mode_from_name(const char *name, sdf_proto_mode *out)
 {
     for (int m = 0; m <= SDF_MODE_LAST && name; m++) {
-        if (!strcmp(name, mode_names[m])) {
+        if (!strcasecmp(name, mode_names[m])) { /* any case, as sdf.h's names */
             *out = (sdf_proto_mode)m;
             return 0;
         }

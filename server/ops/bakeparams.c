@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <strings.h>
 
 static int fail(char *err, size_t cap, const char *fmt, const char *key)
 {
@@ -136,9 +137,9 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
     if (!strcmp(key, "field")) {
         if (name(item, key, text, sizeof text, err, cap))
             return SDF_EINVAL;
-        if (strcmp(text, "raw") && strcmp(text, "filtered"))
+        if (strcasecmp(text, "raw") && strcasecmp(text, "filtered"))
             return fail(err, cap, "'%s' must be \"raw\" or \"filtered\"", key);
-        *field = !strcmp(text, "filtered");
+        *field = !strcasecmp(text, "filtered");
         return 0;
     }
     if (!strcmp(key, "encoding")) {

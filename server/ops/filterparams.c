@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include <cjson/cJSON.h>
 
@@ -54,9 +55,9 @@ static int store(sdf_filter_options *f, const struct field *fd, double number, c
     char *at = (char *)f + fd->offset;
     switch (fd->kind) {
     case KERNEL:
-        if (!strcmp(text, "gaussian"))
+        if (!strcasecmp(text, "gaussian"))
             *(sdf_kernel *)at = SDF_KERNEL_GAUSSIAN;
-        else if (!strcmp(text, "bump"))
+        else if (!strcasecmp(text, "bump"))
             *(sdf_kernel *)at = SDF_KERNEL_BUMP;
         else
             return bad(err, cap, "filter kernel must be \"gaussian\" or \"bump\", not \"%.40s\"",
@@ -291,8 +292,8 @@ int sdfd_filter_from_strings(const char *(*lookup)(void *ctx, const char *name),
         if (fd->kind == KERNEL) {
             rc = store(out, fd, 0, v, err, cap);
         } else if (fd->kind == FLAG) {
-            int on = !strcmp(v, "1") || !strcmp(v, "true");
-            int off = !strcmp(v, "0") || !strcmp(v, "false");
+            int on = !strcmp(v, "1") || !strcasecmp(v, "true");
+            int off = !strcmp(v, "0") || !strcasecmp(v, "false");
             rc = on || off ? store(out, fd, on, NULL, err, cap)
                            : bad(err, cap, "filter %s must be true, false, 1 or 0", fd->name);
         } else {

@@ -1,12 +1,14 @@
 /* slice.c - a slice's URL arguments and its lattice of pixel centres (see slice.h). */
 #include "ops/slice.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 static const char *const mode_names[] = {"signed", "distance", "filtered", "gradient", "error"};
 
@@ -54,9 +56,9 @@ static int parse_plane(parse *p, sdfd_slice_params *out)
                *normal = value_of(p, "normal"), *origin = value_of(p, "origin");
     out->axis = 2;
     if (axis) {
-        if (strlen(axis) != 1 || !strchr("xyz", axis[0]))
+        if (strlen(axis) != 1 || !strchr("xyz", tolower((unsigned char)axis[0])))
             return refuse(p, "axis", "axis must be x, y or z, not '%.40s'", axis);
-        out->axis = axis[0] - 'x';
+        out->axis = tolower((unsigned char)axis[0]) - 'x';
     }
     if (normal && axis)
         return refuse(p, "normal", "give axis (with at) or normal (with origin), not both");
@@ -88,7 +90,7 @@ static int parse_mode(parse *p, sdfd_slice_params *out)
     out->mode = SDFD_SLICE_SIGNED;
     if (mode) {
         size_t m = 0;
-        while (m < 5 && strcmp(mode, mode_names[m]))
+        while (m < 5 && strcasecmp(mode, mode_names[m]))
             m++;
         if (m == 5)
             return refuse(p, "mode", "unknown mode '%.40s' (signed, distance, filtered, gradient, "
@@ -177,7 +179,7 @@ int sdfd_slice_parse(const sdfd_url_args *args, int volume, sdfd_slice_params *o
     }
     if (step && (numbers(step, &out->step, 1) || !(out->step > 0)))
         return refuse(&p, "step", "step must be a positive finite number, not '%.40s'", step);
-    if (format && strcmp(format, "png") && !(out->npy = !strcmp(format, "npy")))
+    if (format && strcasecmp(format, "png") && !(out->npy = !strcasecmp(format, "npy")))
         return refuse(&p, "format", "unknown format '%.40s' (png, npy)", format);
     return 0;
 }

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "core/errors.h"
 #include "ops/filterparams.h"
@@ -156,7 +157,7 @@ enum MHD_Result sdfd_http_volume_query(request *req)
     const char *interp = sdfd_http_param(params.interpolation, params.interpolation_len,
                                          interp_buf, sizeof interp_buf);
     int gradient = 0;
-    if (mode && strcmp(mode, "value") && !(gradient = !strcmp(mode, "gradient")))
+    if (mode && strcasecmp(mode, "value") && !(gradient = !strcasecmp(mode, "gradient")))
         return sdfd_http_error(req, SDF_EINVAL, "unknown volume mode '%s' (value, gradient)", mode);
     sdfd_volume_query *vq = &req->volume_query;
     *vq = (sdfd_volume_query){.volume_name = req->name, .volume_name_len = strlen(req->name),

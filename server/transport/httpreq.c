@@ -20,7 +20,8 @@ typedef sdfd_http_request request;
 enum MHD_Result sdfd_http_queue(request *req, int status, const char *type, struct MHD_Response *r,
                                 size_t len, const sdfd_http_header *extra, int n_extra)
 {
-    MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type);
+    if (status != MHD_HTTP_NO_CONTENT) /* no body, so no type (RFC 9110 section 8.3) */
+        MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type);
     for (int i = 0; i < n_extra; i++)
         MHD_add_response_header(r, extra[i].name, extra[i].value);
     if (status == MHD_HTTP_UNAUTHORIZED)

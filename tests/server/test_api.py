@@ -78,6 +78,33 @@ class Exactness(unittest.TestCase):
         kept = harness.metric(self.http.metrics(), "sdfd_batch_scratch_bytes")
         self.assertGreaterEqual(kept, 60 * len(p))
 
+    def test_value_names_in_any_case(self):
+        """A value's name (mode, sign, axis, format, kernel) is accepted in any case, and the
+        answer is the lowercase name's; a member's name is not (docs/api.md)."""
+        def raw(method, path, body=None):
+            conn = http.client.HTTPConnection("127.0.0.1", self.server.ports["http"], timeout=30)
+            headers = {"Content-Type": "application/json"} if body is not None else {}
+            conn.request(method, path, json.dumps(body) if body is not None else None, headers)
+            r = conn.getresponse()
+            out = (r.status, r.read())
+            conn.close()
+            return out
+        pts = self.points[:50].tolist()
+        for upper, lower in (({"mode": "GRADIENT", "sign": "Winding"},
+                              {"mode": "gradient", "sign": "winding"}),
+                             ({"mode": "Filtered", "filter": {"kernel": "BUMP"}},
+                              {"mode": "filtered", "filter": {"kernel": "bump"}})):
+            a = raw("POST", "/v1/meshes/fandisk/query", dict(upper, points=pts))
+            b = raw("POST", "/v1/meshes/fandisk/query", dict(lower, points=pts))
+            self.assertEqual(a, b)
+            self.assertEqual(a[0], 200, a)
+        a = raw("GET", "/v1/meshes/fandisk/slice.png?axis=Y&mode=DISTANCE&format=Npy&size=16")
+        b = raw("GET", "/v1/meshes/fandisk/slice.png?axis=y&mode=distance&format=npy&size=16")
+        self.assertEqual(a, b)
+        self.assertEqual(a[0], 200)
+        status, body = raw("POST", "/v1/meshes/fandisk/query", {"Points": pts})
+        self.assertEqual(status, 422, body)
+
     def test_signed(self):
         self.check_mode("signed")
 
@@ -238,7 +265,12 @@ class Meshes(unittest.TestCase):
                 rep = admin.upload("blender", f.name)
             self.assertEqual((rep["triangles"], rep["warnings"]), (1, 1))
             self.assertIn("PLY line 3: unknown header keyword 'Created'", rep["warning"])
-            admin.delete("blender")
+            conn = http.client.HTTPConnection("127.0.0.1", s.ports["http"], timeout=30)
+            conn.request("DELETE", "/v1/meshes/blender", headers={"Authorization": "Bearer s3cret"})
+            r = conn.getresponse()
+            self.assertEqual((r.status, r.read(), r.getheader("Content-Type")), (204, b"", None),
+                             "a 204 has no body, so no Content-Type")
+            conn.close()
             names = sorted(m["name"] for m in anon.meshes())
             self.assertEqual(names, ["demo", "knot"])
             p = np.zeros((1, 3), np.float32)
