@@ -2,12 +2,24 @@
  * --bin on port 0; the ports are read from its JSON log's "listening" events, as
  * tests/server/harness.py does). Paths come from the environment meson sets: SDFD (the
  * daemon) and SDF_TEST_DATA (tests/data); run by hand, the defaults assume the repository's
- * build/ directory. */
+ * build/ directory.
+ *
+ * Importing it checks every HTTP answer the test then receives against docs/openapi.yaml
+ * (apicheck.js, as tests/server/harness.py does with apicheck.py): through fetch (Client
+ * takes globalThis.fetch when it is made) and through node:https's request (Client's `ca`
+ * option); an answer the document does not describe fails its fetch, and Server.stop() fails
+ * as well. */
 import { spawn } from 'node:child_process';
 import { once } from 'node:events';
 import { readFile } from 'node:fs/promises';
+import https from 'node:https';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { checkedFetch, checkedRequest, violations } from './apicheck.js';
+
+/* A module is evaluated once, so each is wrapped once however many tests import this. */
+globalThis.fetch = checkedFetch(globalThis.fetch);
+https.request = checkedRequest(https.request);
 
 const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..', '..', '..');
 export const SDFD = process.env.SDFD ?? path.join(root, 'build', 'server', 'sdfd');
@@ -19,6 +31,7 @@ export class Server {
    * until it is ready. */
   static async start(args = [], { http = 0, bin = 0 } = {}) {
     const s = new Server();
+    s.seen = violations.length;
     s.proc = spawn(SDFD, ['--http', `127.0.0.1:${http}`, '--bin', `127.0.0.1:${bin}`, ...args],
       { stdio: ['ignore', 'ignore', 'pipe'] });
     s.logs = [];
@@ -63,11 +76,16 @@ export class Server {
     return this.ports.binary;
   }
 
-  /** Signal it and wait for it to exit; returns its exit code. */
+  /** Signal it and wait for it to exit; returns its exit code. Throws, once it has exited,
+   * when any answer since it started was outside docs/openapi.yaml: the test fails even if
+   * the code under test caught the fetch's ApiViolation. */
   async stop(signal = 'SIGTERM') {
     if (this.proc.exitCode === null && this.proc.signalCode === null)
       this.proc.kill(signal);
     const [code] = await this.exited;
+    const outside = violations.slice(this.seen);
+    if (outside.length)
+      throw new Error(`answers outside docs/openapi.yaml:\n${outside.join('\n')}`);
     return code;
   }
 }
