@@ -203,7 +203,13 @@ export function checkFilter(filter) {
   const unknown = Object.keys(f).filter((k) => !FILTER_KEYS.includes(k));
   if (unknown.length)
     throw new TypeError(`unknown filter parameters ${unknown.join(', ')} (known: ${FILTER_KEYS.join(', ')})`);
-  return f;
+  if (typeof f.seed !== 'bigint')
+    return f;
+  /* JSON has no bigint (JSON.stringify throws on one): every seed the server takes, 0..2^53,
+   * is exact as a number. */
+  if (f.seed < 0n || f.seed > 2n ** 53n)
+    throw new RangeError(`filter.seed must be an integer 0..2^53, not ${f.seed}`);
+  return { ...f, seed: Number(f.seed) };
 }
 
 /** The one volume of a "smooth" object: [kind, value]. */

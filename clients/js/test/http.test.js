@@ -128,6 +128,15 @@ describe('HTTP client', { timeout: 120000 }, () => {
     await assert.rejects(c.query('fandisk', points, { mode: 'filtered', filter: { sample: 8 } }), TypeError);
   });
 
+  test('a bigint seed is the same seed in every form; one past 2^53 is refused', async () => {
+    const want = await c.query('fandisk', points, { mode: 'filtered', filter: { samples: 8, seed: 7 } });
+    for (const form of ['json', 'octet', 'npy'])
+      sameResult(await c.query('fandisk', points, { mode: 'filtered', form, filter: { samples: 8, seed: 7n } }),
+        want, `seed 7n, ${form}`);
+    await assert.rejects(c.query('fandisk', points, { mode: 'filtered', form: 'json',
+      filter: { samples: 8, seed: 2n ** 53n + 1n } }), RangeError);
+  });
+
   test('slices: PNG and npy, the plane in the headers, the values those of a query', async () => {
     const png = await c.slice('fandisk', { axis: 'y', at: 0.01, size: 64 });
     assert.equal(png.format, 'png');
@@ -315,10 +324,10 @@ describe('HTTP client', { timeout: 120000 }, () => {
   });
 });
 
-describe('HTTP client against a server with --token and a 1 s idle timeout', { timeout: 60000 }, () => {
+describe('HTTP client against a server with --token and a 2 s idle timeout', { timeout: 60000 }, () => {
   let server;
   before(async () => {
-    server = await Server.start(['--mesh', `fandisk=${FANDISK}`, '--token', 'sesame', '--auth-queries', '--timeout', '1']);
+    server = await Server.start(['--mesh', `fandisk=${FANDISK}`, '--token', 'sesame', '--auth-queries', '--timeout', '2']);
   });
   after(async () => {
     assert.equal(await server.stop(), 0);
@@ -341,7 +350,7 @@ describe('HTTP client against a server with --token and a 1 s idle timeout', { t
     const port = server.ports.http;
     assert.ok(await establishedAt(port) >= 1, 'the kept-alive connection is open');
     assert.ok(await waitUntil(async () => await establishedAt(port) === 0, 10000),
-      'sdfd did not close the idle connection (--timeout 1)');
+      'sdfd did not close the idle connection (--timeout 2)');
     const again = await auth.query('fandisk', randomPoints(10, 1));
     sameResult(again, first, 'after the idle close');
   });
