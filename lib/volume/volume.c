@@ -126,8 +126,7 @@ size_t sdf_volume_data_bytes(const sdf_volume *volume)
 
 /* ---- evaluation ------------------------------------------------------------------------ */
 
-/* The plane a x + b y + c z + d of first-order node (i, j, k), decoded. */
-static void node_plane(const sdf_volume *v, size_t i, size_t j, size_t k, double plane[4])
+void sdf__volume_node_plane(const sdf_volume *v, size_t i, size_t j, size_t k, double plane[4])
 {
     const sdf_volume_info *in = &v->info;
     size_t idx = (k * in->dims[1] + j) * in->dims[0] + i;
@@ -213,7 +212,7 @@ static void eval_nearest(const sdf_volume *v, const double p[3], double *value, 
         return;
     }
     double pl[4];
-    node_plane(v, n[0], n[1], n[2], pl);
+    sdf__volume_node_plane(v, n[0], n[1], n[2], pl);
     *value = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] + pl[3];
     grad[0] = pl[0], grad[1] = pl[1], grad[2] = pl[2];
 }
@@ -244,7 +243,7 @@ static void eval_trilinear(const sdf_volume *v, const double p[3], double *value
             F = node_value(v, i, j, k);
         } else {
             double pl[4];
-            node_plane(v, i, j, k, pl);
+            sdf__volume_node_plane(v, i, j, k, pl);
             F = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] + pl[3];
             for (int a = 0; a < 3; a++)
                 g[a] += w * pl[a];
@@ -268,7 +267,7 @@ static void eval_hermite(const sdf_volume *v, const double p[3], double *value, 
     for (int z = 0; z < 4; z++)
         for (int y = 0; y < 4; y++)
             for (int x = 0; x < 4; x++)
-                node_plane(v, ax[0].node[x], ax[1].node[y], ax[2].node[z],
+                sdf__volume_node_plane(v, ax[0].node[x], ax[1].node[y], ax[2].node[z],
                            planes[(z * 4 + y) * 4 + x]);
     sdf__hermite_eval(ax, planes, in->normalize == SDF_NORMALIZE_PLANE, value, grad);
 }

@@ -26,6 +26,9 @@ int sdf__volume_check_info(const sdf_volume_info *info, sdf_diag *diag);
 /* A volume with checked `info` and uninitialised node data. 0 or SDF_ENOMEM. */
 int sdf__volume_alloc(const sdf_volume_info *info, sdf_volume **out);
 
+/* The plane a x + b y + c z + d of first-order node (i, j, k), decoded (either encoding). */
+void sdf__volume_node_plane(const sdf_volume *v, size_t i, size_t j, size_t k, double plane[4]);
+
 /* Position of node (i, j, k). */
 static inline void sdf__volume_node(const sdf_volume_info *info, size_t i, size_t j, size_t k,
                                     double out[3])

@@ -597,6 +597,42 @@ int sdf_volume_apply_ops(const sdf_volume *in, const sdf_field_op *ops, size_t c
                          sdf_diag *diag);
 
 /* ---------------------------------------------------------------------------------------
+ * Surfaces of volumes (docs/volumes.md, "Meshes from volumes"): the iso-surface of a volume's
+ * node values as triangles, by marching cubes with one rule on every face (the asymptotic
+ * decider), so that neighbouring cells agree: the surface is closed and edge-manifold where
+ * it stays inside the grid, every triangle's normal points to increasing values (outward of
+ * a signed distance's solid: the enclosed volume is positive), and no triangle repeats a
+ * vertex. A first-order volume's node values are its planes' values at the nodes.
+ * ------------------------------------------------------------------------------------- */
+typedef struct sdf_extract_options {
+    double iso;   /* the value whose surface is taken; finite */
+    int cap;      /* 0: the surface ends open where it leaves the grid; 1: closed there by
+                     caps on the grid's boundary (the outside of the grid counts as outside) */
+    int threads;  /* 0 = all CPUs; the result does not depend on it */
+} sdf_extract_options;
+
+typedef struct sdf_surface sdf_surface;
+
+/* The surface of `volume` at opts->iso (NULL options: iso 0, no caps). Vertices lie on the
+ * grid's edges, at least 1/1000 of a cell from the nodes (a node's value equal to iso counts
+ * as outside). The same volume and options give the same arrays on any thread count. A
+ * volume whose values never cross iso gives a surface of no triangles. SDF_EINVAL (a
+ * non-finite iso), SDF_ELIMIT (2^32 vertices or more), SDF_ENOMEM. */
+int sdf_volume_extract(const sdf_volume *volume, const sdf_extract_options *opts,
+                       sdf_surface **out, sdf_diag *diag);
+
+/* The surface's arrays, valid while it lives: 3 floats a vertex (world coordinates), 3
+ * indices a triangle, counter-clockwise seen from outside. */
+const float *sdf_surface_vertices(const sdf_surface *surface, size_t *count);
+const uint32_t *sdf_surface_triangles(const sdf_surface *surface, size_t *count);
+
+/* The surface as a mesh that answers queries (sdf_mesh_create on its arrays). */
+int sdf_surface_to_mesh(const sdf_surface *surface, const sdf_mesh_options *opts,
+                        sdf_mesh **out, sdf_diag *diag);
+
+void sdf_surface_destroy(sdf_surface *surface); /* NULL is a no-op */
+
+/* ---------------------------------------------------------------------------------------
  * NumPy .npy arrays (version 1.0/2.0/3.0 headers; little-endian float32 or float64; C order)
  * ------------------------------------------------------------------------------------- */
 typedef enum sdf_npy_dtype { SDF_NPY_F32 = 4, SDF_NPY_F64 = 8 } sdf_npy_dtype;
