@@ -10,7 +10,8 @@
  *  - a saddle and 1,000 random smooth fields (16^3 .. 24^3, with caps) hold the topology;
  *  - without caps a surface that leaves the grid is open exactly along the grid's boundary;
  *  - the arrays are the same on 1 and on 2 threads; a first-order volume of fandisk (its
- *    planes at the nodes) and a volume with no crossing extract as they should. */
+ *    planes at the nodes) and a volume with no crossing extract as they should;
+ *  - sdf_mesh_write's four formats read back to the same triangles at the same floats. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -454,7 +455,52 @@ static void test_no_crossing_and_errors(void)
     sdf_volume_destroy(v);
 }
 
+/* Each file format, read back by the parsers: the same triangles at the same floats. */
+static void test_files(void)
+{
+    sdf_volume *v = shape_volume(torus, 24);
+    sdf_surface *s = v ? extract(v, 0, 2) : NULL;
+    if (!s) {
+        sdf_volume_destroy(v);
+        return;
+    }
+    size_t nv, nt;
+    const float *p = sdf_surface_vertices(s, &nv);
+    const uint32_t *t = sdf_surface_triangles(s, &nt);
+    const sdf_format formats[] = {SDF_FORMAT_PLY, SDF_FORMAT_OBJ, SDF_FORMAT_STL, SDF_FORMAT_OFF};
+    for (int f = 0; f < 4; f++) {
+        size_t cap = sdf_mesh_write_bound(nv, nt, formats[f]);
+        char *buf = malloc(cap);
+        size_t n = sdf_mesh_write(p, nv, t, nt, formats[f], buf, cap);
+        CHECK(n > 0 && n <= cap, "%s: wrote %zu of %zu", sdf_format_name(formats[f]), n, cap);
+        CHECK(sdf_mesh_write(p, nv, t, nt, formats[f], buf, cap - 1) == 0, "a short buffer");
+        sdf_mesh_options mo = {.format = formats[f]};
+        sdf_mesh *m = NULL;
+        sdf_diag d;
+        CHECK(sdf_mesh_load_memory(buf, n, &mo, &m, &d) == 0, "%s: %s",
+              sdf_format_name(formats[f]), d.message);
+        if (m) {
+            sdf_mesh_report r;
+            sdf_mesh_get_report(m, &r);
+            const float *q = sdf_mesh_vertices(m);
+            const uint32_t *x = sdf_mesh_triangles(m);
+            size_t same = 0;
+            for (size_t i = 0; i < nt && r.triangles == nt; i++)
+                for (int c = 0; c < 3; c++)
+                    same += !memcmp(q + 3 * x[3 * i + c], p + 3 * t[3 * i + c], 12);
+            CHECK(r.triangles == nt && same == 3 * nt && r.closed, "%s: %zu of %zu corners",
+                  sdf_format_name(formats[f]), same, 3 * nt);
+            sdf_mesh_release(m);
+        }
+        free(buf);
+    }
+    CHECK(sdf_mesh_write_bound(nv, nt, SDF_FORMAT_AUTO) == 0, "auto has no writer");
+    sdf_surface_destroy(s);
+    sdf_volume_destroy(v);
+}
+
 static const check_case cases[] = {
+    {"files", test_files},
     {"distances", test_distances},     {"saddle", test_saddle},
     {"noise", test_noise},             {"open_boundary", test_open_boundary},
     {"threads", test_threads},         {"first_order", test_first_order},

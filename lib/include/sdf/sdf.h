@@ -174,6 +174,16 @@ int sdf_mesh_create(const float *vertices, size_t vertex_count, const uint32_t *
                     size_t triangle_count, const sdf_mesh_options *opts, sdf_mesh **out,
                     sdf_diag *diag);
 
+/* Mesh files from arrays (`vertex_count` xyz float triples, `triangle_count` index
+ * triples): binary little-endian PLY, OBJ, binary STL or OFF (SDF_FORMAT_AUTO is refused),
+ * each of which sdf_mesh_load_memory reads back to the same floats. sdf_mesh_write_bound is
+ * the bytes a buffer needs (0 for a bad format, or a size that overflows); sdf_mesh_write
+ * fills `dst` (`cap` bytes, at least the bound) and returns the bytes written, or 0 when
+ * the format is bad or cap is short. Indices must be < vertex_count. */
+size_t sdf_mesh_write_bound(size_t vertex_count, size_t triangle_count, sdf_format format);
+size_t sdf_mesh_write(const float *vertices, size_t vertex_count, const uint32_t *triangles,
+                      size_t triangle_count, sdf_format format, void *dst, size_t cap);
+
 /* The built-in demo mesh: a closed, manifold tube around a (2,3) torus knot (a trefoil),
  * generated in code, about 3 units across, 12,288 triangles. */
 int sdf_mesh_create_demo(sdf_mesh **out);
