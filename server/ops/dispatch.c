@@ -2,6 +2,7 @@
 #include "ops/dispatch.h"
 
 #include "core/errors.h"
+#include "ops/opextract.h"
 #include "ops/opitems.h"
 #include "ops/opjobs.h"
 #include "ops/opmeshes.h"
@@ -30,6 +31,8 @@ static int (*const handlers[SDFD_OP_COUNT])(sdfd_call *call) = {
     [SDFD_OP_VOLUME_DATA] = sdfd_op_volume_data,
     [SDFD_OP_VOLUME_OPS] = sdfd_op_volume_ops,
     [SDFD_OP_VOLUME_SLICE] = sdfd_op_slice,
+    [SDFD_OP_VOLUME_MESH] = sdfd_op_volume_mesh,
+    [SDFD_OP_VOLUME_MESH_POST] = sdfd_op_volume_mesh_post,
 };
 
 int sdfd_dispatches(const sdfd_op *op)

@@ -8,7 +8,7 @@
 #include "core/errors.h"
 #include "core/log.h"
 
-static cJSON *report_json(const char *name, const sdf_mesh *mesh)
+cJSON *sdfd_mesh_report_json(const char *name, const sdf_mesh *mesh)
 {
     sdf_mesh_report r;
     sdf_mesh_get_report(mesh, &r);
@@ -62,7 +62,7 @@ int sdfd_op_mesh_get(sdfd_call *call)
     sdf_mesh *mesh = sdfd_call_lookup(call, SDFD_ITEM_MESH, call->name);
     if (!mesh)
         return SDFD_CALL_READY;
-    cJSON *json = report_json(call->name, mesh);
+    cJSON *json = sdfd_mesh_report_json(call->name, mesh);
     sdf_mesh_release(mesh);
     return sdfd_call_json(call, 200, json);
 }
@@ -91,7 +91,7 @@ static void load_upload(sdfd_call *call)
     }
     sdfd_log("info", "mesh_loaded", "%s: %s by upload", call->name,
              replaced ? "replaced" : "added");
-    sdfd_call_json(call, replaced ? 200 : 201, report_json(call->name, mesh));
+    sdfd_call_json(call, replaced ? 200 : 201, sdfd_mesh_report_json(call->name, mesh));
     sdf_mesh_release(mesh);
 }
 

@@ -206,6 +206,61 @@ class Volumes(unittest.TestCase):
             self.assertIn("the body is a NumPy file", e.message)
             self.assertEqual([v["name"] for v in admin.volumes()], ["copied"])
 
+    def test_surface_as_mesh(self):
+        """GET /v1/volumes/{name}/mesh answers the surface in each format (the same triangles);
+        POST stores it as a closed, manifold mesh whose distances are within a cell of the
+        original's near the surface; bad arguments are named."""
+        self.bake(volume="surf", resolution=48)
+        cell = max(self.c.volume("surf")["spacing"])
+        counts = {}
+        for fmt, ctype in (("ply", "application/octet-stream"), ("obj", "model/obj"),
+                           ("stl", "model/stl"), ("off", "text/plain")):
+            resp, data = self.c._request("GET", f"/v1/volumes/surf/mesh?format={fmt}")
+            self.assertEqual(resp.getheader("Content-Type"), ctype)
+            self.assertEqual(resp.getheader("Content-Disposition"),
+                             f'attachment; filename="surf.{fmt}"')
+            counts[fmt] = int(resp.getheader("X-SDF-Triangles"))
+            if fmt == "stl":
+                self.assertEqual(struct.unpack_from("<I", data, 80)[0], counts[fmt])
+                self.assertEqual(len(data), 84 + 50 * counts[fmt])
+        self.assertEqual(len(set(counts.values())), 1, counts)
+        self.assertGreater(counts["ply"], 1000)
+        _, data = self.c._request("POST", "/v1/volumes/surf/mesh",
+                                  json.dumps({"mesh": "surf_mesh"}).encode())
+        report = json.loads(data)
+        self.assertEqual((report["name"], report["triangles"], report["closed"],
+                          report["edge_manifold"], report["flipped"]),
+                         ("surf_mesh", counts["ply"], True, True, False), report)
+        self.assertGreater(report["volume"], 0)
+        rng = np.random.default_rng(4)
+        pts = rng.uniform(-0.5, 0.5, (20000, 3)).astype(np.float32)
+        orig = self.c.query("fandisk", pts)["distance"]
+        got = self.c.query("surf_mesh", pts)["distance"]
+        band = np.abs(orig) < 2 * cell
+        self.assertGreater(band.sum(), 100)
+        self.assertLess(np.abs(got - orig)[band].max(), cell)
+        # iso and cap: an inner surface, and a cut one closed
+        _, inner = self.c._request("GET", f"/v1/volumes/surf/mesh?iso={-cell}&format=off")
+        self.assertLess(int(inner.split(b"\n")[1].split()[1]), counts["ply"])
+        resp, _ = self.c._request("HEAD", "/v1/volumes/surf/mesh?cap=true&iso=0.01")
+        self.assertGreater(int(resp.getheader("X-SDF-Triangles")), 0)
+        for url, argument in (("format=3ds", "format"), ("format=auto", "format"),
+                              ("iso=nan", "iso"), ("iso=1e999", "iso"), ("cap=maybe", "cap"),
+                              ("level=0", "level")):
+            with self.assertRaises(sdfclient.SdfError) as e:
+                self.c._request("GET", f"/v1/volumes/surf/mesh?{url}")
+            self.assertEqual(e.exception.status, 422, url)
+            self.assertIn(argument, e.exception.message, url)
+        for body, says in (({}, "mesh"), ({"mesh": ".x"}, "mesh"), ({"mesh": "m", "iso": "0"}, "iso"),
+                           ({"mesh": "m", "cap": 1}, "cap"), ({"mesh": "m", "lod": 2}, "lod")):
+            with self.assertRaises(sdfclient.SdfError) as e:
+                self.c._request("POST", "/v1/volumes/surf/mesh", json.dumps(body).encode())
+            self.assertEqual(e.exception.status, 422, body)
+            self.assertIn(says, e.exception.message, body)
+        with self.assertRaises(sdfclient.SdfError) as e:
+            self.c._request("GET", "/v1/volumes/nope/mesh")
+        self.assertEqual(e.exception.status, 404)
+
     def test_filtered_bake(self):
         raw = self.bake(volume="raw8", resolution=8)
         filtered = self.bake(volume="filtered8", resolution=8, field="filtered",
