@@ -225,6 +225,13 @@ class Volumes(unittest.TestCase):
                 self.assertEqual(len(data), 84 + 50 * counts[fmt])
         self.assertEqual(len(set(counts.values())), 1, counts)
         self.assertGreater(counts["ply"], 1000)
+        arrays = self.c.extract_mesh("surf")  # the Python client: arrays, a file, a mesh
+        self.assertEqual(arrays["triangles"].shape, (counts["ply"], 3))
+        self.assertEqual(arrays["triangles"].max() + 1, len(arrays["vertices"]))
+        with tempfile.TemporaryDirectory() as d:
+            out = self.c.extract_mesh("surf", path=os.path.join(d, "s.stl"))
+            self.assertEqual(os.path.getsize(out), 84 + 50 * counts["ply"])
+        self.assertTrue(self.c.extract_mesh("surf", mesh="surf_py", cap=True)["closed"])
         _, data = self.c._request("POST", "/v1/volumes/surf/mesh",
                                   json.dumps({"mesh": "surf_mesh"}).encode())
         report = json.loads(data)

@@ -108,6 +108,23 @@ function sleep(ms, signal) {
   });
 }
 
+/* The arrays of a binary little-endian PLY as sdfd writes it: float x y z, then faces of
+ * one count byte and three uint32 indices. */
+function plyArrays(bytes) {
+  const text = new TextDecoder('latin1').decode(bytes.subarray(0, Math.min(bytes.length, 1024)));
+  const end = text.indexOf('end_header\n') + 'end_header\n'.length;
+  const count = (what) => Number(new RegExp(`element ${what} (\\d+)`).exec(text)[1]);
+  const nv = count('vertex'), nt = count('face');
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const vertices = new Float32Array(3 * nv), triangles = new Uint32Array(3 * nt);
+  for (let i = 0; i < 3 * nv; i++)
+    vertices[i] = view.getFloat32(end + 4 * i, true);
+  for (let t = 0, at = end + 12 * nv; t < nt; t++, at += 13)
+    for (let c = 0; c < 3; c++)
+      triangles[3 * t + c] = view.getUint32(at + 1 + 4 * c, true);
+  return { vertices, triangles };
+}
+
 export class Client {
   #base;
   #token;
@@ -330,6 +347,25 @@ export class Client {
    * volume (the output's name), solver ("sussman" or "sweep"), iterations, band, strict.
    * The 202's job ("kind": "ops"; once done its caveats and warning), for waitJob. Never
    * re-sent on a dropped connection, as bake. */
+  /** A volume's surface (GET /v1/volumes/{name}/mesh): with `mesh`, stored on the server
+   * as that mesh (POST; its report, created: true when the name was new); with `format`
+   * ("ply" | "obj" | "stl" | "off") the file {format, bytes, triangles}; else the arrays
+   * {vertices: Float32Array (x, y, z each), triangles: Uint32Array (3 each)}. */
+  async extractMesh(name, { iso = 0, cap = false, format, mesh, signal } = {}) {
+    if (mesh !== undefined) {
+      const res = await this.#request('POST', `/v1/volumes/${seg(name)}/mesh`,
+        { body: JSON.stringify({ mesh, iso, cap }), type: 'application/json', signal });
+      return { ...(await res.json()), created: res.status === 201 };
+    }
+    if (!Number.isFinite(iso))
+      throw new TypeError(`iso must be a finite number, not ${iso}`);
+    const q = new URLSearchParams({ format: format ?? 'ply', iso: String(iso), cap: String(Boolean(cap)) });
+    const res = await this.#request('GET', `/v1/volumes/${seg(name)}/mesh?${q}`, { signal });
+    const bytes = new Uint8Array(await res.arrayBuffer());
+    const triangles = Number(res.headers.get('X-SDF-Triangles'));
+    return format === undefined ? plyArrays(bytes) : { format, bytes, triangles };
+  }
+
   async volumeOps(name, ops, { signal, ...params } = {}) {
     return this.#json('POST', `/v1/volumes/${seg(name)}/ops`,
       { body: JSON.stringify({ ...params, ops: toOps(ops) }), type: 'application/json', signal });

@@ -210,6 +210,31 @@ export interface VolumeInfo {
 
 export type VolumeFormat = 'exr' | 'npy' | 'raw';
 
+export type SurfaceFormat = 'ply' | 'obj' | 'stl' | 'off';
+
+export interface ExtractMeshOptions extends RequestOptions {
+  /** The value whose surface is taken (default 0). */
+  iso?: number;
+  /** Close the surface where it leaves the grid (default false). */
+  cap?: boolean;
+  format?: SurfaceFormat;
+  /** Store the surface as this mesh instead of answering it. */
+  mesh?: string;
+}
+
+export interface SurfaceFile {
+  format: SurfaceFormat;
+  bytes: Uint8Array;
+  triangles: number;
+}
+
+export interface SurfaceArrays {
+  /** x, y, z of each vertex */
+  vertices: Float32Array;
+  /** three vertex indices a triangle, counter-clockwise seen from outside */
+  triangles: Uint32Array;
+}
+
 export interface VolumeDownload {
   format: VolumeFormat;
   bytes: Uint8Array;
@@ -257,6 +282,11 @@ export declare class Client {
   bake(name: string, params?: BakeParams, options?: RequestOptions): Promise<Job>;
   /** POST /v1/volumes/{name}/ops: field operations, in order, as a job like a bake. */
   volumeOps(name: string, ops: readonly Op[], options?: VolumeOpsOptions): Promise<Job>;
+  /** GET /v1/volumes/{name}/mesh: the surface as arrays, or as a file with `format`;
+   * POST with `mesh`: stored as that mesh. */
+  extractMesh(name: string, options: ExtractMeshOptions & { mesh: string }): Promise<MeshReport & { created: boolean }>;
+  extractMesh(name: string, options: ExtractMeshOptions & { format: SurfaceFormat }): Promise<SurfaceFile>;
+  extractMesh(name: string, options?: ExtractMeshOptions): Promise<SurfaceArrays>;
   job(id: number | string, options?: RequestOptions): Promise<Job>;
   jobs(options?: RequestOptions): Promise<Job[]>;
   cancelJob(id: number | string, options?: RequestOptions): Promise<Job>;

@@ -244,6 +244,22 @@ describe('HTTP client', { timeout: 120000 }, () => {
     await c.deleteVolume('v1');
   });
 
+  test('extractMesh: the surface as arrays, as a file, and stored as a mesh', async () => {
+    await c.waitJob(await c.bake('fandisk', { volume: 'surf', resolution: 24 }));
+    const { vertices, triangles } = await c.extractMesh('surf');
+    assert.ok(triangles.length > 300 && triangles.length % 3 === 0, `${triangles.length}`);
+    assert.equal(Math.max(...triangles) + 1, vertices.length / 3);
+    const stl = await c.extractMesh('surf', { format: 'stl' });
+    assert.equal(stl.triangles, triangles.length / 3);
+    assert.equal(stl.bytes.length, 84 + 50 * stl.triangles);
+    const stored = await c.extractMesh('surf', { mesh: 'surf-mesh', cap: true });
+    assert.deepEqual([stored.created, stored.closed, stored.triangles], [true, true, stl.triangles]);
+    await rejectsWith(c.extractMesh('surf', { format: '3ds' }), 422, 'EINVAL');
+    await assert.rejects(c.extractMesh('surf', { iso: NaN }), TypeError);
+    await c.deleteMesh('surf-mesh');
+    await c.deleteVolume('surf');
+  });
+
   test('field operations: volumeOps and a bake with ops end done on the source grid', async () => {
     await c.waitJob(await c.bake('fandisk', { volume: 'src', resolution: [20, 18, 16] }));
     const job = await c.volumeOps('src', [{ round: 0.05 }, ['fillet', 0.03]],

@@ -39,6 +39,17 @@ def _object(data: Union[str, bytes]) -> Dict[str, Any]:
     return cast(Dict[str, Any], json.loads(data))
 
 
+def _ply_arrays(data: bytes) -> Dict[str, npt.NDArray[Any]]:
+    """The arrays of a binary PLY as sdfd writes it (float xyz, then 3-index faces)."""
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode("ascii").split("\n")
+    nv = next(int(h.split()[2]) for h in header if h.startswith("element vertex"))
+    nt = next(int(h.split()[2]) for h in header if h.startswith("element face"))
+    vertices = np.frombuffer(data, "<f4", 3 * nv, end).reshape(nv, 3)
+    faces = np.frombuffer(data, np.dtype([("n", "u1"), ("i", "<u4", (3,))]), nt, end + 12 * nv)
+    return {"vertices": vertices.copy(), "triangles": faces["i"].astype(np.uint32)}
+
+
 class Client:
     """HTTP client on one persistent connection (not thread-safe: one per thread).
 
@@ -341,6 +352,31 @@ class Client:
                 f.write(data)
             return path
         return cast(npt.NDArray[Any], np.load(io.BytesIO(data))) if format == "npy" else data
+
+    def extract_mesh(self, name: str, iso: float = 0.0, cap: bool = False,
+                     format: Optional[str] = None,
+                     path: Optional[Union[str, os.PathLike[str]]] = None,
+                     mesh: Optional[str] = None) -> Any:
+        """Volume `name`'s surface at `iso` (GET /v1/volumes/{name}/mesh, docs/api.md):
+        closed and manifold where it stays inside the grid, and closed where it leaves it
+        too with `cap`. With `mesh`, stored on the server as that mesh (POST; returns its
+        report); with `format` ("ply", "obj", "stl", "off") or `path` (format from its
+        extension), the file's bytes (written to `path`, which is returned); else the arrays
+        {"vertices": float32 (V, 3), "triangles": uint32 (T, 3)}."""
+        if mesh is not None:
+            body = {"mesh": mesh, "iso": iso, "cap": cap}
+            return _object(self._request("POST", f"/v1/volumes/{name}/mesh", json.dumps(body),
+                                         {"Content-Type": "application/json"})[1])
+        if format is None and path is not None:
+            format = os.fspath(path).rsplit(".", 1)[-1].lower()
+        q = urllib.parse.urlencode({"format": format or "ply", "iso": repr(float(iso)),
+                                    "cap": "true" if cap else "false"})
+        _, data = self._request("GET", f"/v1/volumes/{name}/mesh?{q}")
+        if path is not None:
+            with open(path, "wb") as f:
+                f.write(data)
+            return path
+        return data if format is not None else _ply_arrays(data)
 
     def query_volume(self, name: str, points: npt.ArrayLike,
                      interpolation: Interpolation = "default", gradient: bool = False,
