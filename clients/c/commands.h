@@ -19,5 +19,6 @@ int sdfq_cmd_volumes(const sdfq_server *srv, const sdfq_args *a);
 int sdfq_cmd_bake(const sdfq_server *srv, const sdfq_args *a); /* bake.c */
 int sdfq_cmd_ops(const sdfq_server *srv, const sdfq_args *a);  /* bake.c */
 int sdfq_cmd_slice(const sdfq_server *srv, const sdfq_args *a); /* slice.c */
+int sdfq_cmd_mesh(const sdfq_server *srv, const sdfq_args *a);  /* mesh.c */
 
 #endif

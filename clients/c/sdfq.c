@@ -1,7 +1,7 @@
 /* sdfq.c - the command line of sdfd for people and shell scripts (docs/sdfq.md): finds the
  * subcommand, parses its options (args.c), works out the server's HTTP URL and binary
  * address from options and environment, and runs it (commands.c; bake.c, which also has
- * ops; slice.c). Queries use the binary protocol through libsdfclient; the rest use the
+ * ops; slice.c; mesh.c). Queries use the binary protocol through libsdfclient; the rest use the
  * HTTP API through libcurl. */
 #include <curl/curl.h>
 #include <errno.h>
@@ -100,6 +100,16 @@ static const command commands[] = {
      "  --bounds x0,y0,z0,x1,y1,z1 --size N (pixels of the longer side, default 512)\n"
      "  --mode signed|distance|filtered|gradient|error --sign S --interpolation I --step F\n"
      "  --samples N --seed S --kernel gaussian|bump --cap F   mode filtered's parameters\n"},
+    {"mesh", sdfq_cmd_mesh, "o: mesh: format: iso: cap",
+     "usage: sdfq mesh VOLUME -o FILE [--format ply|obj|stl|off] [--iso F] [--cap]\n"
+     "       sdfq mesh VOLUME --mesh NEW [--iso F] [--cap]\n"
+     "The surface of VOLUME's values (docs/api.md, Meshes from volumes), closed and manifold\n"
+     "where it stays inside the grid: saved as a mesh file (-o - writes it to stdout), or\n"
+     "stored on the server as the mesh NEW (its report printed).\n"
+     "  --format F          ply (binary), obj, stl (binary) or off; default from FILE's\n"
+     "                      extension, else ply\n"
+     "  --iso F             the value whose surface is taken (default 0)\n"
+     "  --cap               close it where it leaves the grid (caps on its boundary)\n"},
     {"delete", sdfq_cmd_delete, "volume job",
      "usage: sdfq delete [--volume|--job] NAME...\n"
      "Delete meshes (default), volumes or jobs (a running job is canceled).\n"},

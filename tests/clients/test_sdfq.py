@@ -330,6 +330,23 @@ class Sdfq(unittest.TestCase):
                          "ENOTFOUND")
         self.assertFails(self.sdfq("slice", "fandisk"), 1, "-o")
 
+    def test_mesh(self):
+        self.http.wait(self.http.bake("fandisk", volume="mv", resolution=20))
+        self.assertOk(self.sdfq("mesh", "mv", "-o", self.path("m.stl"), "--iso", "0.01"))
+        _, stl = self.http._request("GET", "/v1/volumes/mv/mesh?format=stl&iso=0.01")
+        with open(self.path("m.stl"), "rb") as f:
+            self.assertEqual(f.read(), stl)
+        r = self.sdfq("mesh", "mv", "--mesh", "mv-mesh", "--cap")
+        self.assertOk(r)
+        report = json.loads(r.stdout)
+        self.assertEqual((report["name"], report["closed"]), ("mv-mesh", True))
+        self.assertFails(self.sdfq("mesh", "mv", "-o", self.path("x.ply"), "--iso", "abc"), 2,
+                         "422", "iso")
+        self.assertFails(self.sdfq("mesh", "mv"), 1, "-o FILE or --mesh")
+        self.assertFails(self.sdfq("mesh", "nope", "-o", self.path("n.ply")), 2, "ENOTFOUND")
+        self.http.delete("mv-mesh")
+        self.http.delete_volume("mv")
+
     def test_meshes_upload_bake_download_delete(self):
         self.assertOk(self.sdfq("upload", "cow", os.path.join(DATA, "cow.off")))
         r = self.sdfq("meshes")
