@@ -108,6 +108,14 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
                                   "not starting with '.'", key);
         return 0;
     }
+    if (!strcmp(key, "mesh")) {
+        if (name(item, key, out->surface, sizeof out->surface, err, cap))
+            return SDF_EINVAL;
+        if (!sdfd_valid_name(out->surface, strlen(out->surface)))
+            return fail(err, cap, "'%s' must be 1-255 characters of A-Z a-z 0-9 . _ - "
+                                  "not starting with '.'", key);
+        return 0;
+    }
     if (!strcmp(key, "bounds"))
         return bounds(item, o, err, cap);
     if (!strcmp(key, "margin")) {
@@ -178,7 +186,7 @@ static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *n
     int rc = sdfd_ops_key(item, &out->ops, ops_seen, err, cap);
     if (rc != SDFD_OPS_NOT_MINE)
         return rc;
-    snprintf(err, cap, "unknown key '%s' (volume, bounds, margin, resolution, order, H, delta, "
+    snprintf(err, cap, "unknown key '%s' (volume, mesh, bounds, margin, resolution, order, H, delta, "
                        "normalize, field, filter, encoding, sign, ops, solver, iterations, band, "
                        "strict)", key);
     return SDF_EINVAL;

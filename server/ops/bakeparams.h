@@ -1,5 +1,5 @@
 /* bakeparams.h - a bake request's JSON body, as clients write it (docs/api.md):
- *   {"volume": "name", "bounds": {"min": [x, y, z], "max": [x, y, z]}, "margin": m,
+ *   {"volume": "name", "mesh": "name", "bounds": {"min": [x, y, z], "max": [x, y, z]}, "margin": m,
  *    "resolution": n | [n, m, k], "order": 0 | 1, "H": h, "delta": d,
  *    "normalize": "plane" | "gradient",
  *    "field": "raw" | "filtered", "filter": {...}, "encoding": "float32" | "packed32",

@@ -16,6 +16,7 @@
 #include "ops/filterparams.h"
 #include "ops/opmeshes.h"
 #include "state/registry.h"
+#include "state/surface.h"
 
 typedef struct extract_req {
     sdf_extract_options opts;
@@ -93,34 +94,19 @@ static int parse_body(sdfd_call *call, extract_req *q)
 
 /* ---- the work ---------------------------------------------------------------------------- */
 
-/* The surface's file in q->format into *out (malloc'd, *n bytes): 0 or the call refused. */
-static int surface_file(sdfd_call *call, const extract_req *q, void **out, size_t *n,
-                        size_t *triangles)
+/* The volume held in result.stream, released here once extracted. */
+static sdfd_stored_volume *take_volume(sdfd_call *call)
 {
     sdfd_stored_volume *s = call->result.stream;
+    call->result.stream = NULL;
+    return s;
+}
+
+static sdf_extract_options threaded(sdfd_call *call, const extract_req *q)
+{
     sdf_extract_options o = q->opts;
     o.threads = call->srv->cfg.threads;
-    sdf_surface *surface = NULL;
-    sdf_diag diag = {0};
-    int rc = sdf_volume_extract(s->volume, &o, &surface, &diag);
-    call->result.stream = NULL;
-    sdfd_volume_release(s);
-    if (rc)
-        return sdfd_call_fail(call, rc, "%s", diag.message), -1;
-    size_t nv, nt, max = call->srv->cfg.max_total_triangles;
-    const float *v = sdf_surface_vertices(surface, &nv);
-    const uint32_t *t = sdf_surface_triangles(surface, &nt);
-    size_t bound = sdf_mesh_write_bound(nv, nt, q->format);
-    *out = NULL, *triangles = nt;
-    if (max && nt > max)
-        sdfd_call_fail(call, SDF_ELIMIT, "the surface has %zu triangles, more than "
-                       "--max-triangles (%zu)", nt, max);
-    else if (!bound || !(*out = malloc(bound)))
-        sdfd_call_fail(call, SDF_ENOMEM, "out of memory for a file of %zu triangles", nt);
-    else
-        *n = sdf_mesh_write(v, nv, t, nt, q->format, *out, bound);
-    sdf_surface_destroy(surface);
-    return *out ? 0 : -1;
+    return o;
 }
 
 static const char *content_type(sdf_format f)
@@ -134,10 +120,18 @@ static const char *content_type(sdf_format f)
 static void answer_file(sdfd_call *call)
 {
     extract_req *q = call->state;
+    sdfd_stored_volume *s = take_volume(call);
+    sdf_extract_options o = threaded(call, q);
+    char err[256];
     void *bytes;
     size_t n, nt;
-    if (surface_file(call, q, &bytes, &n, &nt))
+    int rc = sdfd_surface_file(s->volume, &o, call->srv->cfg.max_total_triangles, q->format,
+                               &bytes, &n, &nt, err, sizeof err);
+    sdfd_volume_release(s);
+    if (rc) {
+        sdfd_call_fail(call, rc, "%s", err);
         return;
+    }
     sdfd_call_field(call, "Content-Disposition", "attachment; filename=\"%s.%s\"", call->name,
                     sdf_format_name(q->format));
     sdfd_call_field(call, "X-SDF-Triangles", "%zu", nt);
@@ -149,23 +143,24 @@ static void answer_file(sdfd_call *call)
 static void store_mesh(sdfd_call *call)
 {
     extract_req *q = call->state;
+    sdfd_stored_volume *s = take_volume(call);
+    sdf_extract_options o = threaded(call, q);
+    char err[512];
     void *bytes;
-    size_t n, nt;
-    if (surface_file(call, q, &bytes, &n, &nt))
-        return;
-    sdf_mesh_options mo = {.format = SDF_FORMAT_PLY,
-                           .max_triangles = call->srv->cfg.max_total_triangles};
+    size_t n;
     sdf_mesh *mesh = NULL;
-    sdf_diag diag = {0};
     int replaced = 0;
-    int rc = sdf_mesh_load_memory(bytes, n, &mo, &mesh, &diag);
-    if (!rc)
+    int rc = sdfd_surface_mesh(s->volume, &o, call->srv->cfg.max_total_triangles, &bytes, &n,
+                               &mesh, err, sizeof err);
+    sdfd_volume_release(s);
+    if (!rc) {
         rc = sdfd_cache_put(call->srv->cache, SDFD_ITEM_MESH, q->mesh, sdf_mesh_retain(mesh),
-                            bytes, n, &replaced, diag.message, sizeof diag.message);
-    free(bytes);
+                            bytes, n, &replaced, err, sizeof err);
+        free(bytes);
+    }
     if (rc) {
         sdf_mesh_release(mesh);
-        sdfd_call_fail(call, rc, "%s", diag.message);
+        sdfd_call_fail(call, rc, "%s", err);
         return;
     }
     sdfd_log("info", "mesh_loaded", "%s: %s from volume %s", q->mesh,

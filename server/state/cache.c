@@ -11,6 +11,7 @@
 #include "core/log.h"
 #include "state/batcher.h" /* sdfd_now */
 #include "state/jobrecords.h"
+#include "state/surface.h"
 
 struct sdfd_cache {
     sdfd_resident r; /* the table: its lock guards what the functions below read of it */
@@ -19,6 +20,7 @@ struct sdfd_cache {
     sdfd_store *store;   /* the file store's job records, or NULL */
     sdfd_registry *registry;
     sdfd_volumes *volumes;
+    size_t max_triangles;
 };
 
 /* Another replica changed (kind, name): the next lookup compares again. */
@@ -32,6 +34,23 @@ static void changed(void *arg, sdfd_item_kind kind, const char *name)
     pthread_mutex_unlock(&c->r.lock);
 }
 
+/* A bake's surface stored as the mesh it names, as an upload of its PLY would be. */
+static int store_surface(void *user, const char *name, const sdf_volume *v, int threads,
+                         char *err, size_t cap)
+{
+    sdfd_cache *c = user;
+    sdf_extract_options o = {.threads = threads};
+    void *bytes;
+    size_t n;
+    sdf_mesh *mesh;
+    int replaced, rc = sdfd_surface_mesh(v, &o, c->max_triangles, &bytes, &n, &mesh, err, cap);
+    if (rc)
+        return rc;
+    rc = sdfd_cache_put(c, SDFD_ITEM_MESH, name, mesh, bytes, n, &replaced, err, cap);
+    free(bytes);
+    return rc;
+}
+
 sdfd_cache *sdfd_cache_create(const sdfd_backing *backing, sdfd_registry *registry,
                               sdfd_volumes *volumes, sdfd_metrics *metrics,
                               size_t max_resident_bytes, size_t max_triangles)
@@ -43,7 +62,8 @@ sdfd_cache *sdfd_cache_create(const sdfd_backing *backing, sdfd_registry *regist
         return NULL;
     }
     sdfd_resident_init(&c->r, registry, volumes, max_resident_bytes);
-    c->registry = registry, c->volumes = volumes;
+    c->registry = registry, c->volumes = volumes, c->max_triangles = max_triangles;
+    sdfd_volumes_set_surface_sink(volumes, store_surface, c);
     if (backing) {
         c->b = *backing, c->store = backing->store;
         if (!(c->loader = sdfd_loader_create(&c->b, &c->r, metrics, max_triangles))) {

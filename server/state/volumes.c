@@ -46,6 +46,8 @@ struct sdfd_volumes {
     atomic_ulong next_id;
     unsigned id_prefix;
     sdfd_volumes_hooks hooks;
+    sdfd_surface_sink surface_sink;
+    void *surface_user;
 };
 
 static const char *const state_names[] = {"queued", "running", "done", "failed", "canceled"};
@@ -100,6 +102,11 @@ sdfd_volumes *sdfd_volumes_create(size_t max_volumes, size_t max_bytes, int max_
 void sdfd_volumes_set_hooks(sdfd_volumes *v, const sdfd_volumes_hooks *hooks)
 {
     v->hooks = *hooks;
+}
+
+void sdfd_volumes_set_surface_sink(sdfd_volumes *v, sdfd_surface_sink sink, void *user)
+{
+    v->surface_sink = sink, v->surface_user = user;
 }
 
 /* ---- stored volumes ---------------------------------------------------------------------- */
@@ -439,6 +446,19 @@ static sdfd_stored_volume *keep(job *j, sdf_volume *volume, int *rc, sdf_diag *d
     return stored;
 }
 
+/* A bake that names a mesh: its volume's surface stored as that mesh (the volume stays
+ * stored if this fails, and the job fails with why). */
+static int keep_surface(job *j, const sdfd_stored_volume *stored, sdf_diag *diag)
+{
+    sdfd_volumes *v = j->owner;
+    if (!v->surface_sink) {
+        snprintf(diag->message, sizeof diag->message, "this server cannot store meshes");
+        return SDF_EINVAL;
+    }
+    return v->surface_sink(v->surface_user, j->req.surface, stored->volume,
+                           j->req.options.query.threads, diag->message, sizeof diag->message);
+}
+
 /* The job's end: its volume listed, its slot and bytes freed, its final status recorded. */
 static void finish(job *j, int canceled, sdfd_stored_volume *stored, int rc, sdf_diag *diag)
 {
@@ -448,9 +468,12 @@ static void finish(job *j, int canceled, sdfd_stored_volume *stored, int rc, sdf
         v->running--;
     v->reserved -= j->reserved;
     j->reserved = 0;
-    if (stored && (rc = put_locked(v, stored)))
+    int put = stored ? put_locked(v, stored) : 0; /* listed even when its surface failed */
+    if (put && !rc) {
+        rc = put;
         snprintf(diag->message, sizeof diag->message,
                  "the volume made no longer fits --max-volumes / --max-volume-bytes");
+    }
     j->status.state = !rc ? SDFD_JOB_DONE : rc == SDF_ECANCELED ? SDFD_JOB_CANCELED : SDFD_JOB_FAILED;
     if (j->status.state == SDFD_JOB_FAILED) {
         j->status.error = rc;
@@ -490,6 +513,8 @@ static void *run_job(void *arg)
         rc = work(j, &volume, &diag);
     }
     sdfd_stored_volume *stored = rc ? NULL : keep(j, volume, &rc, &diag);
+    if (stored && j->req.surface[0])
+        rc = keep_surface(j, stored, &diag);
     sdf_mesh_release(j->mesh);
     sdf_mesh_release(j->req.smoothing_mesh);
     j->mesh = j->req.smoothing_mesh = NULL;

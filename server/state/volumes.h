@@ -125,6 +125,7 @@ typedef struct sdfd_bake_request {
     int mesh_box;                 /* "margin": 0 with no bounds: the mesh's own box (the
                                      library reads a zero margin as its default) */
     sdfd_ops_request ops;         /* count 0: none; else order 0 float32 only */
+    char surface[SDFD_MAX_NAME + 1]; /* "mesh": the mesh its surface is stored as, or "" */
 } sdfd_bake_request;
 
 /* Start a job baking `mesh` (a retained reference handed over, like req->smoothing_mesh,
@@ -179,6 +180,13 @@ typedef struct sdfd_volumes_hooks {
 
 /* Set once, before the first bake. */
 void sdfd_volumes_set_hooks(sdfd_volumes *v, const sdfd_volumes_hooks *hooks);
+
+/* Where a bake whose request names a mesh (its `surface`) puts the finished volume's surface,
+ * after the volume is kept: the cache, which stores it as that mesh. 0, or an error that fails
+ * the job (err set; the volume stays). Set once, before the first bake. */
+typedef int (*sdfd_surface_sink)(void *user, const char *mesh, const sdf_volume *volume,
+                                 int threads, char *err, size_t cap);
+void sdfd_volumes_set_surface_sink(sdfd_volumes *v, sdfd_surface_sink sink, void *user);
 /* List a finished job this process did not run (one a restart interrupted); 0, or
  * SDFD_EBUSY when max_jobs are unfinished. */
 int sdfd_volumes_add_finished(sdfd_volumes *v, const sdfd_job_status *s);

@@ -268,6 +268,21 @@ class Volumes(unittest.TestCase):
             self.c._request("GET", "/v1/volumes/nope/mesh")
         self.assertEqual(e.exception.status, 404)
 
+    def test_bake_ops_and_mesh_in_one_job(self):
+        """A bake with "ops" and "mesh": one job, whose end leaves the volume and its surface as
+        a mesh, closed and manifold."""
+        job = self.bake(volume="e2e", resolution=40, ops=[{"round": 0.01}], mesh="e2e-mesh")
+        self.assertEqual(job["state"], "done", job)
+        report = self.c.mesh("e2e-mesh")
+        self.assertEqual((report["closed"], report["edge_manifold"], report["flipped"]),
+                         (True, True, False), report)
+        self.assertEqual(report["triangles"], len(self.c.extract_mesh("e2e")["triangles"]))
+        with self.assertRaises(sdfclient.SdfError) as e:
+            self.c.bake("fandisk", volume="e2e", resolution=8, mesh=".hidden")
+        self.assertEqual((e.exception.status, e.exception.code), (422, "EINVAL"))
+        self.assertIn("mesh", e.exception.message)
+        self.c.delete("e2e-mesh")
+
     def test_filtered_bake(self):
         raw = self.bake(volume="raw8", resolution=8)
         filtered = self.bake(volume="filtered8", resolution=8, field="filtered",
@@ -458,6 +473,24 @@ class Limits(unittest.TestCase):
                 time.sleep(0.005)
             self.assertEqual(finished, ids)
 
+
+    def test_surface_over_max_triangles(self):
+        """A surface past --max-triangles: 413 from the routes; a bake that names a mesh fails
+        with the reason, and its volume stays."""
+        with Server("--max-triangles", "13000") as s:  # the demo knot has 12,288
+            c = sdfclient.Client(s.url)
+            self.addCleanup(c.close)
+            job = c.bake("demo", volume="k", resolution=64, mesh="k-mesh")
+            with self.assertRaises(sdfclient.SdfError) as e:
+                c.wait(job, timeout=60)
+            self.assertEqual(e.exception.code, "ELIMIT")
+            self.assertIn("--max-triangles", e.exception.message)
+            self.assertEqual(c.volume("k")["dims"], [64, 64, 64])
+            self.assertNotIn("k-mesh", [m["name"] for m in c.meshes()])
+            for method, body in (("GET", None), ("POST", b'{"mesh": "k-mesh"}')):
+                with self.assertRaises(sdfclient.SdfError) as e:
+                    c._request(method, "/v1/volumes/k/mesh", body)
+                self.assertEqual(e.exception.status, 413, method)
 
     def test_memory_limit_token_and_shutdown(self):
         with Server("--token", "t", "--max-volume-bytes", "8000000") as s:
