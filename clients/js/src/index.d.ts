@@ -161,6 +161,8 @@ export interface BakeParams extends OpsParams {
   /** field operations applied to the baked grid before it is stored */
   ops?: readonly Op[];
   volume?: string;
+  /** also store the finished volume's surface as this mesh, in the same job */
+  mesh?: string;
   bounds?: { min: [number, number, number]; max: [number, number, number] };
   margin?: number;
   resolution?: number | [number, number, number];
