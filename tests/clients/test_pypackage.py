@@ -25,6 +25,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 import unittest
 import urllib.request
 
@@ -66,12 +67,15 @@ class CutProxy:
     client's bytes and the server's frames up to the first RESULT, of which it relays half
     and then closes both ends, so that the connection dies in the middle of a reply;
     "cut-sent" (for TLS, whose frames it cannot read) relays both ways until the client has
-    sent CUT_SENT bytes, then closes both ends, so that the request dies before its reply."""
+    sent CUT_SENT bytes, then closes both ends, so that the request dies before its reply.
+    With `hold`, "cut" relays that half RESULT only once the client has sent `hold` bytes on
+    the connection, so that every pipelined request is out before the cut, however slowly
+    the client writes (a sanitizer build)."""
 
     CUT_SENT = 3000  # more than a TLS handshake and AUTH or HELLO, less than 300 points
 
-    def __init__(self, plan):
-        self.plan, self.connections = plan, 0
+    def __init__(self, plan, hold=0):
+        self.plan, self.connections, self.hold, self.sent = plan, 0, hold, {}
         self.listener = socket.create_server(("127.0.0.1", 0))
         self.port = self.listener.getsockname()[1]
         threading.Thread(target=self._accept, daemon=True).start()
@@ -85,9 +89,11 @@ class CutProxy:
             how, port = self.plan[min(self.connections, len(self.plan) - 1)]
             self.connections += 1
             upstream = socket.create_connection(("127.0.0.1", port))
-            threading.Thread(target=self._up, args=(client, upstream, how),
+            k = self.connections
+            self.sent[k] = 0
+            threading.Thread(target=self._up, args=(client, upstream, how, k),
                              daemon=True).start()
-            threading.Thread(target=self._down, args=(client, upstream, how),
+            threading.Thread(target=self._down, args=(client, upstream, how, k),
                              daemon=True).start()
 
     @staticmethod
@@ -99,22 +105,21 @@ class CutProxy:
                 pass
             s.close()
 
-    def _up(self, client, upstream, how):
-        sent = 0
+    def _up(self, client, upstream, how, k):
         try:
             while True:
                 data = client.recv(1 << 16)
                 if not data:
                     break
                 upstream.sendall(data)
-                sent += len(data)
-                if how == "cut-sent" and sent >= self.CUT_SENT:
+                self.sent[k] += len(data)
+                if how == "cut-sent" and self.sent[k] >= self.CUT_SENT:
                     break
         except OSError:
             pass
         self._end(client, upstream)
 
-    def _down(self, client, upstream, how):
+    def _down(self, client, upstream, how, k):
         try:
             while how != "cut":
                 data = upstream.recv(1 << 16)
@@ -125,6 +130,9 @@ class CutProxy:
                 head = recv_exact(upstream, 16)
                 payload = recv_exact(upstream, struct.unpack_from("<I", head, 12)[0])
                 if how == "cut" and head[5] == 0x83:
+                    deadline = time.monotonic() + 10
+                    while self.sent[k] < self.hold and time.monotonic() < deadline:
+                        time.sleep(0.002)
                     client.sendall(head + payload[:len(payload) // 2])
                     break
                 client.sendall(head + payload)
@@ -232,13 +240,13 @@ class InstalledPackage(unittest.TestCase):
         np.save(path, points)
         return path
 
-    def through(self, plan, points, code, options=""):
+    def through(self, plan, points, code, options="", hold=0):
         """Run `code` in the venv with `b`, a BinaryClient (with `options`, its constructor's
         keyword arguments as text) through a CutProxy with `plan` (the ports to "pass" to or
         "cut" default to the server's), and `p`, `points`; `code` leaves what it got in
         `out` (a dict of arrays) and the client's counters are added. Returns them and the
         proxy's connection count."""
-        proxy = CutProxy([(how, port or self.server.bin_port) for how, port in plan])
+        proxy = CutProxy([(how, port or self.server.bin_port) for how, port in plan], hold)
         self.addCleanup(proxy.close)
         out = os.path.join(self.tmp.name, "through.npz")
         self.venv_python(
@@ -267,7 +275,7 @@ class InstalledPackage(unittest.TestCase):
             "rs = b.query_many([('demo', p[60 * i:60 * (i + 1)]) for i in range(5)],"
             " mode='gradient', window=5)\n"
             "out.update(d=np.concatenate([r['distance'] for r in rs]),"
-            " g=np.concatenate([r['gradient'] for r in rs]))\n"))
+            " g=np.concatenate([r['gradient'] for r in rs]))\n"), hold=5 * 60 * 12)
         self.assertEqual((int(got["connects"]), int(got["resent"]), conns), (2, 5, 2))
         self.assertEqual(got["d"].tobytes(), ref["distance"].tobytes())
         self.assertEqual(got["g"].tobytes(), ref["gradient"].tobytes())
