@@ -46,9 +46,10 @@ static int insides_joined(float f0, float f1, float f2, float f3)
 }
 
 /* The face's segments: next[crossing where the boundary enters the inside] = the crossing
- * where it leaves (cell.h). */
-static void face_segments(const float v[8], const uint8_t q[4], int next[12])
+ * where it leaves (cell.h); face[that entry] = f. */
+static void face_segments(const float v[8], int f, int next[12], int8_t face[12])
 {
+    const uint8_t *q = FACES[f];
     int cross[4], entry[4], n = 0;
     for (int m = 0; m < 4; m++) {
         int a = q[m], b = q[(m + 1) & 3];
@@ -59,12 +60,14 @@ static void face_segments(const float v[8], const uint8_t q[4], int next[12])
     }
     if (n == 2) {
         int e = entry[0] ? 0 : 1;
-        next[cross[e]] = cross[1 - e];
+        next[cross[e]] = cross[1 - e], face[cross[e]] = (int8_t)f;
     } else if (n == 4) {
         int joined = insides_joined(v[q[0]], v[q[1]], v[q[2]], v[q[3]]);
         for (int m = 0; m < 4; m++)
-            if (entry[m])
+            if (entry[m]) {
                 next[cross[m]] = cross[joined ? (m + 3) & 3 : (m + 1) & 3];
+                face[cross[m]] = (int8_t)f;
+            }
     }
 }
 
@@ -123,25 +126,107 @@ static void emit_loop(const int *loop, int n, const double p[12][3], sdf__cell_o
     }
 }
 
+int sdf__cell_loops(const float value[8], int8_t loop_of[12], uint8_t loops[4][12],
+                    int count[4])
+{
+    int next[12], n = 0;
+    int8_t face[12];
+    memset(next, -1, sizeof next);
+    memset(loop_of, -1, 12);
+    for (int f = 0; f < 6; f++)
+        face_segments(value, f, next, face);
+    for (int e = 0; e < 12; e++) {
+        if (next[e] < 0 || loop_of[e] >= 0)
+            continue;
+        count[n] = 0;
+        for (int c = e; loop_of[c] < 0; c = next[c])
+            loop_of[c] = (int8_t)n, loops[n][count[n]++] = (uint8_t)c;
+        n++;
+    }
+    return n;
+}
+
 int sdf__cell_triangulate(const float value[8], const double crossing[12][3],
                           const double scale[3], sdf__cell_out *out)
 {
-    int next[12], seen[12] = {0};
+    int8_t loop_of[12];
+    uint8_t loops[4][12];
+    int count[4], loop[12];
     double p[12][3];
-    memset(next, -1, sizeof next);
+    int n = sdf__cell_loops(value, loop_of, loops, count);
     out->triangles = out->centroids = 0;
-    for (int f = 0; f < 6; f++)
-        face_segments(value, FACES[f], next);
     for (int e = 0; e < 12; e++)
         for (int a = 0; a < 3; a++)
-            p[e][a] = next[e] >= 0 ? crossing[e][a] * scale[a] : 0;
-    for (int e = 0; e < 12; e++) {
-        if (next[e] < 0 || seen[e])
-            continue;
-        int loop[12], n = 0;
-        for (int c = e; !seen[c]; c = next[c])
-            seen[c] = 1, loop[n++] = c;
-        emit_loop(loop, n, p, out);
+            p[e][a] = loop_of[e] >= 0 ? crossing[e][a] * scale[a] : 0;
+    for (int m = 0; m < n; m++) {
+        for (int i = 0; i < count[m]; i++)
+            loop[i] = loops[m][i];
+        emit_loop(loop, count[m], p, out);
     }
     return out->triangles;
+}
+
+/* ---- polygons for dual contouring ------------------------------------------------------- */
+
+/* Two segments of polygon m on one face: their starts' places in it (a < b); 0 if none. */
+static int same_face_pair(const sdf__cell_polys *p, const int8_t *seg_face, int m, int *a,
+                          int *b)
+{
+    for (int i = 0; i < p->size[m]; i++)
+        for (int j = i + 2; j < p->size[m]; j++) {
+            int8_t fi = seg_face[m * SDF__CELL_MAX_POLY_SIZE + i];
+            if (fi >= 0 && fi == seg_face[m * SDF__CELL_MAX_POLY_SIZE + j])
+                return *a = i, *b = j, 1;
+        }
+    return 0;
+}
+
+/* Split polygon m by the chord from its a-th to its b-th crossing into m (a..b) and a new
+ * one (b..a): each keeps one of the two segments that start there. The chord is no face's
+ * segment (its face -1). */
+static void split(sdf__cell_polys *p, int8_t *seg_face, int m, int a, int b)
+{
+    enum { W = SDF__CELL_MAX_POLY_SIZE };
+    int n = p->size[m], k = p->count++;
+    uint8_t v[W];
+    int8_t f[W];
+    memcpy(v, p->vert[m], W), memcpy(f, seg_face + m * W, W);
+    p->size[m] = b - a + 1;
+    for (int i = 0; i <= b - a; i++)
+        p->vert[m][i] = v[a + i], seg_face[m * W + i] = f[a + i];
+    seg_face[m * W + b - a] = -1;
+    p->size[k] = n - (b - a) + 1;
+    for (int i = 0; i < p->size[k]; i++)
+        p->vert[k][i] = v[(b + i) % n], seg_face[k * W + i] = f[(b + i) % n];
+    seg_face[k * W + p->size[k] - 1] = -1;
+}
+
+int sdf__cell_polygons(const float value[8], sdf__cell_polys *p)
+{
+    enum { W = SDF__CELL_MAX_POLY_SIZE };
+    int next[12];
+    int8_t face[12], loop_of[12], seg_face[SDF__CELL_MAX_POLYS * W];
+    uint8_t loops[4][12];
+    int count[4];
+    memset(next, -1, sizeof next);
+    for (int f = 0; f < 6; f++)
+        face_segments(value, f, next, face);
+    p->count = sdf__cell_loops(value, loop_of, loops, count);
+    for (int m = 0; m < p->count; m++) {
+        p->size[m] = count[m];
+        for (int i = 0; i < count[m]; i++)
+            p->vert[m][i] = loops[m][i], seg_face[m * W + i] = face[loops[m][i]];
+    }
+    for (int m = 0, a, b; m < p->count; m++)
+        while (p->count < SDF__CELL_MAX_POLYS && same_face_pair(p, seg_face, m, &a, &b))
+            split(p, seg_face, m, a, b);
+    memset(p->out, -1, sizeof p->out), memset(p->in, -1, sizeof p->in);
+    for (int m = 0; m < p->count; m++)
+        for (int i = 0; i < p->size[m]; i++)
+            if (seg_face[m * W + i] >= 0) { /* a face's segment, not a chord */
+                p->out[p->vert[m][i]] = (int8_t)m;
+                p->in[p->vert[m][(i + 1) % p->size[m]]] = (int8_t)m;
+            }
+    memcpy(p->out_face, face, sizeof face);
+    return p->count;
 }

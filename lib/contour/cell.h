@@ -30,6 +30,18 @@
 #define SDF__CELL_CENTROID 12      /* the vertex index of a loop's centroid (see above) */
 #define SDF__CELL_MAX_CENTROIDS 4  /* loops of one cell */
 
+#define SDF__CELL_EDGE_MARGIN 1e-3 /* a crossing's least distance from a node, in cells */
+
+/* Where along an edge from value a to value b (of different sides) the crossing is: linear
+ * interpolation, kept SDF__CELL_EDGE_MARGIN from both ends so that no two crossings of a cell
+ * meet. */
+static inline double sdf__cell_crossing(float a, float b)
+{
+    double t = (double)a / ((double)a - b);
+    return t < SDF__CELL_EDGE_MARGIN ? SDF__CELL_EDGE_MARGIN
+         : t > 1 - SDF__CELL_EDGE_MARGIN ? 1 - SDF__CELL_EDGE_MARGIN : t;
+}
+
 /* The corner pair of edge e (0..11): its two corners, the lower first. */
 void sdf__cell_edge_corners(int e, int *a, int *b);
 
@@ -43,6 +55,32 @@ typedef struct sdf__cell_out {
     int centroid_count[SDF__CELL_MAX_CENTROIDS];
     int centroids;
 } sdf__cell_out;
+
+/* The loops of a cell (at most 4): loop_of[e] the loop through edge e's crossing, -1 where
+ * the edge does not cross; loops[m] the crossing edges of loop m in order (count[m] of them,
+ * 3..12), the order a polygon of the surface takes them, counter-clockwise seen from outside.
+ * Returns the number of loops. */
+int sdf__cell_loops(const float value[8], int8_t loop_of[12], uint8_t loops[4][12],
+                    int count[4]);
+
+/* Dual contouring's polygons of a cell: its loops, each split by a chord between two of its
+ * crossings wherever it holds two segments of one face (an ambiguous face whose two segments
+ * are in one loop, on this side and so on the other), until none does, so that two polygons
+ * of neighbouring cells share at most one segment and the dual surface stays edge-manifold. */
+#define SDF__CELL_MAX_POLYS 12
+#define SDF__CELL_MAX_POLY_SIZE 12
+typedef struct sdf__cell_polys {
+    int count;
+    uint8_t vert[SDF__CELL_MAX_POLYS][SDF__CELL_MAX_POLY_SIZE]; /* crossing edges in order */
+    int size[SDF__CELL_MAX_POLYS];
+    int8_t out[12], in[12];  /* the polygon holding the face segment leaving / reaching edge
+                                e's crossing; -1 where the edge does not cross */
+    int8_t out_face[12];     /* the face (0..5: -x, +x, -y, +y, -z, +z) of the segment leaving
+                                it; the one reaching it lies on the crossing's other face */
+} sdf__cell_polys;
+
+/* The polygons of a cell; returns their count. */
+int sdf__cell_polygons(const float value[8], sdf__cell_polys *p);
 
 /* The triangles of a cell: value[c] at corner c (relative to the iso-value), and the
  * crossing's position in cell units on each edge whose two corners differ in side (the

@@ -15,21 +15,16 @@
 #include <string.h>
 
 #include "contour/cell.h"
+#include "contour/dual.h"
 #include "contour/signs.h"
+#include "contour/surface.h"
 #include "core/diag.h"
 #include "core/grow.h"
 #include "core/parallel.h"
 #include "volume/volume.h"
 
-#define EDGE_MARGIN 1e-3         /* a vertex's least distance from a node, in cells */
 #define CENTROID_BIT 0x80000000u /* in a layer's list: a centroid of that layer's */
 #define MAX_VERTICES ((uint64_t)1 << 31)
-
-struct sdf_surface {
-    float *vertices;
-    uint32_t *triangles;
-    size_t vertex_count, triangle_count;
-};
 
 typedef struct layer_out {
     uint32_t *tri;      /* 3 per triangle: vertex ids, or CENTROID_BIT | centroid */
@@ -61,19 +56,6 @@ typedef struct job {
     int failed;         /* a worker ran out of memory */
 } job;
 
-/* Where along an edge from value a to value b the crossing is, in (0, 1). */
-static double crossing_t(float a, float b)
-{
-    double t = (double)a / ((double)a - b);
-    return t < EDGE_MARGIN ? EDGE_MARGIN : t > 1 - EDGE_MARGIN ? 1 - EDGE_MARGIN : t;
-}
-
-static void world(const job *w, const double cell[3], float out[3])
-{
-    const sdf_volume_info *in = &w->s.v->info;
-    for (int a = 0; a < 3; a++)
-        out[a] = (float)(in->origin[a] + (cell[a] - w->s.pad) * in->spacing[a]);
-}
 
 /* ---- pass 1 ----------------------------------------------------------------------------- */
 
@@ -115,9 +97,9 @@ static void place(job *w, uint64_t id, size_t i, size_t j, size_t k, int axis)
     size_t n[3] = {i, j, k};
     n[axis]++;
     double cell[3] = {(double)i, (double)j, (double)k};
-    cell[axis] += crossing_t(sdf__signs_value(&w->s, i, j, k),
+    cell[axis] += sdf__cell_crossing(sdf__signs_value(&w->s, i, j, k),
                              sdf__signs_value(&w->s, n[0], n[1], n[2]));
-    world(w, cell, w->vertices + 3 * id);
+    sdf__signs_world(&w->s, cell, w->vertices + 3 * id);
 }
 
 /* Index one family of node layer k from `id` (placing its vertices when asked); returns the
@@ -175,7 +157,7 @@ static int push_centroid(job *w, layer_out *out, const double at[3], const doubl
             sum += cr[edges[m]][a];
         cell[a] = at[a] + sum / n;
     }
-    world(w, cell, out->centroid + 3 * out->centroids++);
+    sdf__signs_world(&w->s, cell, out->centroid + 3 * out->centroids++);
     return 0;
 }
 
@@ -193,7 +175,7 @@ static int do_cell(job *w, const scratch *s, size_t i, size_t j, size_t k, layer
         if ((v[a] < 0) == (v[b] < 0))
             continue;
         cr[e][0] = a & 1, cr[e][1] = a >> 1 & 1, cr[e][2] = a >> 2 & 1;
-        cr[e][e / 4] += crossing_t(v[a], v[b]);
+        cr[e][e / 4] += sdf__cell_crossing(v[a], v[b]);
     }
     sdf__cell_out co;
     int nt = sdf__cell_triangulate(v, cr, w->s.v->info.spacing, &co);
@@ -319,9 +301,16 @@ static int passes(job *w, int workers, size_t chunk, sdf_surface *out)
     return w->failed ? SDF_ENOMEM : join(w, n2 - 1, w->first[n2], out);
 }
 
-static int run(job *w, int threads, sdf_surface *out, sdf_diag *diag)
+static int run(job *w, int threads, int dual, sdf_surface *out, sdf_diag *diag)
 {
     int rc = sdf__signs_fill(&w->s, threads);
+    if (!rc && dual) {
+        rc = sdf__dual_extract(&w->s, threads, out);
+        sdf__signs_free(&w->s);
+        return rc ? sdf__diag_set(diag, rc, 0, -1, rc == SDF_ELIMIT
+                                  ? "the surface has more than 2^31 vertices"
+                                  : "out of memory extracting the surface") : 0;
+    }
     size_t n2 = w->s.n[2];
     size_t chunk = n2 / (8 * (size_t)sdf__effective_threads(threads, n2, 1));
     chunk = chunk ? chunk : 1;
@@ -352,43 +341,24 @@ int sdf_volume_extract(const sdf_volume *volume, const sdf_extract_options *opts
     opts = opts ? opts : &defaults;
     if (!isfinite(opts->iso))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "iso must be a finite number");
+    if ((unsigned)opts->method > SDF_EXTRACT_DUAL)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown extraction method %d",
+                             (int)opts->method);
+    int first_order = volume->info.order == 1;
+    if (opts->method == SDF_EXTRACT_DUAL && !first_order)
+        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "dual contouring needs a first-order "
+                             "volume (its planes are the normals); this one is zero order");
+    int dual = opts->method == SDF_EXTRACT_DUAL ||
+               (opts->method == SDF_EXTRACT_AUTO && first_order);
     job w = {.s = {.v = volume, .iso = opts->iso, .pad = opts->cap != 0}};
     sdf_surface *s = calloc(1, sizeof *s);
     if (!s)
         return sdf__diag_set(diag, SDF_ENOMEM, 0, -1, "out of memory");
-    int rc = run(&w, opts->threads, s, diag);
+    int rc = run(&w, opts->threads, dual, s, diag);
     if (rc) {
         free(s);
         return rc;
     }
     *out = s;
     return 0;
-}
-
-const float *sdf_surface_vertices(const sdf_surface *surface, size_t *count)
-{
-    *count = surface->vertex_count;
-    return surface->vertices;
-}
-
-const uint32_t *sdf_surface_triangles(const sdf_surface *surface, size_t *count)
-{
-    *count = surface->triangle_count;
-    return surface->triangles;
-}
-
-int sdf_surface_to_mesh(const sdf_surface *surface, const sdf_mesh_options *opts,
-                        sdf_mesh **out, sdf_diag *diag)
-{
-    return sdf_mesh_create(surface->vertices, surface->vertex_count, surface->triangles,
-                           surface->triangle_count, opts, out, diag);
-}
-
-void sdf_surface_destroy(sdf_surface *surface)
-{
-    if (!surface)
-        return;
-    free(surface->vertices);
-    free(surface->triangles);
-    free(surface);
 }

@@ -30,6 +30,27 @@ float sdf__signs_value(const sdf__signs *s, size_t i, size_t j, size_t k)
     return (float)(volume_value(s->v, i, j, k) - s->iso);
 }
 
+int sdf__signs_gradient(const sdf__signs *s, size_t i, size_t j, size_t k, double g[3])
+{
+    if (s->pad) {
+        if (i == 0 || j == 0 || k == 0 || i == s->n[0] - 1 || j == s->n[1] - 1 ||
+            k == s->n[2] - 1)
+            return 0;
+        i--, j--, k--;
+    }
+    double plane[4];
+    sdf__volume_node_plane(s->v, i, j, k, plane);
+    g[0] = plane[0], g[1] = plane[1], g[2] = plane[2];
+    return 1;
+}
+
+void sdf__signs_world(const sdf__signs *s, const double at[3], float out[3])
+{
+    const sdf_volume_info *in = &s->v->info;
+    for (int a = 0; a < 3; a++)
+        out[a] = (float)(in->origin[a] + (at[a] - s->pad) * in->spacing[a]);
+}
+
 /* Order 0 without caps: a row straight from the volume's floats. */
 static void fill_row_direct(const sdf__signs *s, size_t j, size_t k, uint64_t *row)
 {

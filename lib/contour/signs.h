@@ -30,6 +30,13 @@ typedef struct sdf__signs {
  * the one number every test of a node's side and every crossing is computed from. */
 float sdf__signs_value(const sdf__signs *s, size_t i, size_t j, size_t k);
 
+/* A first-order node's gradient, its plane's (a, b, c): 1; 0 for a node beyond the volume
+ * (caps), which has none. */
+int sdf__signs_gradient(const sdf__signs *s, size_t i, size_t j, size_t k, double g[3]);
+
+/* Grid coordinates (node units, the padding counted) to world coordinates. */
+void sdf__signs_world(const sdf__signs *s, const double at[3], float out[3]);
+
 /* Make the bits of s (v, iso, pad set; n and words filled here) on `threads` threads.
  * 0 or SDF_ENOMEM. */
 int sdf__signs_fill(sdf__signs *s, int threads);

@@ -21,6 +21,9 @@
 #define FILTER_NAMES(X)                                                                      \
     X(SDF_VOLUME_DEFAULT, "default") X(SDF_VOLUME_NEAREST, "nearest")                        \
     X(SDF_VOLUME_TRILINEAR, "trilinear") X(SDF_VOLUME_HERMITE, "hermite")
+#define EXTRACT_NAMES(X)                                                                   \
+    X(SDF_EXTRACT_AUTO, "auto") X(SDF_EXTRACT_MARCHING_CUBES, "marching_cubes")               \
+    X(SDF_EXTRACT_DUAL, "dual_contouring")
 #define FILE_NAMES(X) X(SDF_VOLUME_EXR, "exr") X(SDF_VOLUME_NPY, "npy") X(SDF_VOLUME_RAW, "raw")
 
 #define NAME_ROW(value, name) {value, name},
@@ -56,3 +59,5 @@ NAME_PAIR(sdf_volume_encoding, sdf_encoding_from_name, sdf_encoding_name, ENCODI
 NAME_PAIR(sdf_tdf_normalize, sdf_normalize_from_name, sdf_normalize_name, NORMALIZE_NAMES)
 NAME_PAIR(sdf_volume_filter, sdf_volume_filter_from_name, sdf_volume_filter_name, FILTER_NAMES)
 NAME_PAIR(sdf_volume_file, sdf_volume_file_from_name, sdf_volume_file_name, FILE_NAMES)
+NAME_PAIR(sdf_extract_method, sdf_extract_method_from_name, sdf_extract_method_name,
+          EXTRACT_NAMES)

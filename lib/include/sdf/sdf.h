@@ -614,20 +614,35 @@ int sdf_volume_apply_ops(const sdf_volume *in, const sdf_field_op *ops, size_t c
  * a signed distance's solid: the enclosed volume is positive), and no triangle repeats a
  * vertex. A first-order volume's node values are its planes' values at the nodes.
  * ------------------------------------------------------------------------------------- */
+typedef enum sdf_extract_method {
+    SDF_EXTRACT_AUTO = 0,          /* DUAL for a first-order volume, else MARCHING_CUBES */
+    SDF_EXTRACT_MARCHING_CUBES,    /* vertices on the grid's edges: sharp edges chamfered */
+    SDF_EXTRACT_DUAL,              /* first order only: dual contouring with the planes as
+                                      Hermite data (a vertex per sheet of each cell where
+                                      their quadratic error is least, clamped to the cell), so
+                                      sharp edges and corners come back; the same topology
+                                      guarantees, but triangles may be slivers or fold */
+} sdf_extract_method;
+
+/* "auto", "marching_cubes", "dual_contouring" -> method (as sdf_format_from_name). */
+int sdf_extract_method_from_name(const char *name, sdf_extract_method *out);
+const char *sdf_extract_method_name(sdf_extract_method method);
+
 typedef struct sdf_extract_options {
     double iso;   /* the value whose surface is taken; finite */
     int cap;      /* 0: the surface ends open where it leaves the grid; 1: closed there by
                      caps on the grid's boundary (the outside of the grid counts as outside) */
     int threads;  /* 0 = all CPUs; the result does not depend on it */
+    sdf_extract_method method;
 } sdf_extract_options;
 
 typedef struct sdf_surface sdf_surface;
 
-/* The surface of `volume` at opts->iso (NULL options: iso 0, no caps). Vertices lie on the
- * grid's edges, at least 1/1000 of a cell from the nodes (a node's value equal to iso counts
- * as outside). The same volume and options give the same arrays on any thread count. A
+/* The surface of `volume` at opts->iso (NULL options: iso 0, no caps, AUTO). Marching
+ * cubes' vertices lie on the grid's edges, at least 1/1000 of a cell from the nodes (a node's
+ * value equal to iso counts as outside); DUAL's inside the cells. The same volume and options give the same arrays on any thread count. A
  * volume whose values never cross iso gives a surface of no triangles. SDF_EINVAL (a
- * non-finite iso), SDF_ELIMIT (2^32 vertices or more), SDF_ENOMEM. */
+ * non-finite iso, an unknown method, DUAL on a zero-order volume), SDF_ELIMIT (2^32 vertices or more), SDF_ENOMEM. */
 int sdf_volume_extract(const sdf_volume *volume, const sdf_extract_options *opts,
                        sdf_surface **out, sdf_diag *diag);
 
