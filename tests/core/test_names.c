@@ -31,6 +31,7 @@ PAIR(encoding, sdf_volume_encoding, 2, sdf_encoding_from_name, sdf_encoding_name
 PAIR(normalize, sdf_tdf_normalize, 2, sdf_normalize_from_name, sdf_normalize_name)
 PAIR(filter, sdf_volume_filter, 4, sdf_volume_filter_from_name, sdf_volume_filter_name)
 PAIR(file, sdf_volume_file, 3, sdf_volume_file_from_name, sdf_volume_file_name)
+PAIR(extract, sdf_extract_method, 3, sdf_extract_method_from_name, sdf_extract_method_name)
 
 static void check_pair(const pair *p)
 {
@@ -87,6 +88,7 @@ static void test_round_trips(void)
         {"normalize", 2, normalize_from, normalize_to},
         {"filter", 4, filter_from, filter_to},
         {"file", 3, file_from, file_to},
+        {"extract", 3, extract_from, extract_to},
     };
     for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++)
         check_pair(&pairs[i]);
