@@ -38,7 +38,7 @@ static int parse_bool(const char *text, int *out)
 static int parse_url(sdfd_call *call, extract_req *q)
 {
     const char *format = sdfd_url_value(call->args, "format"), *iso = sdfd_url_value(call->args, "iso"),
-               *cap = sdfd_url_value(call->args, "cap");
+               *cap = sdfd_url_value(call->args, "cap"), *method = sdfd_url_value(call->args, "method");
     char *end = NULL;
     q->format = SDF_FORMAT_PLY;
     if (format && (sdf_format_from_name(format, &q->format) || q->format == SDF_FORMAT_AUTO))
@@ -48,6 +48,9 @@ static int parse_url(sdfd_call *call, extract_req *q)
         return sdfd_call_fail(call, SDF_EINVAL, "iso must be a finite number, not '%s'", iso), -1;
     if (cap && parse_bool(cap, &q->opts.cap))
         return sdfd_call_fail(call, SDF_EINVAL, "cap must be true or false, not '%s'", cap), -1;
+    if (method && sdf_extract_method_from_name(method, &q->opts.method))
+        return sdfd_call_fail(call, SDF_EINVAL, "unknown method '%s' (auto, marching_cubes, "
+                              "dual_contouring)", method), -1;
     return 0;
 }
 
@@ -63,12 +66,15 @@ static int body_member(const cJSON *item, extract_req *q, char *err, size_t cap)
         if (!cJSON_IsNumber(item) || !isfinite(item->valuedouble))
             return snprintf(err, cap, "iso must be a finite number"), -1;
         q->opts.iso = item->valuedouble;
+    } else if (!strcmp(k, "method")) {
+        if (!cJSON_IsString(item) || sdf_extract_method_from_name(item->valuestring, &q->opts.method))
+            return snprintf(err, cap, "method must be auto, marching_cubes or dual_contouring"), -1;
     } else if (!strcmp(k, "cap")) {
         if (!cJSON_IsBool(item))
             return snprintf(err, cap, "cap must be true or false"), -1;
         q->opts.cap = cJSON_IsTrue(item);
     } else {
-        return snprintf(err, cap, "unknown member \"%.40s\" (mesh, iso, cap)", k), -1;
+        return snprintf(err, cap, "unknown member \"%.40s\" (mesh, iso, cap, method)", k), -1;
     }
     return 0;
 }

@@ -57,7 +57,7 @@ static const sdfd_op ops[SDFD_OP_COUNT] = {
      SDFD_AUTH_QUERY, SDFD_OP_ASYNC, {SLICE_ARGS, "interpolation"}},
     /* a surface is every cell's answer: a query's rule; storing it, a write's */
     {SDFD_OP_VOLUME_MESH, "volume_mesh", "GET", "/v1/volumes/{name}/mesh", 0, SDFD_AUTH_QUERY,
-     SDFD_OP_ASYNC, {"format", "iso", "cap"}},
+     SDFD_OP_ASYNC, {"format", "iso", "cap", "method"}},
     {SDFD_OP_VOLUME_MESH_POST, "volume_mesh_post", "POST", "/v1/volumes/{name}/mesh", 0,
      SDFD_AUTH_WRITE, SDFD_OP_BODY | SDFD_OP_ASYNC, {NULL}},
     /* a binary connection's own: answered whenever it is read */

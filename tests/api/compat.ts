@@ -43,6 +43,7 @@ check<Same<NonNullable<C.SliceOptions['axis']>, P['SliceAxis']>>();
 check<Same<NonNullable<C.SliceOptions['format']>, P['SliceFormat']>>();
 check<Same<C.VolumeFormat, P['VolumeFileFormat']>>();
 check<Same<C.SurfaceFormat, P['SurfaceFormat']>>();
+check<Same<NonNullable<C.ExtractMeshOptions['method']>, P['SurfaceMethod']>>();
 check<Same<C.Form | 'npy', 'octet' | 'json' | 'npy'>>();
 type PutMeshOptions = NonNullable<Parameters<C.Client['putMesh']>[2]>;
 check<Fits<NonNullable<PutMeshOptions['format']>, P['MeshFormat']>>();

@@ -351,15 +351,15 @@ export class Client {
    * as that mesh (POST; its report, created: true when the name was new); with `format`
    * ("ply" | "obj" | "stl" | "off") the file {format, bytes, triangles}; else the arrays
    * {vertices: Float32Array (x, y, z each), triangles: Uint32Array (3 each)}. */
-  async extractMesh(name, { iso = 0, cap = false, format, mesh, signal } = {}) {
+  async extractMesh(name, { iso = 0, cap = false, format, mesh, method = 'auto', signal } = {}) {
     if (mesh !== undefined) {
       const res = await this.#request('POST', `/v1/volumes/${seg(name)}/mesh`,
-        { body: JSON.stringify({ mesh, iso, cap }), type: 'application/json', signal });
+        { body: JSON.stringify({ mesh, iso, cap, method }), type: 'application/json', signal });
       return { ...(await res.json()), created: res.status === 201 };
     }
     if (!Number.isFinite(iso))
       throw new TypeError(`iso must be a finite number, not ${iso}`);
-    const q = new URLSearchParams({ format: format ?? 'ply', iso: String(iso), cap: String(Boolean(cap)) });
+    const q = new URLSearchParams({ format: format ?? 'ply', iso: String(iso), cap: String(Boolean(cap)), method });
     const res = await this.#request('GET', `/v1/volumes/${seg(name)}/mesh?${q}`, { signal });
     const bytes = new Uint8Array(await res.arrayBuffer());
     const triangles = Number(res.headers.get('X-SDF-Triangles'));

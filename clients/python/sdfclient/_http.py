@@ -356,21 +356,22 @@ class Client:
     def extract_mesh(self, name: str, iso: float = 0.0, cap: bool = False,
                      format: Optional[str] = None,
                      path: Optional[Union[str, os.PathLike[str]]] = None,
-                     mesh: Optional[str] = None) -> Any:
+                     mesh: Optional[str] = None, method: str = "auto") -> Any:
         """Volume `name`'s surface at `iso` (GET /v1/volumes/{name}/mesh, docs/api.md):
         closed and manifold where it stays inside the grid, and closed where it leaves it
-        too with `cap`. With `mesh`, stored on the server as that mesh (POST; returns its
+        too with `cap`; `method` "marching_cubes", "dual_contouring" (first-order volumes:
+        sharp edges kept) or "auto" (dual contouring where it applies). With `mesh`, stored on the server as that mesh (POST; returns its
         report); with `format` ("ply", "obj", "stl", "off") or `path` (format from its
         extension), the file's bytes (written to `path`, which is returned); else the arrays
         {"vertices": float32 (V, 3), "triangles": uint32 (T, 3)}."""
         if mesh is not None:
-            body = {"mesh": mesh, "iso": iso, "cap": cap}
+            body = {"mesh": mesh, "iso": iso, "cap": cap, "method": method}
             return _object(self._request("POST", f"/v1/volumes/{name}/mesh", json.dumps(body),
                                          {"Content-Type": "application/json"})[1])
         if format is None and path is not None:
             format = os.fspath(path).rsplit(".", 1)[-1].lower()
         q = urllib.parse.urlencode({"format": format or "ply", "iso": repr(float(iso)),
-                                    "cap": "true" if cap else "false"})
+                                    "cap": "true" if cap else "false", "method": method})
         _, data = self._request("GET", f"/v1/volumes/{name}/mesh?{q}")
         if path is not None:
             with open(path, "wb") as f:
