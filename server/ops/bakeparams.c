@@ -94,28 +94,28 @@ static int resolution(const cJSON *item, sdf_bake_options *o, char *err, size_t 
     return 0;
 }
 
+/* A member naming an item: a string that is a valid name. */
+static int item_name(const cJSON *item, const char *key, char *dst, size_t size, char *err,
+                     size_t cap)
+{
+    if (name(item, key, dst, size, err, cap))
+        return SDF_EINVAL;
+    if (!sdfd_valid_name(dst, strlen(dst)))
+        return fail(err, cap, "'%s' must be 1-255 characters of A-Z a-z 0-9 . _ - "
+                              "not starting with '.'", key);
+    return 0;
+}
+
 static int one_key(const cJSON *item, sdfd_bake_request *out, sdfd_bake_names *names,
                    int *field, unsigned *ops_seen, char *err, size_t cap)
 {
     sdf_bake_options *o = &out->options;
     const char *key = item->string;
     long n;
-    if (!strcmp(key, "volume")) {
-        if (name(item, key, names->volume, sizeof names->volume, err, cap))
-            return SDF_EINVAL;
-        if (!sdfd_valid_name(names->volume, strlen(names->volume)))
-            return fail(err, cap, "'%s' must be 1-255 characters of A-Z a-z 0-9 . _ - "
-                                  "not starting with '.'", key);
-        return 0;
-    }
-    if (!strcmp(key, "mesh")) {
-        if (name(item, key, out->surface, sizeof out->surface, err, cap))
-            return SDF_EINVAL;
-        if (!sdfd_valid_name(out->surface, strlen(out->surface)))
-            return fail(err, cap, "'%s' must be 1-255 characters of A-Z a-z 0-9 . _ - "
-                                  "not starting with '.'", key);
-        return 0;
-    }
+    if (!strcmp(key, "volume"))
+        return item_name(item, key, names->volume, sizeof names->volume, err, cap);
+    if (!strcmp(key, "mesh"))
+        return item_name(item, key, out->surface, sizeof out->surface, err, cap);
     if (!strcmp(key, "bounds"))
         return bounds(item, o, err, cap);
     if (!strcmp(key, "margin")) {
