@@ -192,8 +192,9 @@ int main(int argc, char **argv)
     sdf_volume_info in;
     sdf_volume_get_info(vol, &in);
     double cell = fmax(in.spacing[0], fmax(in.spacing[1], in.spacing[2]));
+    const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
     printf("%s, first order at %zu^3 nodes; %zu sharp edges (> %g degrees); angles in degrees\n\n",
-           path, res, m.nsharp, SHARP_DEGREES);
+           base, res, m.nsharp, SHARP_DEGREES);
     printf("| extraction | near: triangles | mean | median | 90th pct | all: triangles | mean | "
            "median | 90th pct |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
     const sdf_extract_method methods[2] = {SDF_EXTRACT_MARCHING_CUBES, SDF_EXTRACT_DUAL};

@@ -2,7 +2,7 @@
 """report.py - every table of docs/performance.md from one run on one commit: it runs the
 benchmarks behind each table (compare.sh, the filtered and sign runs of sdf-bench, scale.sh,
 bake-compare.sh, server-compare.sh, slices through sdfd, deploy/lb_bench.py,
-store_first_answer.py, catalog_bench.py) and prints the tables in Markdown, headed by the commit and the machine,
+store_first_answer.py, catalog_bench.py, extract_bench.py, feature-normals) and prints the tables in Markdown, headed by the commit and the machine,
 then the targets those tables decide.
 
     tests/bench/report.py [--quick] [--only SECTION,...] [--write docs/performance.md]
@@ -39,10 +39,11 @@ FANDISK, ELEPHANT = str(DATA / "fandisk.off"), str(DATA / "refined_elephant.off"
 FULL = dict(n=1000000, meshes=[FANDISK, ELEPHANT], repeat=3, filtered_n=100000, samples=64,
             bakes=[(128, 3), (256, 2)], scale_mesh=ELEPHANT, scale_times=2, rounds=3,
             slice_size=512, slice_requests=5, slice_mesh=ELEPHANT, index_meshes=[
-                FANDISK, ELEPHANT, str(DATA / "cow.off")])
+                FANDISK, ELEPHANT, str(DATA / "cow.off")], extract_res=512, extract_repeat=3)
 QUICK = dict(n=20000, meshes=[FANDISK], repeat=1, filtered_n=2000, samples=16,
              bakes=[(24, 1)], scale_mesh=FANDISK, scale_times=1, rounds=1, slice_size=64,
-             slice_requests=2, slice_mesh=FANDISK, index_meshes=[FANDISK])
+             slice_requests=2, slice_mesh=FANDISK, index_meshes=[FANDISK], extract_res=48,
+             extract_repeat=1)
 
 
 # ---- running things -----------------------------------------------------------------------
@@ -229,9 +230,21 @@ def catalog(s, found):
             f"--seconds {seconds}"), text.strip().splitlines()
 
 
+def extraction(s, found):
+    args = ["--mesh", ELEPHANT, "--resolution", s["extract_res"], "--repeat",
+            s["extract_repeat"], "--build", s["build"]]
+    text = run(["/usr/bin/python3", "tests/bench/extract_bench.py"] + args)
+    normals = run([Path(s["build"]) / "tests" / "bench" / "feature-normals", "--resolution",
+                   128 if s["repeat"] > 1 else 32, "--threads", 2])
+    return ("/usr/bin/python3 tests/bench/extract_bench.py --resolution "
+            f"{s['extract_res']} --repeat {s['extract_repeat']}; build/tests/bench/"
+            f"feature-normals --resolution {128 if s['repeat'] > 1 else 32}"), \
+        text.strip().splitlines() + [""] + normals.strip().splitlines()
+
+
 SECTIONS = {"peers": peers, "filtered": filtered, "scale": scale, "volumes": volumes,
             "server": server, "slices": slices, "balancers": balancers, "signs": signs,
-            "index": index, "store": store, "catalog": catalog}
+            "index": index, "store": store, "catalog": catalog, "extraction": extraction}
 
 
 # ---- the targets --------------------------------------------------------------------------
