@@ -73,14 +73,14 @@ static const command commands[] = {
      "                      sdfq ops (repeat it for a chain, applied in order); with\n"
      "                      --solver, --iterations, --band, --strict as there\n"},
     {"ops", sdfq_cmd_ops, "volume: solver: iterations: band: strict wait",
-     "usage: sdfq ops VOLUME OP... [--volume OUT] [--solver sussman|sweep] [--wait]\n"
+     "usage: sdfq ops VOLUME OP... [--volume OUT] [--solver sussman|sweep|exact] [--wait]\n"
      "Field operations on VOLUME (docs/api.md, Field operations), applied in order, each\n"
      "round=R (convex edges), fillet=R (concave ones), smooth=R (both), offset=R (the\n"
      "surface moves outward by R, inward for R < 0) or redistance=R (exact up to R; 0: the\n"
      "whole grid). Without --wait prints the job id; with it, shows progress as sdfq bake\n"
      "does and prints the finished job's JSON (its caveats; a warning also on stderr).\n"
      "  --volume OUT        store the result as OUT (default: replace VOLUME)\n"
-     "  --solver S          sweep (server default) or sussman\n"
+     "  --solver S          sweep (server default), sussman or exact\n"
      "  --iterations N      per re-distancing, 0..1000000 (server default 0: derived)\n"
      "  --band B            the distance up to which the result is exact (0: 4 cells)\n"
      "  --strict            a caveat fails the job\n"},

@@ -1,4 +1,4 @@
-/* dual.c - dual contouring of a first-order volume (dual.h). Two passes over z-layers, each
+/* dual.c - dual contouring of a volume (dual.h). Two passes over z-layers, each
  * writing into lists of its own layer that are joined in layer order:
  *  1. per cell layer: the loops of its cells with surface (the active cells, from the bits),
  *     a vertex per loop, and for each active cell its first vertex and which loop each of its

@@ -1,5 +1,6 @@
-/* dual.h - dual contouring of a first-order volume, with the planes as Hermite data, so that
- * sharp edges and corners come back instead of being chamfered (sdf.h, SDF_EXTRACT_DUAL).
+/* dual.h - dual contouring of a volume, with the nodes' gradients (a first-order volume's
+ * planes) as Hermite data, so that sharp edges and corners come back instead of being
+ * chamfered (sdf.h, SDF_EXTRACT_DUAL).
  *
  * One vertex per loop of each cell that marching cubes (cell.h) polygonizes, where the
  * quadratic error of the loop's crossings (each a point and the normal the two nodes' planes
@@ -8,7 +9,8 @@
  * it in its four cells, split into the two triangles of larger smallest area. The result is
  * the dual of marching cubes' surface: closed and edge-manifold where that surface is, with
  * a vertex per sheet where plain dual contouring would merge several into one.
- * Same threads and numbering rules as extract.c; the volume must be first-order. */
+ * Same threads and numbering rules as extract.c. A zero-order volume's gradients are central
+ * differences of its values (signs.h). */
 #ifndef SDF_CONTOUR_DUAL_H
 #define SDF_CONTOUR_DUAL_H
 

@@ -344,12 +344,8 @@ int sdf_volume_extract(const sdf_volume *volume, const sdf_extract_options *opts
     if ((unsigned)opts->method > SDF_EXTRACT_DUAL)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "unknown extraction method %d",
                              (int)opts->method);
-    int first_order = volume->info.order == 1;
-    if (opts->method == SDF_EXTRACT_DUAL && !first_order)
-        return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "dual contouring needs a first-order "
-                             "volume (its planes are the normals); this one is zero order");
     int dual = opts->method == SDF_EXTRACT_DUAL ||
-               (opts->method == SDF_EXTRACT_AUTO && first_order);
+               (opts->method == SDF_EXTRACT_AUTO && volume->info.order == 1);
     job w = {.s = {.v = volume, .iso = opts->iso, .pad = opts->cap != 0}};
     sdf_surface *s = calloc(1, sizeof *s);
     if (!s)

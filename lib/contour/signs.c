@@ -30,6 +30,19 @@ float sdf__signs_value(const sdf__signs *s, size_t i, size_t j, size_t k)
     return (float)(volume_value(s->v, i, j, k) - s->iso);
 }
 
+/* A zero-order node's gradient: central differences of the node values (one-sided on the
+ * volume's faces). */
+static void difference_gradient(const sdf_volume *v, size_t i, size_t j, size_t k, double g[3])
+{
+    const size_t *n = v->info.dims, at[3] = {i, j, k}, step[3] = {1, n[0], n[0] * n[1]};
+    size_t idx = (k * n[1] + j) * n[0] + i;
+    for (int a = 0; a < 3; a++) {
+        size_t lo = at[a] ? idx - step[a] : idx, hi = at[a] + 1 < n[a] ? idx + step[a] : idx;
+        double span = (double)((hi - lo) / step[a]) * v->info.spacing[a];
+        g[a] = ((double)v->data.f[hi] - (double)v->data.f[lo]) / span;
+    }
+}
+
 int sdf__signs_gradient(const sdf__signs *s, size_t i, size_t j, size_t k, double g[3])
 {
     if (s->pad) {
@@ -37,6 +50,10 @@ int sdf__signs_gradient(const sdf__signs *s, size_t i, size_t j, size_t k, doubl
             k == s->n[2] - 1)
             return 0;
         i--, j--, k--;
+    }
+    if (s->v->info.order == 0) {
+        difference_gradient(s->v, i, j, k, g);
+        return 1;
     }
     double plane[4];
     sdf__volume_node_plane(s->v, i, j, k, plane);

@@ -30,8 +30,8 @@ typedef struct sdf__signs {
  * the one number every test of a node's side and every crossing is computed from. */
 float sdf__signs_value(const sdf__signs *s, size_t i, size_t j, size_t k);
 
-/* A first-order node's gradient, its plane's (a, b, c): 1; 0 for a node beyond the volume
- * (caps), which has none. */
+/* A node's gradient: a first-order node's plane's (a, b, c), a zero-order node's by central
+ * differences of the values: 1; 0 for a node beyond the volume (caps), which has none. */
 int sdf__signs_gradient(const sdf__signs *s, size_t i, size_t j, size_t k, double g[3]);
 
 /* Grid coordinates (node units, the padding counted) to world coordinates. */

@@ -19,6 +19,7 @@
 #include <math.h>
 
 #include "core/parallel.h"
+#include "field/exact.h"
 #include "field/sussman.h"
 #include "field/sweep.h"
 
@@ -225,6 +226,10 @@ int sdf__field_redistance(const sdf__field_grid *g, float *phi, const sdf__redis
         unit = fmax(unit, g->h[a] * (double)(g->n[a] - 1));
     pass p = {.g = g, .src = phi, .dst = s->work, .state = s->state, .unit = unit,
               .eps = g->hmin, .signed_init = job->solver == SDF_FIELD_SUSSMAN};
+    sdf_mesh *surface = NULL; /* EXACT: from the field as given, before anything moves it */
+    int rc = job->solver == SDF_FIELD_EXACT ? sdf__exact_surface(g, phi, &surface) : 0;
+    if (rc)
+        return rc;
     size_t rows = sdf__field_rows(g), chunk = sdf__field_row_chunk(g);
     run(g, rows, chunk, normalize_rows, &p);
     p.src = s->work, p.dst = phi, p.sign = p.signed_init ? s->sign : NULL;
@@ -232,14 +237,21 @@ int sdf__field_redistance(const sdf__field_grid *g, float *phi, const sdf__redis
     size_t frozen = 0;
     for (size_t at = 0; at < g->nodes && !frozen; at++)
         frozen = s->state[at] & SDF__NODE_FROZEN;
-    if (!frozen)
+    if (!frozen) {
+        sdf_mesh_release(surface);
         return SDF_EINVAL;
+    }
     p.cap = mark_band(g, &p, job->band);
-    run(g, rows, chunk, init_rows, &p);
     res->cap = p.cap;
-    int rc = job->solver == SDF_FIELD_SUSSMAN
-                 ? sdf__sussman_solve(g, phi, s, job, res)
-                 : sdf__sweep_solve(g, phi, s->state, job, res);
+    if (surface) {
+        rc = sdf__exact_solve(g, surface, s->state, (float)p.cap, phi);
+        sdf_mesh_release(surface);
+        res->steps = 0, res->reached = p.cap;
+    } else {
+        run(g, rows, chunk, init_rows, &p);
+        rc = job->solver == SDF_FIELD_SUSSMAN ? sdf__sussman_solve(g, phi, s, job, res)
+                                              : sdf__sweep_solve(g, phi, s->state, job, res);
+    }
     if (rc)
         return rc;
     run(g, rows, chunk, finish_rows, &p);

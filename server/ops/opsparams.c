@@ -78,7 +78,7 @@ int sdfd_ops_key(const cJSON *item, sdfd_ops_request *out, unsigned *seen, char 
     if (!strcmp(key, "solver")) {
         if (!cJSON_IsString(item) || sdf_field_solver_from_name(item->valuestring, &o->solver) ||
             strcmp(item->valuestring, sdf_field_solver_name(o->solver)))
-            return fail(err, cap, "'%s' must be \"sweep\" or \"sussman\"", key);
+            return fail(err, cap, "'%s' must be \"sweep\", \"sussman\" or \"exact\"", key);
         return 0;
     }
     if (!strcmp(key, "strict")) {

@@ -57,7 +57,7 @@ int main(int argc, char **argv)
     printf("%zu^3 nodes, %d threads, r = %g (%.1f cells)\n", n, threads, r,
            r * (double)(n - 1) / 2);
     for (size_t o = 0; o < sizeof ops / sizeof ops[0]; o++)
-        for (int s = 0; s < 2; s++) {
+        for (int s = 0; s < 3; s++) {
             sdf_field_options opts = {.solver = (sdf_field_solver)s, .threads = threads};
             double best = INFINITY;
             for (int rep = 0; rep < repeats; rep++) {

@@ -344,7 +344,7 @@ export class Client {
 
   /** POST /v1/volumes/{name}/ops: field operations on a stored volume, in order, each
    * {round: 0.05} or ['round', 0.05] (redistance, offset, round, fillet, smooth); options
-   * volume (the output's name), solver ("sussman" or "sweep"), iterations, band, strict.
+   * volume (the output's name), solver ("sussman", "sweep" or "exact"), iterations, band, strict.
    * The 202's job ("kind": "ops"; once done its caveats and warning), for waitJob. Never
    * re-sent on a dropped connection, as bake. */
   /** A volume's surface (GET /v1/volumes/{name}/mesh): with `mesh`, stored on the server

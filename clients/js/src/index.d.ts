@@ -145,7 +145,7 @@ export type Op = { [K in OpName]: { [P in K]: number } }[OpName] | readonly [OpN
 
 /** How field operations run (POST /v1/volumes/{name}/ops and a bake's body); each optional. */
 export interface OpsParams {
-  solver?: 'sussman' | 'sweep';
+  solver?: 'sussman' | 'sweep' | 'exact';
   iterations?: number;
   band?: number;
   strict?: boolean;

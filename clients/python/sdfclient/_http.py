@@ -262,7 +262,7 @@ class Client:
         """Start field operations on volume `name` (POST /v1/volumes/{name}/ops, docs/api.md):
         `ops` in order, each {"round": 0.05} or ("round", 0.05) (redistance, offset, round,
         fillet, smooth); the result is stored as `volume` (the server's default when None).
-        params: solver ("sussman" | "sweep"), iterations, band, strict. Returns the job, as
+        params: solver ("sussman" | "sweep" | "exact"), iterations, band, strict. Returns the job, as
         bake does ("kind": "ops"; once done, its "caveats" and "warning"): wait() for it."""
         body: Dict[str, Any] = dict(params, ops=_ops(ops))
         if volume is not None:

@@ -549,7 +549,10 @@ const char *sdf_field_op_name(sdf_field_op_kind kind); /* "unknown" for others *
 #define SDF_FIELD_SOLVER_MAP(X)                                                           \
     X(SUSSMAN, 0, "sussman") /* the paper's eq. (1): Sussman's re-initialization PDE,      \
                                 forward Euler, CFL-bounded steps, smoothed sign */        \
-    X(SWEEP, 1, "sweep")     /* Zhao's fast sweeping: Gauss-Seidel in 8 orders */
+    X(SWEEP, 1, "sweep")     /* Zhao's fast sweeping: Gauss-Seidel in 8 orders */        \
+    X(EXACT, 2, "exact")     /* the zero set extracted (marching cubes on the field's      \
+                                linear crossings), then each node of the band its exact    \
+                                distance to it (docs/volumes.md); iterations ignored */
 
 typedef enum sdf_field_solver {
 #define SDF__FIELD_SOLVER_ENUM(name, value, str) SDF_FIELD_##name = (value),
@@ -557,7 +560,7 @@ typedef enum sdf_field_solver {
 #undef SDF__FIELD_SOLVER_ENUM
 } sdf_field_solver;
 
-/* "sussman", "sweep" -> solver; SDF_EINVAL otherwise. */
+/* "sussman", "sweep", "exact" -> solver; SDF_EINVAL otherwise. */
 int sdf_field_solver_from_name(const char *name, sdf_field_solver *out);
 const char *sdf_field_solver_name(sdf_field_solver solver); /* "unknown" for others */
 
@@ -617,11 +620,13 @@ int sdf_volume_apply_ops(const sdf_volume *in, const sdf_field_op *ops, size_t c
 typedef enum sdf_extract_method {
     SDF_EXTRACT_AUTO = 0,          /* DUAL for a first-order volume, else MARCHING_CUBES */
     SDF_EXTRACT_MARCHING_CUBES,    /* vertices on the grid's edges: sharp edges chamfered */
-    SDF_EXTRACT_DUAL,              /* first order only: dual contouring with the planes as
-                                      Hermite data (a vertex per sheet of each cell where
-                                      their quadratic error is least, clamped to the cell), so
-                                      sharp edges and corners come back; the same topology
-                                      guarantees, but triangles may be slivers or fold */
+    SDF_EXTRACT_DUAL,              /* dual contouring with the nodes' gradients as Hermite
+                                      data (first order: the planes'; zero order: central
+                                      differences of the values): a vertex per sheet of each
+                                      cell where their quadratic error is least, clamped to
+                                      the cell, so sharp edges and corners come back; the same
+                                      topology guarantees, but triangles may be slivers or
+                                      fold */
 } sdf_extract_method;
 
 /* "auto", "marching_cubes", "dual_contouring" -> method (as sdf_format_from_name). */
@@ -642,7 +647,7 @@ typedef struct sdf_surface sdf_surface;
  * cubes' vertices lie on the grid's edges, at least 1/1000 of a cell from the nodes (a node's
  * value equal to iso counts as outside); DUAL's inside the cells. The same volume and options give the same arrays on any thread count. A
  * volume whose values never cross iso gives a surface of no triangles. SDF_EINVAL (a
- * non-finite iso, an unknown method, DUAL on a zero-order volume), SDF_ELIMIT (2^32 vertices or more), SDF_ENOMEM. */
+ * non-finite iso, an unknown method), SDF_ELIMIT (2^32 vertices or more), SDF_ENOMEM. */
 int sdf_volume_extract(const sdf_volume *volume, const sdf_extract_options *opts,
                        sdf_surface **out, sdf_diag *diag);
 
