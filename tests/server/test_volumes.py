@@ -268,16 +268,18 @@ class Volumes(unittest.TestCase):
             self.c._request("GET", "/v1/volumes/nope/mesh")
         self.assertEqual(e.exception.status, 404)
         # a first-order volume: dual contouring by default, closed; marching cubes on request;
-        # dual contouring of a zero-order volume is refused
+        # dual contouring of a zero-order volume on request (normals from differences)
         self.bake(volume="surf1", resolution=32, order=1)
         dual = self.c.extract_mesh("surf1", mesh="surf1_dual")
         mc = self.c.extract_mesh("surf1", mesh="surf1_mc", method="marching_cubes")
         self.assertTrue(dual["closed"] and dual["edge_manifold"] and mc["closed"], (dual, mc))
         self.assertNotEqual(dual["vertices"], mc["vertices"])
+        dual0 = self.c.extract_mesh("surf", mesh="surf_dual0", method="dual_contouring")
+        self.assertTrue(dual0["closed"] and dual0["edge_manifold"], dual0)
         with self.assertRaises(sdfclient.SdfError) as e:
-            self.c.extract_mesh("surf", method="dual_contouring")
+            self.c.extract_mesh("surf", method="dual")
         self.assertEqual(e.exception.status, 422)
-        self.assertIn("first-order", e.exception.message)
+        self.assertIn("method", e.exception.message)
 
     def test_bake_ops_and_mesh_in_one_job(self):
         """A bake with "ops" and "mesh": one job, whose end leaves the volume and its surface as

@@ -223,7 +223,7 @@ export interface ExtractMeshOptions extends RequestOptions {
   /** Store the surface as this mesh instead of answering it. */
   mesh?: string;
   /** 'auto' (default: dual contouring for first-order volumes), 'marching_cubes' or
-   * 'dual_contouring' (first order only: sharp edges kept). */
+   * 'dual_contouring' (sharp edges kept). */
   method?: 'auto' | 'marching_cubes' | 'dual_contouring';
 }
 

@@ -359,8 +359,8 @@ class Client:
                      mesh: Optional[str] = None, method: str = "auto") -> Any:
         """Volume `name`'s surface at `iso` (GET /v1/volumes/{name}/mesh, docs/api.md):
         closed and manifold where it stays inside the grid, and closed where it leaves it
-        too with `cap`; `method` "marching_cubes", "dual_contouring" (first-order volumes:
-        sharp edges kept) or "auto" (dual contouring where it applies). With `mesh`, stored on the server as that mesh (POST; returns its
+        too with `cap`; `method` "marching_cubes", "dual_contouring" (sharp edges kept) or
+        "auto" (dual contouring for first-order volumes). With `mesh`, stored on the server as that mesh (POST; returns its
         report); with `format` ("ply", "obj", "stl", "off") or `path` (format from its
         extension), the file's bytes (written to `path`, which is returned); else the arrays
         {"vertices": float32 (V, 3), "triangles": uint32 (T, 3)}."""
