@@ -216,7 +216,7 @@ static void vertices_at(const job *w, size_t i, size_t j, size_t k, int e, int f
     const cell_layer *L = &w->layers[k];
     size_t q = j * w->s->words + i / 64;
     uint64_t below = L->active[q] & (((uint64_t)1 << (i % 64)) - 1);
-    size_t rank = L->rank[q] + (size_t)__builtin_popcountll(below);
+    size_t rank = L->rank[q] + (size_t)sdf__popcount64(below);
     unsigned rec = L->edges[rank][e];
     unsigned out = rec & 15, in = rec >> 4 & 15;
     int on_f = (int)(rec >> 8 & 7) == f;

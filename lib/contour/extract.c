@@ -63,7 +63,7 @@ static uint64_t popcount_row(const uint64_t *row, size_t words)
 {
     uint64_t c = 0;
     for (size_t w = 0; w < words; w++)
-        c += (uint64_t)__builtin_popcountll(row[w]);
+        c += (uint64_t)sdf__popcount64(row[w]);
     return c;
 }
 
@@ -113,9 +113,9 @@ static uint64_t index_family(job *w, family *f, int axis, size_t k, uint64_t id,
         for (size_t q = 0; q < words; q++) {
             f->first[j * words + q] = (uint32_t)id;
             for (uint64_t b = row[q]; placing && b; b &= b - 1)
-                place(w, id + (uint64_t)__builtin_popcountll(row[q] & ((b & -b) - 1)),
+                place(w, id + (uint64_t)sdf__popcount64(row[q] & ((b & -b) - 1)),
                       q * 64 + (size_t)__builtin_ctzll(b), j, k, axis);
-            id += (uint64_t)__builtin_popcountll(row[q]);
+            id += (uint64_t)sdf__popcount64(row[q]);
         }
     }
     return id;
@@ -141,7 +141,7 @@ static uint32_t edge_id(const scratch *s, size_t words, size_t i, size_t j, int 
     const family *f = &s->f[axis == 2 ? Z_LO : axis + 3 * (a >> 2 & 1)];
     size_t x = i + (size_t)(a & 1), q = (j + (size_t)(a >> 1 & 1)) * words + x / 64;
     uint64_t below = f->cross[q] & (((uint64_t)1 << (x % 64)) - 1);
-    return f->first[q] + (uint32_t)__builtin_popcountll(below);
+    return f->first[q] + (uint32_t)sdf__popcount64(below);
 }
 
 static int push_centroid(job *w, layer_out *out, const double at[3], const double cr[12][3],
