@@ -122,9 +122,9 @@ def main():
         rows.append(vdb_row(vdb, "OpenVDB convertToPolygons, the dense values", grid, a, tmp,
                             orig_verts, cell))
         del grid
-        ls = vdb.FloatGrid.createLevelSetFromPolygons(
-            orig_verts, triangles=orig_tris, transform=vdb.createLinearTransform(
-                voxelSize=float(spacing.min())), halfWidth=3.0)
+        ls = vdb.FloatGrid.createLevelSetFromPolygons(  # pyopenvdb reads float32 and int32
+            orig_verts.astype(np.float32), triangles=orig_tris.astype(np.int32),
+            transform=vdb.createLinearTransform(voxelSize=float(spacing.min())), halfWidth=3.0)
         rows.append(vdb_row(vdb, "OpenVDB convertToPolygons, its narrow-band level set", ls, a,
                             tmp, orig_verts, cell))
     print(f"{Path(a.mesh).name} at {a.resolution}^3 nodes; Hausdorff over vertices, in cells "
