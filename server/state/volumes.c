@@ -3,6 +3,7 @@
  * queued jobs in arrival order. */
 #include "state/volumes.h"
 
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -336,7 +337,15 @@ size_t sdfd_ops_bytes(size_t nodes, const sdfd_ops_request *req)
         offsets |= req->ops[i].kind != SDF_FIELD_REDISTANCE;
     size_t per_node = 4 + 9 + (req->options.solver == SDF_FIELD_SUSSMAN ? 4 : 0) +
                       (offsets ? 4 : 0);
-    return nodes * per_node;
+    size_t exact = 0;
+    if (req->options.solver == SDF_FIELD_EXACT) {
+        /* the field as a volume and its sign bits; the surface's mesh and index, ~300 bytes
+         * a triangle for ~4 n^2 of them on n^3 nodes; and a batch of queries (exact.c) */
+        double side = cbrt((double)nodes);
+        size_t batch = nodes < ((size_t)1 << 21) ? nodes : (size_t)1 << 21;
+        exact = nodes * 5 + (size_t)(4 * side * side) * 300 + batch * 24;
+    }
+    return nodes * per_node + exact;
 }
 
 /* Both libraries' progress callbacks: the phase's fraction into the job's. */

@@ -602,7 +602,8 @@ typedef struct sdf_field_options {
  * message for a bad option or op, a first-order or packed volume, a field without a zero
  * crossing, or an operation that leaves no surface (an erosion removing the whole solid);
  * SDF_ENONFINITE for a NaN or Inf node value; SDF_ECANCELED; SDF_ENOMEM (its scratch: 9
- * bytes a node, 4 more for SUSSMAN, 4 more for a chain with an offset). On success *caveats (may be NULL) holds the SDF_FIELD_CAVEAT_* bits that
+ * bytes a node, 4 more for SUSSMAN, 4 more for a chain with an offset; EXACT: 5 more, the
+ * surface's mesh and index, and up to 48 MiB of queries). On success *caveats (may be NULL) holds the SDF_FIELD_CAVEAT_* bits that
  * fired and diag's message describes the first of them (code 0; "success" when none); with
  * opts->strict a caveat is an SDF_EINVAL error instead. */
 int sdf_volume_apply_ops(const sdf_volume *in, const sdf_field_op *ops, size_t count,
