@@ -209,6 +209,7 @@ int sdf__cell_polygons(const float value[8], sdf__cell_polys *p)
     uint8_t loops[4][12];
     int count[4];
     memset(next, -1, sizeof next);
+    memset(face, -1, sizeof face);
     for (int f = 0; f < 6; f++)
         face_segments(value, f, next, face);
     p->count = sdf__cell_loops(value, loop_of, loops, count);

@@ -382,8 +382,9 @@ static int join_vertices(job *w)
     if (!(w->vertices = malloc((size_t)w->first[n2 - 1] * 3 * sizeof(float) + 1)))
         return SDF_ENOMEM;
     for (size_t k = 0; k + 1 < n2; k++)
-        memcpy(w->vertices + 3 * w->first[k], w->layers[k].pos,
-               w->layers[k].vertices * 3 * sizeof(float));
+        if (w->layers[k].vertices) /* a layer without any has no array (NULL) */
+            memcpy(w->vertices + 3 * w->first[k], w->layers[k].pos,
+                   w->layers[k].vertices * 3 * sizeof(float));
     return 0;
 }
 
@@ -406,7 +407,8 @@ static int join_triangles(job *w, sdf_surface *out)
     w->vertices = v;
     for (size_t k = 0, next = cells; k < n2; k++) {
         const cell_layer *L = &w->layers[k];
-        memcpy(v + 3 * next, L->extra, L->extras * 3 * sizeof(float));
+        if (L->extras) /* a layer without any has no array (NULL) */
+            memcpy(v + 3 * next, L->extra, L->extras * 3 * sizeof(float));
         for (size_t q = 0; q < 3 * L->tris; q++)
             out->triangles[at + q] = L->tri[q] & EXTRA_BIT
                                          ? (uint32_t)(next + (L->tri[q] & ~EXTRA_BIT))

@@ -265,7 +265,8 @@ static int join(job *w, size_t layers, uint64_t edges, sdf_surface *out)
     size_t c0 = (size_t)edges, t0 = 0;
     for (size_t k = 0; k < layers; k++) {
         const layer_out *L = &w->layers[k];
-        memcpy(vert + 3 * c0, L->centroid, L->centroids * 3 * sizeof(float));
+        if (L->centroids) /* memcpy's NULL source is undefined even for no bytes */
+            memcpy(vert + 3 * c0, L->centroid, L->centroids * 3 * sizeof(float));
         for (size_t q = 0; q < 3 * L->tris; q++)
             tri[t0 + q] = L->tri[q] & CENTROID_BIT ? (uint32_t)(c0 + (L->tri[q] & ~CENTROID_BIT))
                                                    : L->tri[q];
