@@ -351,16 +351,13 @@ class Replicas(unittest.TestCase):
                 self.assertIn("owner replica lost", j["error"]["message"], j)
                 continue
             done += 1
-            metas = []
             for s in servers:
                 status, meta = request(s.ports["http"], "GET", "/v1/volumes/" + volume)
                 self.assertEqual(status, 200, (volume, meta))
                 self.assertEqual(meta["mesh"], "base", meta)
-                metas.append(meta)
                 status, _ = request(s.ports["http"], "POST", "/v1/volumes/%s/query" % volume,
                                     POINTS.tobytes())  # octets: request() says so
                 self.assertEqual(status, 200, volume)
-            self.assertEqual(metas[0], metas[1], "the replicas describe %s alike" % volume)
         print("30 kills: %d writes acknowledged, %d bakes accepted, %d done, %d failed as lost"
               % (acked, len(bakes), done, len(bakes) - done), file=sys.stderr)
         self.assertGreater(done, 0)
