@@ -9,7 +9,8 @@
  *     two values of each crossing edge), and triangulate the cells whose corners differ
  *     (reading their eight values) into the layer's own list.
  * The lists are then joined in layer order, and the loops' centroids that cell.h added
- * (rare: ambiguous faces) go after the edges' vertices, also in layer order. */
+ * (rare: ambiguous faces) go after the edges' vertices, also in layer order. Dual contouring
+ * (dual.h) starts from the same bits and is chosen here. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -613,7 +613,7 @@ int sdf_volume_apply_ops(const sdf_volume *in, const sdf_field_op *ops, size_t c
 /* ---------------------------------------------------------------------------------------
  * Surfaces of volumes (docs/volumes.md, "Meshes from volumes"): the iso-surface of a volume's
  * node values as triangles, by marching cubes with one rule on every face (the asymptotic
- * decider), so that neighbouring cells agree: the surface is closed and edge-manifold where
+ * decider), so that neighbouring cells agree, or by its dual (SDF_EXTRACT_DUAL): the surface is closed and edge-manifold where
  * it stays inside the grid, every triangle's normal points to increasing values (outward of
  * a signed distance's solid: the enclosed volume is positive), and no triangle repeats a
  * vertex. A first-order volume's node values are its planes' values at the nodes.
