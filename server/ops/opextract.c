@@ -152,20 +152,12 @@ static void store_mesh(sdfd_call *call)
     sdfd_stored_volume *s = take_volume(call);
     sdf_extract_options o = threaded(call, q);
     char err[512];
-    void *bytes;
-    size_t n;
     sdf_mesh *mesh = NULL;
     int replaced = 0;
-    int rc = sdfd_surface_mesh(s->volume, &o, call->srv->cfg.max_total_triangles, &bytes, &n,
-                               &mesh, err, sizeof err);
+    int rc = sdfd_cache_put_surface(call->srv->cache, q->mesh, s->volume, &o, &replaced, &mesh,
+                                    err, sizeof err);
     sdfd_volume_release(s);
-    if (!rc) {
-        rc = sdfd_cache_put(call->srv->cache, SDFD_ITEM_MESH, q->mesh, sdf_mesh_retain(mesh),
-                            bytes, n, &replaced, err, sizeof err);
-        free(bytes);
-    }
     if (rc) {
-        sdf_mesh_release(mesh);
         sdfd_call_fail(call, rc, "%s", err);
         return;
     }

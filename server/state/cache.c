@@ -34,21 +34,34 @@ static void changed(void *arg, sdfd_item_kind kind, const char *name)
     pthread_mutex_unlock(&c->r.lock);
 }
 
-/* A bake's surface stored as the mesh it names, as an upload of its PLY would be. */
+int sdfd_cache_put_surface(sdfd_cache *c, const char *name, const sdf_volume *v,
+                           const sdf_extract_options *opts, int *replaced, sdf_mesh **mesh,
+                           char *msg, size_t cap)
+{
+    void *bytes;
+    size_t n;
+    sdf_mesh *made;
+    int rc = sdfd_surface_mesh(v, opts, c->max_triangles, &bytes, &n, &made, msg, cap);
+    if (rc)
+        return rc;
+    if (mesh)
+        *mesh = sdf_mesh_retain(made);
+    rc = sdfd_cache_put(c, SDFD_ITEM_MESH, name, made, bytes, n, replaced, msg, cap);
+    free(bytes);
+    if (rc && mesh) {
+        sdf_mesh_release(*mesh);
+        *mesh = NULL;
+    }
+    return rc;
+}
+
+/* A bake's surface stored as the mesh it names (volumes.h, the surface sink). */
 static int store_surface(void *user, const char *name, const sdf_volume *v, int threads,
                          char *err, size_t cap)
 {
-    sdfd_cache *c = user;
     sdf_extract_options o = {.threads = threads};
-    void *bytes;
-    size_t n;
-    sdf_mesh *mesh;
-    int replaced, rc = sdfd_surface_mesh(v, &o, c->max_triangles, &bytes, &n, &mesh, err, cap);
-    if (rc)
-        return rc;
-    rc = sdfd_cache_put(c, SDFD_ITEM_MESH, name, mesh, bytes, n, &replaced, err, cap);
-    free(bytes);
-    return rc;
+    int replaced;
+    return sdfd_cache_put_surface(user, name, v, &o, &replaced, NULL, err, cap);
 }
 
 sdfd_cache *sdfd_cache_create(const sdfd_backing *backing, sdfd_registry *registry,

@@ -71,6 +71,13 @@ int sdfd_cache_lookup(sdfd_cache *c, sdfd_lookup *l);
  * msg. */
 int sdfd_cache_put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
                    const void *file, size_t n, int *replaced, char *msg, size_t cap);
+/* A volume's surface (sdf_volume_extract by opts) stored as the mesh `name`, as an upload of
+ * its binary PLY would be (surface.h), refused past the triangle bound the cache was made
+ * with (SDF_ELIMIT). 0 (*replaced set; *mesh, unless mesh is NULL, a reference to the mesh
+ * stored) or an error with msg. The POST of a volume's mesh and a bake's "mesh" both. */
+int sdfd_cache_put_surface(sdfd_cache *c, const char *name, const sdf_volume *v,
+                           const sdf_extract_options *opts, int *replaced, sdf_mesh **mesh,
+                           char *msg, size_t cap);
 /* Deletes: 0, SDF_ENOTFOUND, or SDFD_EUNAVAILABLE. */
 int sdfd_cache_remove(sdfd_cache *c, sdfd_item_kind kind, const char *name, char *msg,
                       size_t cap);
