@@ -172,7 +172,9 @@ static char *mesh_info(const sdf_mesh *m)
 }
 
 /* Write `item` (a mesh or stored volume, the caller's reference) to the backing, then make
- * it resident. */
+ * it resident. A baked volume's entry stays claimed on success until its job has listed it
+ * (sdfd_cache_baked_listed): a newer version heard of meanwhile is loaded only after that, so
+ * the job's older volume cannot replace it in memory. */
 static int put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
                const void *file, size_t n, const char *format, char *info, int *replaced,
                char *msg, size_t cap, int baked)
@@ -208,9 +210,11 @@ static int put(sdfd_cache *c, sdfd_item_kind kind, const char *name, void *item,
         e->checked = e->changes == changes ? sdfd_now() : 0;
         /* In the store, it is the client's: memory is a cache, so not fitting there is no
          * error (the next use loads it, and says why if it still cannot fit). */
-        if (baked) /* the bake's job puts it in memory next */
-            e->resident = 1;
-        else if (sdfd_resident_put(&c->r, e, item))
+        if (baked) { /* the bake's job lists it in memory next, then unclaims (baked_listed) */
+            pthread_mutex_unlock(&c->r.lock);
+            return 0;
+        }
+        if (sdfd_resident_put(&c->r, e, item))
             sdfd_log("warn", "store_put", "%s %s is stored but not kept in memory: over the "
                      "limits", sdfd_kind_name(kind), name);
         else
@@ -336,6 +340,26 @@ static int keep_baked(void *user, const sdfd_stored_volume *s, char *err, size_t
     return sdfd_cache_keep_baked(user, s, err, cap);
 }
 
+void sdfd_cache_baked_listed(sdfd_cache *c, const char *name, int rc)
+{
+    pthread_mutex_lock(&c->r.lock);
+    sdfd_cached *e = sdfd_resident_find(&c->r, SDFD_ITEM_VOLUME, name, 0);
+    sdfd_lookup *waiting = NULL;
+    if (e) { /* claimed since sdfd_cache_keep_baked */
+        e->resident = !rc;
+        if (!rc)
+            sdfd_resident_enforce_budget(&c->r, e);
+        waiting = sdfd_resident_unclaim(&c->r, e);
+    }
+    pthread_mutex_unlock(&c->r.lock);
+    sdfd_loader_retry(c->loader, waiting);
+}
+
+static void baked_listed(void *user, const char *name, int rc)
+{
+    sdfd_cache_baked_listed(user, name, rc);
+}
+
 static int job_started(void *user, const sdfd_job_status *s)
 {
     return sdfd_jobrecords_started(((sdfd_cache *)user)->store, s);
@@ -375,7 +399,9 @@ int sdfd_cache_start(sdfd_cache *c, char *err, size_t cap)
     if (rc)
         return rc;
     if (c->store) { /* the catalog's jobs are the job runner's (jobrunner.h) */
-        sdfd_volumes_hooks hooks = {c, keep_baked, job_started, job_ended, job_forgotten};
+        sdfd_volumes_hooks hooks = {.user = c, .keep = keep_baked, .listed = baked_listed,
+                                    .started = job_started, .ended = job_ended,
+                                    .forgotten = job_forgotten};
         sdfd_jobrecords_restore(c->store, c->volumes);
         sdfd_volumes_set_hooks(c->volumes, &hooks);
     }

@@ -98,6 +98,9 @@ cJSON *sdfd_cache_volume_json(const sdfd_stored_volume *s);
 /* A finished job's volume `s`, into the backing (and memory) before its job says done: 0 or
  * an error with err (the job fails with it). The volumes' `keep` hook. */
 int sdfd_cache_keep_baked(sdfd_cache *c, const sdfd_stored_volume *s, char *err, size_t cap);
+/* After a keep that returned 0: the job listed the volume named `name` in memory (rc 0) or
+ * could not (rc); the name's lookups, held until now, go on. The volumes' `listed` hook. */
+void sdfd_cache_baked_listed(sdfd_cache *c, const char *name, int rc);
 
 /* A job no longer (or never) in this process's memory, from its record in the store:
  * 0 or SDF_ENOTFOUND. */

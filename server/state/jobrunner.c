@@ -45,6 +45,11 @@ static int keep(void *user, const sdfd_stored_volume *s, char *err, size_t cap)
     return sdfd_cache_keep_baked(((sdfd_jobrunner *)user)->cache, s, err, cap);
 }
 
+static void listed(void *user, const char *name, int rc)
+{
+    sdfd_cache_baked_listed(((sdfd_jobrunner *)user)->cache, name, rc);
+}
+
 /* A job this replica ran ended: its end goes to its row at the next tick (now, poked). */
 static void ended(void *user, const sdfd_job_status *s, int token)
 {
@@ -212,7 +217,7 @@ sdfd_jobrunner *sdfd_jobrunner_create(sdfd_catalog *c, sdfd_cache *cache, sdfd_v
     snprintf(r->owner, sizeof r->owner, "%s", owner);
     pthread_mutex_init(&r->lock, NULL);
     pthread_cond_init(&r->wake, NULL);
-    sdfd_volumes_hooks hooks = {r, keep, NULL, ended, NULL};
+    sdfd_volumes_hooks hooks = {.user = r, .keep = keep, .listed = listed, .ended = ended};
     sdfd_volumes_set_hooks(v, &hooks);
     if (pthread_create(&r->thread, NULL, runner_main, r)) {
         pthread_cond_destroy(&r->wake);

@@ -178,7 +178,9 @@ static int check(sdfd_loader *ld, sdfd_cached *e, sdfd_lookup *l)
         return not_found(l);
     if (rc)
         return l->status = rc;
-    if (!resident)
+    /* A volume's description also names the job that made it and its time, which the same
+     * bytes baked again do not share: only a mesh rewritten with its content stays. */
+    if (!resident || e->kind != SDFD_ITEM_MESH)
         return NEED_LOAD;
     /* Rewritten: with the same content? */
     sdfd_sidecar meta;

@@ -499,6 +499,8 @@ static void finish(job *j, int canceled, sdfd_stored_volume *stored, int rc, sdf
     snapshot(j, &final);
     pthread_cond_broadcast(&v->slot_free);
     pthread_mutex_unlock(&v->lock);
+    if (stored && v->hooks.listed)
+        v->hooks.listed(v->hooks.user, j->status.volume, put);
     if (v->hooks.ended)
         v->hooks.ended(v->hooks.user, &final, j->token);
     pthread_mutex_lock(&v->lock);

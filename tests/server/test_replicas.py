@@ -147,6 +147,14 @@ class Replicas(unittest.TestCase):
         wait_until(lambda: request(b.ports["http"], "GET", "/v1/volumes/part16")[0] == 200,
                    VISIBLE * 10)
         self.assertEqual(ca.download("part16", format="exr"), cb.download("part16", format="exr"))
+        # The same bake again: the same bytes from another job; both replicas (each holding the
+        # first in memory) describe the second.
+        again = cb.bake("part", resolution=16, volume="part16")
+        cb.wait(again, timeout=60)
+        jobs = lambda: [request(s.ports["http"], "GET", "/v1/volumes/part16")[1]["job"]
+                        for s in (a, b)]
+        wait_until(lambda: jobs() == [again["id"]] * 2, VISIBLE * 10)
+        self.assertEqual(jobs(), [again["id"]] * 2)
         # A delete on B: A answers 404, the other items stay.
         self.assertEqual(request(b.ports["http"], "DELETE", "/v1/meshes/part")[0], 204)
         wait_until(lambda: served(a, "part") is None, VISIBLE * 10)
@@ -358,6 +366,13 @@ class Replicas(unittest.TestCase):
                 status, _ = request(s.ports["http"], "POST", "/v1/volumes/%s/query" % volume,
                                     POINTS.tobytes())  # octets: request() says so
                 self.assertEqual(status, 200, volume)
+            # A re-run job's second volume replaces its first on both, as soon as the second
+            # replica hears of it (the same bytes, another bake_seconds).
+            metas = lambda: [request(s.ports["http"], "GET", "/v1/volumes/" + volume)[1]
+                             for s in servers]
+            wait_until(lambda: metas()[0] == metas()[1], VISIBLE * 20)
+            got = metas()
+            self.assertEqual(got[0], got[1], "the replicas describe %s alike" % volume)
         print("30 kills: %d writes acknowledged, %d bakes accepted, %d done, %d failed as lost"
               % (acked, len(bakes), done, len(bakes) - done), file=sys.stderr)
         self.assertGreater(done, 0)
