@@ -125,6 +125,7 @@ async function selectVolume(v) {
   setModes('volume');
   if (!v.mesh) /* uploaded: no mesh to measure the error against */
     $('mode').value = 'signed';
+  document.querySelector('#extract [name=volume]').value = v.name;
   $('view-title').textContent = `Slice of volume ${v.name}`;
   await refresh();
 }
@@ -214,6 +215,30 @@ async function probe(event) {
   $('probe').textContent = text;
 }
 
+/* ---- a volume's surface as a mesh ---- */
+
+/* POST /v1/volumes/{name}/mesh registers the surface as a mesh; the new mesh is then
+   selected, so its report (closed, edge-manifold, triangles) shows. */
+async function extract(event) {
+  event.preventDefault();
+  const form = event.target, button = form.querySelector('button');
+  const volume = form.volume.value;
+  if (!volume)
+    return status('pick a volume to extract its surface', true);
+  button.disabled = true;
+  try {
+    const report = await client.extractMesh(volume, { mesh: form.mesh.value, method: form.method.value });
+    status(`extracted ${report.triangles} triangles from ${volume} as ${form.mesh.value}`);
+    await loadMeshes();
+    const tr = $('meshes').querySelector(`tbody tr[data-name="${CSS.escape(form.mesh.value)}"]`);
+    tr?.click();
+  } catch (e) {
+    failed(e);
+  } finally {
+    button.disabled = false;
+  }
+}
+
 /* ---- baking ---- */
 
 async function bake(event) {
@@ -253,6 +278,7 @@ async function main() {
   $('mode').addEventListener('change', refresh);
   $('slice').addEventListener('click', (e) => probe(e).catch(failed));
   $('bake').addEventListener('submit', bake);
+  $('extract').addEventListener('submit', extract);
   $('token-form').addEventListener('submit', useToken);
   $('token-form').hidden = !token;
   const meshes = await loadMeshes();

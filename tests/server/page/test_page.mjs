@@ -1,7 +1,8 @@
 /* test_page.mjs - sdfd's page (GET /) in a real browser: Debian's headless Chromium driven
  * over the DevTools protocol by puppeteer-core, against a real sdfd started here. It picks a
  * mesh, moves the slider, switches modes, probes a point, bakes a volume watching the progress
- * bar reach 100 %, opens the volume's error slice, saves screenshots (page-mesh.png, page.png in SCREENSHOT_DIR, the
+ * bar reach 100 %, opens the volume's error slice, extracts its surface as a mesh and reads that
+ * mesh's report, saves screenshots (page-mesh.png, page.png in SCREENSHOT_DIR, the
  * build directory under meson) and fails on any console error or uncaught exception. */
 import { spawn } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
@@ -162,6 +163,19 @@ test('pick a mesh, slide, switch modes, probe, bake, view the error', async () =
   assert.equal(await page.$eval('#slice', (img) => img.dataset.mode), 'error');
   await page.mouse.click(box.x + box.width / 2, box.y + box.height * 0.4);
   await page.waitForFunction(() => /value/.test(document.getElementById('probe').textContent));
+
+  /* the volume's surface as a mesh: listed, selected, its report shown (closed, manifold) */
+  assert.equal(await page.$eval('#extract [name=volume]', (el) => el.value), 'fan32');
+  await page.$eval('#extract [name=mesh]', (el) => { el.value = 'fan32_surface'; });
+  await page.select('#extract [name=method]', 'dual_contouring');
+  await newSlice(() => page.click('#extract button'));
+  await page.waitForSelector('#meshes tbody tr.selected[data-name="fan32_surface"]');
+  assert.equal(await page.$eval('#slice', (img) => img.dataset.mode), 'signed');
+  await page.waitForFunction(() => /closedtrue/.test(document.getElementById('report').textContent));
+  const surface = await page.$eval('#report', (dl) => dl.textContent);
+  assert.match(surface, /edge manifoldtrue/);
+  assert.match(surface, /format/);
+  assert.match(surface, /triangles\d{4,}/);
 
   await page.screenshot({ path: path.join(SHOTS, 'page.png'), fullPage: true });
   assert.equal(await page.$eval('#token-form', (f) => f.hidden), true, 'no token asked for');
