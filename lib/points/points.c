@@ -110,10 +110,31 @@ static int check_batch(const sdf_mesh *mesh, const float *points, size_t count,
            : b->sign == SDF_SIGN_WINDING ? sdf__mesh_need_winding(mesh) : 0;
 }
 
+/* The side of the closest feature's pseudonormal `normal` that p is on: -1 or +1. */
+static float pseudonormal_side(const float p[3], const sdf__hit *hit, const float normal[3])
+{
+    double s = 0;
+    for (int i = 0; i < 3; i++)
+        s += (p[i] - hit->point[i]) * normal[i];
+    return s < 0 ? -1.0f : 1.0f;
+}
+
+/* Within this many surface_epsilon of a closed mesh, the sign by rays is the pseudonormal's:
+ * rays from so close cross the surface within rounding of the closest point, where a shared
+ * edge under it counts twice or not at all for every direction at once (the unit cube one
+ * float step under its top face's diagonal). The pseudonormal test is exact there. */
+#define RAY_NEAR 64
+
+static int ray_near(const sdf_mesh *m, double d)
+{
+    return m->report.closed && d < RAY_NEAR * (double)m->surface_epsilon;
+}
+
 /* -1 inside, +1 outside (or unsigned). `winding`: the point's winding number when it was
- * computed with its packet, else NAN. */
+ * computed with its packet, else NAN. `normal`: the closest feature's pseudonormal, when
+ * the sign is by pseudonormals or by rays at `d` within ray_near. */
 static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, const float normal[3],
-                     double winding)
+                     double winding, double d)
 {
     const sdf_mesh *m = b->mesh;
     switch (b->sign) {
@@ -125,10 +146,7 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
         if (m->report.closed && (p[0] <= lo[0] || p[0] >= hi[0] || p[1] <= lo[1] ||
                                  p[1] >= hi[1] || p[2] <= lo[2] || p[2] >= hi[2]))
             return 1.0f;
-        double s = 0;
-        for (int i = 0; i < 3; i++)
-            s += (p[i] - hit->point[i]) * normal[i];
-        return s < 0 ? -1.0f : 1.0f;
+        return pseudonormal_side(p, hit, normal);
     }
     case SDF_SIGN_WINDING: {
         double q[3] = {p[0], p[1], p[2]};
@@ -137,6 +155,8 @@ static float sign_of(const batch *b, const float p[3], const sdf__hit *hit, cons
         return winding > 0.5 ? -1.0f : 1.0f;
     }
     case SDF_SIGN_RAYCAST:
+        if (ray_near(m, d))
+            return pseudonormal_side(p, hit, normal);
         return sdf__raycast_inside(m->bvh, p) ? -1.0f : 1.0f;
     default:
         return 1.0f;
@@ -155,10 +175,13 @@ static void finish(const batch *b, size_t i, const float p[3], const sdf__hit *h
     int on_surface = d <= m->surface_epsilon;
     float normal[3] = {0, 0, 0};
     int hinted = b->sign_hint && b->sign_hint[i] && d > 0;
-    if ((b->sign == SDF_SIGN_PSEUDONORMAL && !hinted) || (on_surface && b->out->gradient))
+    int by_normal = b->sign == SDF_SIGN_PSEUDONORMAL ||
+                    (b->sign == SDF_SIGN_RAYCAST && ray_near(m, d));
+    if ((by_normal && !hinted) || (on_surface && b->out->gradient))
         sdf__pseudonormal(m->normals, m->triangles, m->edge_of, hit->triangle, hit->feature,
                           hit->face_normal, normal);
-    float s = hinted ? (float)b->sign_hint[i] : d > 0 ? sign_of(b, p, hit, normal, winding) : 1.0f;
+    float s = hinted ? (float)b->sign_hint[i]
+              : d > 0 ? sign_of(b, p, hit, normal, winding, d) : 1.0f;
     sdf_query_result *o = b->out;
     if (o->distance)
         o->distance[i] = s * (float)d;

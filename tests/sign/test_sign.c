@@ -8,7 +8,10 @@
  *  - auto picks pseudonormal for closed meshes that do not intersect themselves, winding
  *    otherwise (cow.off is closed once welded, but self-intersecting);
  *  - the stored edge and vertex pseudonormals equal their definition, computed here the
- *    slow way (every mesh above). */
+ *    slow way (every mesh above);
+ *  - down to the last float step every method agrees on closed meshes: the unit cube's faces
+ *    one float step in and out (along the shared diagonals too), and points a few float steps
+ *    off fandisk's every edge and vertex. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -291,7 +294,133 @@ static void test_demo(void)
     sdf_mesh_release(demo);
 }
 
+/* ---- one float step from the surface ------------------------------------------------- */
+
+static const sdf_sign_method METHODS[] = {SDF_SIGN_AUTO, SDF_SIGN_PSEUDONORMAL, SDF_SIGN_WINDING,
+                                         SDF_SIGN_RAYCAST};
+#define N_METHODS (sizeof METHODS / sizeof METHODS[0])
+
+/* Signed distances of the n points by each method, into d[method][n]. */
+static void by_method(const sdf_mesh *m, const float *p, size_t n, float *d[N_METHODS])
+{
+    for (size_t k = 0; k < N_METHODS; k++) {
+        sdf_query_options o = {.sign = METHODS[k], .threads = 2};
+        sdf_query_result r = {.distance = d[k]};
+        CHECK(sdf_query(m, p, n, &o, &r) == 0, "query");
+    }
+}
+
+/* The unit cube centred at the origin, each face split along a diagonal: points one float
+ * step inside and outside each face along both its diagonals (one of them the triangles'
+ * shared edge) are inside and outside by every method, and a point on a face answers 0. */
+static void test_cube_last_step(void)
+{
+    float v[8][3];
+    for (int i = 0; i < 8; i++)
+        for (int a = 0; a < 3; a++)
+            v[i][a] = (i >> a) & 1 ? 0.5f : -0.5f;
+    static const uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                                         {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+    uint32_t t[12][3];
+    for (int f = 0; f < 6; f++) {
+        const uint32_t *q = quads[f];
+        memcpy(t[2 * f], (uint32_t[3]){q[0], q[1], q[2]}, sizeof t[0]);
+        memcpy(t[2 * f + 1], (uint32_t[3]){q[0], q[2], q[3]}, sizeof t[0]);
+    }
+    sdf_mesh *m;
+    CHECK(sdf_mesh_create(&v[0][0], 8, &t[0][0], 12, NULL, &m, NULL) == 0, "cube");
+    enum { ALONG = 19, N = 6 * 2 * ALONG * 3 };
+    float *p = malloc(3 * N * sizeof *p), *d[N_METHODS];
+    int *want = malloc(N * sizeof *want);
+    size_t n = 0;
+    for (int axis = 0; axis < 3; axis++)
+        for (int side = -1; side <= 1; side += 2)
+            for (int diag = 0; diag < 2; diag++)
+                for (int i = 1; i <= ALONG; i++)
+                    for (int step = -1; step <= 1; step++, n++) {
+                        float a = -0.5f + (float)i / (ALONG + 1), face = 0.5f * (float)side;
+                        int u = (axis + 1) % 3, w = (axis + 2) % 3;
+                        p[3 * n + u] = a, p[3 * n + w] = diag ? -a : a;
+                        /* step -1: one float toward the centre, +1: away, 0: on the face */
+                        p[3 * n + axis] = step ? nextafterf(face, step * side * 1.0f) : face;
+                        want[n] = step;
+                    }
+    for (size_t k = 0; k < N_METHODS; k++)
+        d[k] = malloc(N * sizeof(float));
+    by_method(m, p, N, d);
+    size_t wrong[N_METHODS] = {0};
+    for (size_t k = 0; k < N_METHODS; k++)
+        for (size_t i = 0; i < N; i++)
+            wrong[k] += !(want[i] < 0 ? d[k][i] < 0 : want[i] > 0 ? d[k][i] > 0 : d[k][i] == 0);
+    for (size_t k = 0; k < N_METHODS; k++)
+        CHECK(wrong[k] == 0, "cube, %s: %zu of %d points one float step from a face get the "
+              "wrong sign", sdf_sign_name(METHODS[k]), wrong[k], N);
+    for (size_t k = 0; k < N_METHODS; k++)
+        free(d[k]);
+    free(p), free(want);
+    sdf_mesh_release(m);
+}
+
+/* A closed mesh's edges and vertices: points a few float steps off each edge's midpoint and
+ * each vertex, along each adjacent face's normal, in and out, get one sign from every method
+ * (the pseudonormal's, exact there); the points that rounding puts on a face answer 0 up to
+ * 1e-12 of the diagonal by every method. */
+static void test_near_features(void)
+{
+    sdf_mesh *m = load_data_mesh("fandisk.off");
+    if (!m)
+        return;
+    size_t nt = m->report.triangles, n = 0, cap = 2 * 4 * 3 * nt;
+    float *p = malloc(3 * cap * sizeof *p), *d[N_METHODS];
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *tri = m->triangles + 3 * t;
+        const float *a = m->positions + 3 * tri[0], *b = m->positions + 3 * tri[1],
+                    *c = m->positions + 3 * tri[2];
+        double e1[3], e2[3], nrm[3];
+        for (int i = 0; i < 3; i++)
+            e1[i] = b[i] - a[i], e2[i] = c[i] - a[i];
+        nrm[0] = e1[1] * e2[2] - e1[2] * e2[1], nrm[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        nrm[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        double len = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+        if (!(len > 0))
+            continue;
+        for (int corner = 0; corner < 3; corner++) {
+            const float *x = m->positions + 3 * tri[corner],
+                        *y = m->positions + 3 * tri[(corner + 1) % 3];
+            for (int at = 0; at < 2; at++)         /* the vertex, then the edge's midpoint */
+                for (int dir = -1; dir <= 1; dir += 2) /* inward, outward */
+                    for (int ulps = 1; ulps <= 4; ulps *= 4, n++)
+                        for (int i = 0; i < 3; i++) {
+                            float q = at ? 0.5f * (x[i] + y[i]) : x[i];
+                            float step = ulps * (nextafterf(fabsf(q) + 1e-30f, INFINITY) -
+                                                 fabsf(q));
+                            p[3 * n + i] = q + (float)(dir * step * 4 * nrm[i] / len);
+                        }
+        }
+    }
+    for (size_t k = 0; k < N_METHODS; k++)
+        d[k] = malloc(n * sizeof(float));
+    by_method(m, p, n, d);
+    float on_face = (float)(1e-12 * m->report.diagonal);
+    size_t disagree[N_METHODS] = {0};
+    for (size_t k = 0; k < N_METHODS; k++)
+        for (size_t i = 0; i < n; i++)
+            /* rounding put some points on a face: those answer 0 up to rounding */
+            disagree[k] += fabsf(d[1][i]) > on_face ? (d[k][i] < 0) != (d[1][i] < 0)
+                                                    : !(fabsf(d[k][i]) <= on_face);
+    for (size_t k = 0; k < N_METHODS; k++)
+        CHECK(disagree[k] == 0, "fandisk, %s: %zu of %zu points a few float steps from an edge "
+              "or vertex disagree with the pseudonormal's sign", sdf_sign_name(METHODS[k]),
+              disagree[k], n);
+    for (size_t k = 0; k < N_METHODS; k++)
+        free(d[k]);
+    free(p);
+    sdf_mesh_release(m);
+}
+
 static const check_case cases[] = {
+    {"cube_last_step", test_cube_last_step},
+    {"near_features", test_near_features},
     {"fandisk", test_fandisk},
     {"knot1", test_knot1},
     {"demo", test_demo},
