@@ -4,8 +4,8 @@
  * in 1.0, 4 in 2.0/3.0), then a Python dict literal such as
  *   {'descr': '<f4', 'fortran_order': False, 'shape': (1000, 3), }
  * padded with spaces to a multiple of 64 bytes and ended by '\n', then the raw data.
- * We accept what sdfd needs: little-endian float32/float64 in C order, up to 4 dimensions,
- * with exactly the bytes the shape calls for. Every length is checked before use. */
+ * We accept what sdfd needs: little-endian float32/float64 (and, when asked, integers) in C
+ * order, up to 4 dimensions, with exactly the bytes the shape calls for. Every length is checked before use. */
 #include <ctype.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -39,24 +39,34 @@ static const char *skip_spaces(const char *p, const char *end)
     return p;
 }
 
-static int parse_descr(const char *dict, size_t len, sdf_npy_info *info, sdf_diag *diag)
+/* The descr: '<f4' or '<f8', and with `integers` also little-endian (or, for one byte,
+ * byte-order-free '|') signed and unsigned integers of 1, 2, 4 or 8 bytes. */
+static int parse_descr(const char *dict, size_t len, int integers, sdf_npy_info *info,
+                       sdf_diag *diag)
 {
     const char *end = dict + len, *p = find_key(dict, len, "descr");
     if (!p)
         return sdf__diag_set(diag, SDF_EPARSE, 0, 10, "npy header has no 'descr'");
     p = skip_spaces(p, end);
     if (end - p >= 5 && (p[0] == '\'' || p[0] == '"') && p[4] == p[0]) {
-        if (!memcmp(p + 1, "<f4", 3)) {
-            info->dtype = SDF_NPY_F32;
+        char order = p[1], kind = p[2], size = p[3];
+        size_t bytes = size == '1' ? 1 : size == '2' ? 2 : size == '4' ? 4 : size == '8' ? 8 : 0;
+        int little = order == '<' || (order == '|' && bytes == 1);
+        if (order == '<' && kind == 'f' && (bytes == 4 || bytes == 8)) {
+            info->kind = 'f', info->itemsize = bytes;
+            info->dtype = bytes == 4 ? SDF_NPY_F32 : SDF_NPY_F64;
             return 0;
         }
-        if (!memcmp(p + 1, "<f8", 3)) {
-            info->dtype = SDF_NPY_F64;
+        if (integers && little && bytes && (kind == 'i' || kind == 'u')) {
+            info->kind = kind, info->itemsize = bytes;
             return 0;
         }
     }
     return sdf__diag_set(diag, SDF_EFORMAT, 0, (long long)(p - dict) + 10,
-                         "npy dtype must be little-endian float32 ('<f4') or float64 ('<f8')");
+                         integers ? "npy dtype must be little-endian float32, float64 or an "
+                                    "integer type ('<f4', '<f8', '<i8', '<u4', ...)"
+                                  : "npy dtype must be little-endian float32 ('<f4') or "
+                                    "float64 ('<f8')");
 }
 
 static int parse_order(const char *dict, size_t len, sdf_diag *diag)
@@ -107,7 +117,8 @@ static int parse_shape(const char *dict, size_t len, sdf_npy_info *info, sdf_dia
     return sdf__diag_set(diag, SDF_EPARSE, 0, (long long)(p - dict) + 10, "malformed npy shape");
 }
 
-int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *diag)
+static int parse(const void *data, size_t size, int integers, sdf_npy_info *info,
+                 sdf_diag *diag)
 {
     sdf__diag_clear(diag);
     if (!info || (!data && size))
@@ -132,7 +143,7 @@ int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *d
                              "npy header declares %zu bytes but only %zu follow", header_len,
                              size - offset);
     const char *dict = (const char *)u + offset;
-    int rc = parse_descr(dict, header_len, info, diag);
+    int rc = parse_descr(dict, header_len, integers, info, diag);
     if (!rc)
         rc = parse_order(dict, header_len, diag);
     if (!rc)
@@ -147,15 +158,25 @@ int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *d
                                  "npy shape needs more data than the %zu bytes present", avail);
         elems *= info->shape[i];
     }
-    if (elems > avail / info->dtype)
+    if (elems > avail / info->itemsize)
         return sdf__diag_set(diag, SDF_ETRUNC, 0, (long long)info->data_offset,
                              "npy shape needs %zu elements but only %zu bytes follow", elems,
                              avail);
-    info->data_bytes = elems * info->dtype;
+    info->data_bytes = elems * info->itemsize;
     if (info->data_bytes != avail)
         return sdf__diag_set(diag, SDF_EPARSE, 0, (long long)(info->data_offset + info->data_bytes),
                              "%zu bytes follow the npy data", avail - info->data_bytes);
     return 0;
+}
+
+int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *diag)
+{
+    return parse(data, size, 0, info, diag);
+}
+
+int sdf_npy_parse_numeric(const void *data, size_t size, sdf_npy_info *info, sdf_diag *diag)
+{
+    return parse(data, size, 1, info, diag);
 }
 
 long sdf_npy_write_header(char *dst, size_t cap, int ndim, const size_t *shape)

@@ -1,6 +1,7 @@
 /* test_npy.c - the .npy codec: headers we write parse back; NumPy's own layouts (versions
  * 1-3, float64, 1-D) parse; every truncated prefix and each malformed header is refused
- * with a message. */
+ * with a message; sdf_npy_parse_numeric takes integers too. */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -75,8 +76,44 @@ static void test_headers(void)
     CHECK(sdf_npy_parse("GIF89a....", 10, &info, &diag) == SDF_EFORMAT, "bad magic accepted");
 }
 
+/* sdf_npy_parse_numeric: integers of every size, as NumPy spells them; floats as before. */
+static void test_numeric(void)
+{
+    char buf[4096];
+    sdf_npy_info info;
+    sdf_diag diag;
+    static const struct { const char *descr; char kind; size_t size; } ok[] = {  /* NOLINT */
+        {"<i8", 'i', 8}, {"<i4", 'i', 4}, {"<i2", 'i', 2}, {"|i1", 'i', 1}, {"<u8", 'u', 8},
+        {"<u4", 'u', 4}, {"<u2", 'u', 2}, {"|u1", 'u', 1}, {"<f4", 'f', 4}, {"<f8", 'f', 8},
+    };
+    for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
+        char dict[96];
+        snprintf(dict, sizeof dict, "{'descr': '%s', 'fortran_order': False, 'shape': (2, 3), }",
+                 ok[i].descr);
+        size_t n = make_npy(buf, dict, 1, 6 * ok[i].size);
+        CHECK(sdf_npy_parse_numeric(buf, n, &info, &diag) == 0 && info.kind == ok[i].kind &&
+                  info.itemsize == ok[i].size && info.data_bytes == 6 * ok[i].size &&
+                  (info.kind == 'f') == (info.dtype != 0),
+              "%s: %s", ok[i].descr, diag.message);
+        CHECK((sdf_npy_parse(buf, n, &info, &diag) == 0) == (ok[i].kind == 'f'),
+              "sdf_npy_parse and %s", ok[i].descr);
+        CHECK(sdf_npy_parse_numeric(buf, n - 1, &info, &diag) == SDF_ETRUNC, "%s cut short",
+              ok[i].descr);
+    }
+    static const char *const bad[] = {">i8", "<i3", "<b1", "|i8", "<c8", "<U4", "|O"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char dict[96];
+        snprintf(dict, sizeof dict, "{'descr': '%s', 'fortran_order': False, 'shape': (2, 3), }",
+                 bad[i]);
+        size_t n = make_npy(buf, dict, 1, 48);
+        CHECK(sdf_npy_parse_numeric(buf, n, &info, &diag) == SDF_EFORMAT &&
+                  strstr(diag.message, "integer"), "%s accepted: %s", bad[i], diag.message);
+    }
+}
+
 static const check_case cases[] = {
     {"headers", test_headers},
+    {"numeric", test_numeric},
 };
 
 int main(int argc, char **argv)

@@ -671,7 +671,9 @@ typedef enum sdf_npy_dtype { SDF_NPY_F32 = 4, SDF_NPY_F64 = 8 } sdf_npy_dtype;
 #define SDF_NPY_MAX_DIMS 4
 
 typedef struct sdf_npy_info {
-    sdf_npy_dtype dtype;
+    sdf_npy_dtype dtype;  /* floats; 0 for integers (sdf_npy_parse_numeric) */
+    char kind;            /* 'f' float, 'i' signed or 'u' unsigned integer */
+    size_t itemsize;      /* bytes per element: 1, 2, 4 or 8 */
     int ndim;
     size_t shape[SDF_NPY_MAX_DIMS];
     size_t data_offset; /* bytes before the array data */
@@ -682,6 +684,9 @@ typedef struct sdf_npy_info {
  * data_bytes follow it. Big-endian, Fortran-order, object or other dtypes are refused
  * (SDF_EFORMAT); a short file is SDF_ETRUNC; `diag` says where. */
 int sdf_npy_parse(const void *data, size_t size, sdf_npy_info *info, sdf_diag *diag);
+/* As sdf_npy_parse, and little-endian integers of 1, 2, 4 or 8 bytes too ('<i8', '<u4',
+ * '|u1', ...: `kind` and `itemsize` say which; `dtype` is 0 for them). */
+int sdf_npy_parse_numeric(const void *data, size_t size, sdf_npy_info *info, sdf_diag *diag);
 
 /* Write a version 1.0 header for a little-endian float32 C-order array of `ndim` (1..4)
  * dimensions into `dst` (`cap` bytes). Returns the header's length (a multiple of 64),
