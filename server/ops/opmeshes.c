@@ -7,6 +7,7 @@
 
 #include "core/errors.h"
 #include "core/log.h"
+#include "ops/mesharrays.h"
 
 cJSON *sdfd_mesh_report_json(const char *name, const sdf_mesh *mesh)
 {
@@ -67,23 +68,39 @@ int sdfd_op_mesh_get(sdfd_call *call)
     return sdfd_call_json(call, 200, json);
 }
 
-/* On the worker: parse and index the body, then store it through the cache. */
+/* On the worker: parse and index the body, then store it through the cache. Arrays (JSON or
+ * npz, mesharrays.h) become the PLY file of the same arrays first, stored as such. */
 static void load_upload(sdfd_call *call)
 {
     sdfd_server *srv = call->srv;
     sdf_mesh_options opts = {.max_triangles = srv->cfg.max_total_triangles};
     const char *format = sdfd_url_value(call->args, "format");
+    sdfd_mesh_body kind = sdfd_mesh_body_kind(format, call->body, call->len);
     sdf_mesh *mesh = NULL;
     sdf_diag diag = {0};
     int rc, replaced = 0;
-    if (format && sdf_format_from_name(format, &opts.format)) {
-        sdfd_call_fail(call, SDF_EFORMAT, "unknown format '%s' (obj, ply, stl, off)", format);
+    if (kind == SDFD_MESH_BODY_FILE && format && sdf_format_from_name(format, &opts.format)) {
+        sdfd_call_fail(call, SDF_EFORMAT, "unknown format '%s' (obj, ply, stl, off, json, npz)",
+                       format);
         return;
     }
-    rc = sdf_mesh_load_memory(call->body, call->len, &opts, &mesh, &diag);
+    void *ply = NULL;
+    size_t len = call->len;
+    const void *file = call->body;
+    if (kind != SDFD_MESH_BODY_FILE) {
+        rc = sdfd_mesh_arrays_to_ply(kind, call->body, call->len, opts.max_triangles, &ply, &len,
+                                     diag.message, sizeof diag.message);
+        if (rc) {
+            sdfd_call_fail(call, rc, "%s", diag.message);
+            return;
+        }
+        file = ply, opts.format = SDF_FORMAT_PLY;
+    }
+    rc = sdf_mesh_load_memory(file, len, &opts, &mesh, &diag);
     if (!rc)
-        rc = sdfd_cache_put(srv->cache, SDFD_ITEM_MESH, call->name, sdf_mesh_retain(mesh),
-                            call->body, call->len, &replaced, diag.message, sizeof diag.message);
+        rc = sdfd_cache_put(srv->cache, SDFD_ITEM_MESH, call->name, sdf_mesh_retain(mesh), file,
+                            len, &replaced, diag.message, sizeof diag.message);
+    free(ply);
     if (rc) {
         sdf_mesh_release(mesh);
         sdfd_call_fail(call, rc, "%s", diag.message);

@@ -2,7 +2,7 @@
 #include "transport/body.h"
 
 #include "core/errors.h"
-#include "transport/numtext.h"
+#include "core/numtext.h"
 
 #include <ctype.h>
 #include <math.h>

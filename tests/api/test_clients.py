@@ -167,7 +167,11 @@ class DocumentAgrees(unittest.TestCase):
         self.assertEqual(sorted(k for k in S.schema("Smooth")["properties"]
                                 if k not in ("depth", "scale")),
                          sorted(k for k in S.smoothing if k != "none"))
-        self.assertEqual(S.param_enum("MeshFormat"), S.lib_names("FORMAT_NAMES"))
+        # the library's file formats, then the arrays server/ops/mesharrays.c reads
+        self.assertEqual(S.param_enum("MeshFormat"), S.lib_names("FORMAT_NAMES") + ["json", "npz"])
+        arrays = open(os.path.join(ROOT, "server", "ops", "mesharrays.c")).read()
+        self.assertIn('strcasecmp(format, "json")', arrays)
+        self.assertIn('strcasecmp(format, "npz")', arrays)
         self.assertEqual(S.param_enum("VolumeFileFormat"), S.lib_names("FILE_NAMES"))
         info = S.schema("VolumeInfo")["properties"]
         self.assertEqual(info["encoding"]["enum"], S.lib_names("ENCODING_NAMES"))

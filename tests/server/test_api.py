@@ -402,6 +402,131 @@ class Meshes(unittest.TestCase):
         self.assertEqual(r.stdout.decode(), "sdfd %s\n" % os.environ["SDF_VERSION"])
 
 
+def read_off(path):
+    """(vertices float32 (V, 3), faces int64 (F, 3)) of a triangle OFF file."""
+    with open(path) as f:
+        words = f.read().split()
+    assert words[0] == "OFF"
+    nv, nf = int(words[1]), int(words[2])
+    at = 4
+    v = np.array(words[at:at + 3 * nv], np.float32).reshape(nv, 3)
+    at += 3 * nv
+    rows = np.array(words[at:at + 4 * nf], np.int64).reshape(nf, 4)
+    assert (rows[:, 0] == 3).all()
+    return v, rows[:, 1:]
+
+
+def put(port, name, body, content_type, query=""):
+    """(status, parsed JSON) of PUT /v1/meshes/{name}."""
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    try:
+        conn.request("PUT", "/v1/meshes/%s%s" % (name, query), body,
+                     {"Content-Type": content_type})
+        r = conn.getresponse()
+        body = json.loads(r.read())
+        return r.status, body.get("error", body)
+    finally:
+        conn.close()
+
+
+def npz_bytes(compressed=False, **arrays):
+    buf = io.BytesIO()
+    (np.savez_compressed if compressed else np.savez)(buf, **arrays)
+    return buf.getvalue()
+
+
+class MeshArrays(unittest.TestCase):
+    """PUT /v1/meshes/{name} with {"vertices", "faces"} JSON or an npz: the same mesh as the
+    file, answering the same bits; malformed arrays are refused, naming what is wrong."""
+
+    def test_same_mesh_as_the_file(self):
+        v, f = read_off(os.path.join(DATA, "fandisk.off"))
+        points = np.random.default_rng(5).uniform(-0.6, 0.6, (2000, 3)).astype(np.float32)
+        with Server() as s:
+            c = sdfclient.Client(s.url)
+            self.addCleanup(c.close)
+            c.upload("file", os.path.join(DATA, "fandisk.off"))
+            want = c.query("file", points)["distance"]
+            bodies = {
+                "json": (json.dumps({"vertices": v.tolist(), "faces": f.tolist()}),
+                         "application/json"),
+                "npz": (npz_bytes(vertices=v, faces=f), "application/octet-stream"),
+                "npz_compressed": (npz_bytes(True, vertices=v, faces=f.astype(np.int32)),
+                                   "application/x-npz"),
+                "npz_f64_u16": (npz_bytes(vertices=v.astype(np.float64),
+                                          faces=f.astype(np.uint16)), "application/octet-stream"),
+            }
+            for name, (body, ctype) in bodies.items():
+                status, rep = put(s.ports["http"], name, body, ctype)
+                self.assertEqual((status, rep["triangles"], rep["closed"]), (201, 12946, True),
+                                 (name, rep))
+                self.assertTrue(same_bits(c.query(name, points)["distance"], want), name)
+
+    def test_malformed_arrays(self):
+        tri = {"vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}
+        v = np.array(tri["vertices"], np.float32)
+        cases = [
+            ({"vertices": tri["vertices"], "faces": [[0, 1, 3]]}, 422, "faces[0][2] = 3 is out of range"),
+            ({"vertices": [[0, 0, 0], [1, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}, 422,
+             "vertices[1] has 2 numbers, not 3"),
+            ({"vertices": tri["vertices"], "faces": [[0, 1, 2, 0]]}, 422, "faces[0] has 4 numbers"),
+            ({"vertices": tri["vertices"], "faces": [[0, 1.5, 2]]}, 422, "faces[0][1] = 1.5 is not an integer"),
+            ({"vertices": tri["vertices"], "faces": [[0, -1, 2]]}, 422, "faces[0][1] = -1 is out of range"),
+            ({"vertices": tri["vertices"]}, 422, '"faces" is missing'),
+            ({"vertices": tri["vertices"], "faces": []}, 422, "the mesh has no faces"),
+            ({"vertices": tri["vertices"], "faces": [[0, 1, 2]], "normals": []}, 422, 'unknown key "normals"'),
+            ({"vertices": [[0, 0, 1e39], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}, 422,
+             "is not a finite float32"),
+        ]
+        with Server() as s:
+            port = s.ports["http"]
+            for body, status, message in cases:
+                got, err = put(port, "bad", json.dumps(body), "application/json")
+                self.assertEqual(got, status, (body, err))
+                self.assertIn(message, err["message"], body)
+            got, err = put(port, "bad", '{"vertices": [[NaN, 0, 0], [1, 0, 0], [0, 1, 0]], '
+                           '"faces": [[0, 1, 2]]}', "application/json")
+            self.assertEqual((got, err["code"]), (422, "EINVAL"), err)
+            self.assertIn("vertices[0][0] is not a number", err["message"])
+            got, err = put(port, "bad", '{"vertices": [[0, 0, 0]', "application/json")
+            self.assertEqual((got, err["code"]), (400, "ESYNTAX"), err)
+            npz_cases = [
+                (npz_bytes(vertices=np.array([[np.nan, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32),
+                           faces=np.array([[0, 1, 2]])), 422, "vertices[0][0] = nan is not a finite"),
+                (npz_bytes(vertices=v, faces=np.array([[0, 1, 7]], np.int8)), 422,
+                 "faces[0][2] = 7 is out of range: there are 3 vertices"),
+                (npz_bytes(vertices=v, faces=np.array([[0, 1, -2]], np.int64)), 422,
+                 "faces[0][2] = -2 is out of range"),
+                (npz_bytes(vertices=v, faces=np.array([[0.0, 1, 2]])), 422, "'faces' must hold integers"),
+                (npz_bytes(vertices=v, faces=np.array([0, 1, 2])), 422, "'faces' must have shape (N, 3)"),
+                (npz_bytes(vertices=v), 422, "no member 'faces'"),
+                (npz_bytes(vertices=v.astype(">f4"), faces=np.array([[0, 1, 2]])), 415,
+                 "npy dtype must be"),
+                (npz_bytes(True, vertices=v, faces=np.array([[0, 1, 2]]))[:-30], 415,
+                 "no end of central directory"),
+            ]
+            for body, status, message in npz_cases:
+                got, err = put(port, "bad", body, "application/octet-stream")
+                self.assertEqual(got, status, (message, err))
+                self.assertIn(message, err["message"])
+            # A damaged deflated member: its CRC-32 or its inflation says so.
+            good = bytearray(npz_bytes(True, vertices=v, faces=np.array([[0, 1, 2]] * 50)))
+            at = bytes(good).index(b"faces.npy") + len("faces.npy") + 20 + 8  # in its data
+            good[at] ^= 0x55
+            got, err = put(port, "bad", bytes(good), "application/octet-stream")
+            self.assertEqual(got, 415, err)
+            self.assertRegex(err["message"], "CRC-32|inflate|local header")
+            self.assertEqual(c_names(port), ["demo"], "nothing half-stored")
+
+
+def c_names(port):
+    c = sdfclient.Client("http://127.0.0.1:%d" % port)
+    try:
+        return sorted(m["name"] for m in c.meshes())
+    finally:
+        c.close()
+
+
 class ClientText(unittest.TestCase):
     """Error messages that quote a client's bytes stay UTF-8: a byte of no UTF-8 character
     becomes U+FFFD, so the JSON body and the binary ERROR frame stay readable."""

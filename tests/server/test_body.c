@@ -17,7 +17,7 @@
 #include "../common/check.h"
 #include "transport/body.h"
 #include "core/errors.h"
-#include "transport/numtext.h"
+#include "core/numtext.h"
 
 /* Reset at the start of every case, so that a case run alone draws what it draws in the
  * whole run. */

@@ -1,4 +1,4 @@
-/* test_numtext.c - the JSON number fast paths (server/transport/numtext.c) against the C library:
+/* test_numtext.c - the JSON number fast paths (server/core/numtext.c) against the C library:
  *  - every printed float reads back as the same float, through strtof and through strtod
  *    and a cast (as Python's json + numpy do), for 2,000,000 random bit patterns and the
  *    edge values; the text is valid JSON and within SDFD_FLOAT_TEXT_MAX;
@@ -12,7 +12,7 @@
 #include <string.h>
 
 #include "../common/check.h"
-#include "transport/numtext.h"
+#include "core/numtext.h"
 
 /* Reset at the start of every case, so that a case run alone draws what it draws in the
  * whole run. */

@@ -1,5 +1,5 @@
 /* numtext.c - decimal text <-> numbers for the JSON body (see numtext.h). */
-#include "transport/numtext.h"
+#include "core/numtext.h"
 
 #include <math.h>
 #include <stdint.h>
