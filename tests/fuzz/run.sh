@@ -26,7 +26,7 @@ seconds=${1:-30}
 runs=${2:--1}
 build=build-fuzz
 harnesses=${FUZZ_HARNESSES:-"mesh_obj mesh_ply mesh_stl mesh_off mesh_auto npy body_npy exr proto
-    json_query json_filter json_bake url"}
+    json_query json_filter json_bake url mesh_arrays"}
 
 if [ ! -f "$build/build.ninja" ]; then
     CC=clang meson setup "$build" --buildtype=debugoptimized -Dfuzz=true --werror >/dev/null
@@ -42,7 +42,7 @@ dict_of() {
     case "$1" in
         mesh_obj) echo obj ;; mesh_ply) echo ply ;; mesh_stl) echo stl ;; mesh_off) echo off ;;
         mesh_auto) echo mesh ;; npy|body_npy) echo npy ;; exr) echo exr ;; proto) echo proto ;;
-        json_*) echo json ;; url) echo url ;;
+        json_*) echo json ;; url) echo url ;; mesh_arrays) echo arrays ;;
     esac
 }
 

@@ -461,6 +461,13 @@ class MeshArrays(unittest.TestCase):
                 self.assertEqual((status, rep["triangles"], rep["closed"]), (201, 12946, True),
                                  (name, rep))
                 self.assertTrue(same_bits(c.query(name, points)["distance"], want), name)
+            rep = c.upload_arrays("client", v, f)  # the Python client sends an npz
+            self.assertEqual((rep["triangles"], rep["format"]), (12946, "ply"))
+            self.assertTrue(same_bits(c.query("client", points)["distance"], want))
+            with self.assertRaises(ValueError):
+                c.upload_arrays("client", v, f.astype(np.float32))
+            with self.assertRaises(ValueError):
+                c.upload_arrays("client", v[:, :2], f)
 
     def test_malformed_arrays(self):
         tri = {"vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}

@@ -213,6 +213,24 @@ export class Client {
     return { ...(await res.json()), created: res.status === 201 };
   }
 
+  /** PUT /v1/meshes/{name} with the mesh as JSON arrays: `vertices` ([x, y, z] triples, or
+   * flat numbers) and `faces` ([i, j, k] triples or flat indices from 0). */
+  async putMeshArrays(name, { vertices, faces }, { signal } = {}) {
+    const rows = (a, what) => {
+      const flat = Array.isArray(a?.[0]) ? a.flat() : Array.from(a ?? []);
+      if (flat.length % 3)
+        throw new TypeError(`${what} must be triples, not ${flat.length} numbers`);
+      const out = [];
+      for (let i = 0; i < flat.length; i += 3)
+        out.push([flat[i], flat[i + 1], flat[i + 2]].map(Number));
+      return out;
+    };
+    const body = JSON.stringify({ vertices: rows(vertices, 'vertices'), faces: rows(faces, 'faces') });
+    const res = await this.#request('PUT', `/v1/meshes/${seg(name)}?format=json`,
+      { body, type: 'application/json', signal });
+    return { ...(await res.json()), created: res.status === 201 };
+  }
+
   async deleteMesh(name, { signal } = {}) {
     await this.#request('DELETE', `/v1/meshes/${seg(name)}`, { signal });
   }

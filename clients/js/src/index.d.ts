@@ -281,6 +281,9 @@ export declare class Client {
   mesh(name: string, options?: RequestOptions): Promise<MeshReport>;
   putMesh(name: string, data: Uint8Array | ArrayBuffer | Blob | string,
     options?: RequestOptions & { format?: 'obj' | 'ply' | 'stl' | 'off' }): Promise<MeshReport & { created: boolean }>;
+  putMeshArrays(name: string,
+    mesh: { vertices: ArrayLike<number> | number[][]; faces: ArrayLike<number> | number[][] },
+    options?: RequestOptions): Promise<MeshReport & { created: boolean }>;
   deleteMesh(name: string, options?: RequestOptions): Promise<void>;
   query(name: string, points: Points, options?: QueryOptions): Promise<QueryResult>;
 

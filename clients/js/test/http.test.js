@@ -73,6 +73,18 @@ describe('HTTP client', { timeout: 120000 }, () => {
     /* a point inside the tetrahedron, 0.1 from its three axis faces */
     const r = await c.query('cube', [0.1, 0.1, 0.1]);
     assert.equal(r.distance[0], Math.fround(-0.1));
+    /* the same tetrahedron as arrays: the same answer, bit for bit */
+    const arrays = await c.putMeshArrays('tetra', {
+      vertices: new Float32Array([0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1]),
+      faces: [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+    });
+    assert.equal(arrays.created, true);
+    assert.equal(arrays.triangles, 4);
+    assert.equal(arrays.closed, true);
+    assert.equal((await c.query('tetra', [0.1, 0.1, 0.1])).distance[0], r.distance[0]);
+    await rejectsWith(c.putMeshArrays('bad', { vertices: [[0, 0, 0]], faces: [[0, 1, 2]] }), 422, 'EINVAL');
+    await assert.rejects(c.putMeshArrays('bad', { vertices: [0, 0], faces: [] }), TypeError);
+    await c.deleteMesh('tetra');
     await c.deleteMesh('cube');
     await rejectsWith(c.mesh('cube'), 404, 'ENOTFOUND');
     await rejectsWith(c.putMesh('bad', 'v 0 0 zero\nf 1 2 3\n', { format: 'obj' }), 422, 'EPARSE');

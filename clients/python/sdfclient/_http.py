@@ -155,6 +155,23 @@ class Client:
         return _object(self._request("PUT", f"/v1/meshes/{name}{q}", data,
                                      {"Content-Type": "application/octet-stream"})[1])
 
+    def upload_arrays(self, name: str, vertices: npt.ArrayLike,
+                      faces: npt.ArrayLike) -> Dict[str, Any]:
+        """Store the mesh of `vertices` ((V, 3) numbers) and `faces` ((F, 3) integer indices
+        from 0) as `name` (needs the token), sent as an npz. Returns its description."""
+        v = np.asarray(vertices)
+        f = np.asarray(faces)
+        if v.ndim != 2 or v.shape[1:] != (3,) or f.ndim != 2 or f.shape[1:] != (3,):
+            raise ValueError("vertices must have shape (V, 3) and faces (F, 3), not "
+                             f"{v.shape} and {f.shape}")
+        if not np.issubdtype(f.dtype, np.integer):
+            raise ValueError(f"faces must be integers, not {f.dtype}")
+        buf = io.BytesIO()
+        np.savez(buf, vertices=v.astype(np.float64 if v.dtype == np.float64 else np.float32),
+                 faces=f)
+        return _object(self._request("PUT", f"/v1/meshes/{name}?format=npz", buf.getvalue(),
+                                     {"Content-Type": "application/octet-stream"})[1])
+
     def delete(self, name: str) -> None:
         """Unload mesh `name` (needs the token)."""
         self._request("DELETE", f"/v1/meshes/{name}")
