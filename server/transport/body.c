@@ -442,8 +442,8 @@ static int parse_json(char *body, size_t len, size_t max_points, sdfd_query_para
 
 /* ---- octet-stream and npy ----------------------------------------------------------------- */
 
-static int parse_npy(char *body, size_t len, size_t max_points, float **points, size_t *count,
-                     int *owned, char *err, size_t cap)
+static int parse_npy(char *body, size_t len, size_t max_points, sdfd_query_params *params,
+                     float **points, size_t *count, int *owned, char *err, size_t cap)
 {
     sdf_npy_info info;
     sdf_diag diag;
@@ -451,12 +451,19 @@ static int parse_npy(char *body, size_t len, size_t max_points, float **points, 
     if (rc)
         return fail(err, cap, rc == SDF_ETRUNC || rc == SDF_EPARSE ? SDFD_ESYNTAX : rc, "npy: %s",
                     diag.message);
-    if (info.ndim != 2 || info.shape[1] != 3)
-        return fail(err, cap, SDF_EINVAL, "npy: points must have shape (N, 3)");
-    if (info.shape[0] > max_points)
-        return fail(err, cap, SDF_ELIMIT, "%zu points, more than the limit of %zu", info.shape[0],
+    if (info.ndim < 2 || info.shape[info.ndim - 1] != 3)
+        return fail(err, cap, SDF_EINVAL, "npy: points must have shape (N, 3) or (..., 3)");
+    size_t n = 1; /* sdf_npy_parse checked the product against the bytes present */
+    for (int i = 0; i + 1 < info.ndim; i++)
+        n *= info.shape[i];
+    if (n > max_points)
+        return fail(err, cap, SDF_ELIMIT, "%zu points, more than the limit of %zu", n,
                     max_points);
-    *count = info.shape[0];
+    if (info.ndim > 2) {
+        params->lead_ndim = info.ndim - 1;
+        memcpy(params->lead, info.shape, (size_t)params->lead_ndim * sizeof *params->lead);
+    }
+    *count = n;
     /* NumPy pads its headers to 64 bytes, so float32 data is used in place; a header of
      * another length leaves it unaligned, and it is copied like float64 data. */
     if (info.dtype == SDF_NPY_F32 && info.data_offset % sizeof(float) == 0) {
@@ -489,7 +496,7 @@ int sdfd_parse_points(sdfd_form form, char *body, size_t len, size_t max_points,
     if (form == SDFD_FORM_JSON)
         return parse_json(body, len, max_points, params, points, count, owned, err, err_cap);
     if (form == SDFD_FORM_NPY)
-        return parse_npy(body, len, max_points, points, count, owned, err, err_cap);
+        return parse_npy(body, len, max_points, params, points, count, owned, err, err_cap);
     if (len % 12)
         return fail(err, err_cap, SDFD_ESYNTAX,
                     "octet-stream body of %zu bytes is not a whole number of 12-byte points", len);
@@ -503,20 +510,28 @@ int sdfd_parse_points(sdfd_form form, char *body, size_t len, size_t max_points,
 
 /* ---- replies ----------------------------------------------------------------------------- */
 
-static long npy_header(char *dst, size_t cap, sdf_proto_mode mode, size_t count)
+static long npy_header(char *dst, size_t cap, sdf_proto_mode mode, size_t count,
+                       const size_t *lead, int lead_ndim)
 {
-    size_t shape[2] = {count, sdf_proto_words(mode)};
+    size_t shape[SDFD_MAX_LEAD + 1] = {count};
+    int n = lead_ndim ? lead_ndim : 1;
+    if (lead_ndim)
+        memcpy(shape, lead, (size_t)lead_ndim * sizeof *shape);
     if (mode == SDF_MODE_CLOSEST)
         return sdf_npy_write_header_descr(
-            dst, cap, "[('distance', '<f4'), ('closest', '<f4', (3,)), ('triangle', '<u4')]", 1,
+            dst, cap, "[('distance', '<f4'), ('closest', '<f4', (3,)), ('triangle', '<u4')]", n,
             shape);
-    return sdf_npy_write_header(dst, cap, shape[1] == 1 ? 1 : 2, shape);
+    shape[n] = sdf_proto_words(mode);
+    return sdf_npy_write_header(dst, cap, shape[n] == 1 ? n : n + 1, shape);
 }
 
-int sdfd_reply_init(sdfd_reply *r, sdfd_form form, sdf_proto_mode mode, size_t count)
+int sdfd_reply_init(sdfd_reply *r, sdfd_form form, sdf_proto_mode mode, size_t count,
+                    const size_t *lead, int lead_ndim)
 {
     char header[512];
-    long h = form == SDFD_FORM_NPY ? npy_header(header, sizeof header, mode, count) : 0;
+    long h = form == SDFD_FORM_NPY ? npy_header(header, sizeof header, mode, count, lead,
+                                                lead_ndim)
+                                   : 0;
     if (h < 0)
         return SDF_ENOMEM;
     size_t bytes = (size_t)h + 4 * sdf_proto_words(mode) * count;

@@ -2,7 +2,8 @@
  *   application/json          {"points": [[x,y,z],...] | [x,y,z,...], "mode": ..., "sign": ...,
  *                              "filter": {...}, "interpolation": ... (volume queries)}
  *   application/octet-stream  little-endian float32 xyz triples (parameters in the URL)
- *   application/x-npy         float32 or float64 (N, 3) (parameters in the URL)
+ *   application/x-npy         float32 or float64 (N, 3), or (..., 3) whose leading shape the
+ *                             npy answer keeps (parameters in the URL)
  * Results always start as the wire layout of PROTOCOL.md (W 32-bit words per point, held
  * in a sdfd_reply), which is the octet-stream body as is, the npy body after a header, and
  * the source the JSON text is printed from (9 significant digits, numtext.h: every float32
@@ -25,12 +26,19 @@ typedef enum sdfd_form { SDFD_FORM_JSON, SDFD_FORM_OCTET, SDFD_FORM_NPY } sdfd_f
 int sdfd_form_from_type(const char *content_type);
 const char *sdfd_form_type(sdfd_form form);
 
+/* The most leading dimensions of an npy points array: (a, b, c, 3) at most. */
+#define SDFD_MAX_LEAD 3
+
 /* What a request asks for. Strings point into the body or the URL; NULL = not given. */
 typedef struct sdfd_query_params {
     const char *mode, *sign, *interpolation; /* interpolation: volume queries */
     size_t mode_len, sign_len, interpolation_len;
     const char *filter; /* JSON: the text of the "filter" object (filterparams.h) */
     size_t filter_len;
+    /* An npy body of shape (..., 3) with more than one leading dimension: those dimensions
+     * (their product is the point count), which an npy answer keeps; 0 for (N, 3). */
+    size_t lead[SDFD_MAX_LEAD];
+    int lead_ndim;
 } sdfd_query_params;
 
 /* Parse a query body. On success *points is either `body` itself (octet/npy float32 data,
@@ -49,8 +57,11 @@ typedef struct sdfd_reply {
     sdf_proto_mode mode;
 } sdfd_reply;
 
-/* Allocate a reply for `count` points in `mode` shaped for `form`. 0 or SDF_ENOMEM. */
-int sdfd_reply_init(sdfd_reply *r, sdfd_form form, sdf_proto_mode mode, size_t count);
+/* Allocate a reply for `count` points in `mode` shaped for `form`; an npy reply has the
+ * shape `lead` (lead_ndim dimensions whose product is count; 0 dimensions: (count,)), then
+ * the mode's words when there are several. 0 or SDF_ENOMEM. */
+int sdfd_reply_init(sdfd_reply *r, sdfd_form form, sdf_proto_mode mode, size_t count,
+                    const size_t *lead, int lead_ndim);
 
 /* Turn a filled reply into the response body; returns a malloc'd buffer (which may be
  * r->buffer itself, then owned by the caller) and its length. NULL on out-of-memory. */

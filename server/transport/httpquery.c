@@ -17,12 +17,13 @@ typedef sdfd_http_request request;
 /* What both queries do once their arguments are read: room for the answer in the reply
  * form, the connection suspended (admission may end on a loader's thread), then the
  * handler's admission; a refusal resumes it and answers at once. */
-static enum MHD_Result submit(request *req, sdfd_form form, sdf_proto_mode mode, size_t count,
-                              sdfd_http_respond respond,
+static enum MHD_Result submit(request *req, sdfd_form form, const sdfd_query_params *params,
+                              sdf_proto_mode mode, size_t count, sdfd_http_respond respond,
                               int (*admit)(request *req, char *err, size_t cap))
 {
     req->reply_form = (sdfd_form)sdfd_http_reply_form(req, form);
-    if (sdfd_reply_init(&req->reply, req->reply_form, mode, count))
+    if (sdfd_reply_init(&req->reply, req->reply_form, mode, count, params->lead,
+                        params->lead_ndim))
         return sdfd_http_error(req, SDF_ENOMEM, "out of memory for %zu results", count);
     req->points = count;
     sdfd_http_wait(req, respond);
@@ -119,7 +120,7 @@ enum MHD_Result sdfd_http_query(request *req)
         if (volume_name[0])
             q->smoothing_name = volume_name, q->smoothing_name_len = strlen(volume_name);
     }
-    return submit(req, form, m, count, reply_query, admit_query);
+    return submit(req, form, &params, m, count, reply_query, admit_query);
 }
 
 /* ---- volume queries ---------------------------------------------------------------------- */
@@ -167,6 +168,6 @@ enum MHD_Result sdfd_http_volume_query(request *req)
     if (interp && sdf_volume_filter_from_name(interp, &vq->interpolation))
         return sdfd_http_error(req, SDF_EINVAL, "unknown interpolation '%s' (default, trilinear, "
                                "nearest, hermite)", interp);
-    return submit(req, form, gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count,
+    return submit(req, form, &params, gradient ? SDF_MODE_GRADIENT : SDF_MODE_SIGNED, count,
                   reply_volume_query, admit_volume_query);
 }

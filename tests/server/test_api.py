@@ -526,6 +526,55 @@ class MeshArrays(unittest.TestCase):
             self.assertEqual(c_names(port), ["demo"], "nothing half-stored")
 
 
+def post_npy(port, path, array):
+    """(status, the npy answer as an array, or the error) of an npy POST answered in npy."""
+    buf = io.BytesIO()
+    np.save(buf, array)
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    try:
+        conn.request("POST", path, buf.getvalue(), {"Content-Type": "application/x-npy",
+                                                   "Accept": "application/x-npy"})
+        r = conn.getresponse()
+        body = r.read()
+        if r.status != 200:
+            return r.status, json.loads(body)["error"]
+        return r.status, np.load(io.BytesIO(body))
+    finally:
+        conn.close()
+
+
+class LeadingShape(unittest.TestCase):
+    """npy points of shape (..., 3): answers in npy keep the leading shape, with the same
+    values as the same points sent as (N, 3)."""
+
+    def test_shapes_kept(self):
+        rng = np.random.default_rng(8)
+        with Server() as s:
+            c = sdfclient.Client(s.url)
+            self.addCleanup(c.close)
+            c.upload("fan", os.path.join(DATA, "fandisk.off"))
+            vol = c.wait(c.bake("fan", resolution=16, volume="fan16"), timeout=60)
+            self.assertEqual(vol["state"], "done")
+            port = s.ports["http"]
+            for lead in [(4, 5), (2, 3, 4), (1, 1), (7, 1)]:
+                p = rng.uniform(-0.6, 0.6, lead + (3,)).astype(np.float32)
+                flat = p.reshape(-1, 3)
+                for mode in ("signed", "gradient", "closest"):
+                    path = "/v1/meshes/fan/query?mode=" + mode
+                    status, got = post_npy(port, path, p)
+                    status_flat, want = post_npy(port, path, flat)
+                    self.assertEqual((status, status_flat), (200, 200), (lead, mode, got))
+                    self.assertEqual(got.shape, lead + want.shape[1:], (lead, mode))
+                    self.assertEqual(got.tobytes(), want.tobytes(), (lead, mode))
+                status, got = post_npy(port, "/v1/volumes/fan16/query", p)
+                self.assertEqual((status, got.shape), (200, lead), got)
+            for bad in [np.zeros(3, np.float32), np.zeros((4, 2), np.float32),
+                        np.zeros((2, 3, 2), np.float32)]:
+                status, err = post_npy(port, "/v1/meshes/fan/query", bad)
+                self.assertEqual((status, err["code"]), (422, "EINVAL"), bad.shape)
+                self.assertIn("(..., 3)", err["message"])
+
+
 def c_names(port):
     c = sdfclient.Client("http://127.0.0.1:%d" % port)
     try:

@@ -213,7 +213,7 @@ static void test_reply(sdf_proto_mode mode)
     size_t n = 200000;
     unsigned w = sdf_proto_words(mode);
     sdfd_reply r;
-    CHECK(sdfd_reply_init(&r, SDFD_FORM_JSON, mode, n) == 0, "reply_init");
+    CHECK(sdfd_reply_init(&r, SDFD_FORM_JSON, mode, n, NULL, 0) == 0, "reply_init");
     for (size_t i = 0; i < n * w; i++) {
         float f = (float)next_value() * (i % 11 ? 1.0f : 1e-6f);
         if (i % 1000 == 7)
