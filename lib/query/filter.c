@@ -513,7 +513,7 @@ static int query_filtered(const sdf_mesh *mesh, const float *points, size_t coun
 {
     if (!mesh || !out || (!points && count))
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1, "missing mesh, points or outputs");
-    if (out->closest || out->triangle || out->barycentric)
+    if (out->closest || out->triangle || out->barycentric || out->normal)
         return sdf__diag_set(diag, SDF_EINVAL, 0, -1,
                              "the filtered field has a value and a gradient only");
     sdf_filter_options f;

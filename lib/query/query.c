@@ -9,6 +9,7 @@
  * made here and nowhere below. */
 #include "query/query.h"
 
+#include <math.h>
 #include <stdlib.h>
 
 #include "core/workspace.h"
@@ -127,11 +128,40 @@ int sdf__query(const sdf_mesh *mesh, const float *points, size_t count,
     return sdf__query_checked_points(mesh, points, count, opts, out);
 }
 
+/* The unit normals of the triangles `ids` (n of them) into normal[3n]. */
+static void triangle_normals(const sdf_mesh *m, const uint32_t *ids, size_t n, float *normal)
+{
+    for (size_t i = 0; i < n; i++) {
+        const uint32_t *t = m->triangles + 3 * (size_t)ids[i];
+        const float *a = m->positions + 3 * t[0], *b = m->positions + 3 * t[1],
+                    *c = m->positions + 3 * t[2];
+        double u[3], v[3], w[3];
+        for (int k = 0; k < 3; k++)
+            u[k] = (double)b[k] - a[k], v[k] = (double)c[k] - a[k];
+        w[0] = u[1] * v[2] - u[2] * v[1], w[1] = u[2] * v[0] - u[0] * v[2];
+        w[2] = u[0] * v[1] - u[1] * v[0];
+        double len = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+        for (int k = 0; k < 3; k++)
+            normal[3 * i + k] = len > 0 ? (float)(w[k] / len) : 0.0f;
+    }
+}
+
 int sdf_query(const sdf_mesh *mesh, const float *points, size_t count,
               const sdf_query_options *opts, sdf_query_result *out)
 {
+    /* Normals come from the closest triangles' ids, asked for here if the caller did not. */
+    sdf_query_result o = out ? *out : (sdf_query_result){0};
+    uint32_t *ids = NULL;
+    if (out && out->normal && !out->triangle && count &&
+        !(o.triangle = ids = malloc(count * sizeof *ids)))
+        return SDF_ENOMEM;
     sdf__ws_call call;
-    int rc = sdf__query(mesh, points, count, sdf__ws_enter(opts, &call), out);
+    int rc = sdf__query(mesh, points, count, sdf__ws_enter(opts, &call), out ? &o : NULL);
     sdf__ws_leave(&call);
+    if (!rc && out && out->normal)
+        triangle_normals(mesh, o.triangle, count, out->normal);
+    if (out)
+        out->bad_index = o.bad_index;
+    free(ids);
     return rc;
 }

@@ -360,7 +360,71 @@ static void test_concurrent(void)
     sdf_mesh_release(demo);
 }
 
+/* The `normal` output: the unit normal of the triangle the query names, computed here from
+ * the mesh's arrays; the same with and without the triangle ids asked for; on a box, the
+ * faces' outward axes. */
+static void check_normals(const char *file)
+{
+    sdf_mesh *m = load_data_mesh(file);
+    if (!m)
+        return;
+    size_t n = 20000;
+    float *p = malloc(3 * n * sizeof *p), *nrm = malloc(3 * n * sizeof *nrm),
+          *alone = malloc(3 * n * sizeof *alone);
+    uint32_t *tri = malloc(n * sizeof *tri);
+    CHECK(sdf_workload(m, "box", &n, 31, p) == 0, "workload");
+    sdf_query_options o = {.threads = 2};
+    sdf_query_result r = {.triangle = tri, .normal = nrm}, only = {.normal = alone};
+    CHECK(sdf_query(m, p, n, &o, &r) == 0 && sdf_query(m, p, n, &o, &only) == 0, "query");
+    size_t wrong = 0;
+    for (size_t i = 0; i < n; i++) {
+        const uint32_t *t = m->triangles + 3 * (size_t)tri[i];
+        const float *a = m->positions + 3 * t[0], *b = m->positions + 3 * t[1],
+                    *c = m->positions + 3 * t[2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+               v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double w[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                       u[0] * v[1] - u[1] * v[0]};
+        double len = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]), err = 0;
+        for (int k = 0; k < 3; k++)
+            err = fmax(err, fabs(nrm[3 * i + k] - (len > 0 ? w[k] / len : 0)));
+        wrong += err > 1e-6;
+    }
+    CHECK(wrong == 0, "%s: %zu of %zu normals differ from their triangle's", file, wrong, n);
+    CHECK(!memcmp(nrm, alone, 3 * n * sizeof *nrm), "%s: normals differ without the triangle ids",
+          file);
+    free(p), free(nrm), free(alone), free(tri);
+    sdf_mesh_release(m);
+}
+
+static void test_normals(void)
+{
+    check_normals("fandisk.off");
+    check_normals("elephant-with-holes.off");
+    sdf_mesh *cube = load_data_mesh("cube.ply"); /* the unit cube [0, 1]^3 */
+    if (!cube)
+        return;
+    const float p[6][3] = {{0.5f, 0.5f, 1.5f}, {0.5f, 0.5f, -0.5f}, {1.3f, 0.4f, 0.6f},
+                           {-0.2f, 0.4f, 0.6f}, {0.4f, 1.2f, 0.3f}, {0.4f, -0.3f, 0.3f}};
+    float nrm[18];
+    sdf_query_result r = {.normal = nrm};
+    CHECK(sdf_query(cube, &p[0][0], 6, NULL, &r) == 0, "cube");
+    for (int i = 0; i < 6; i++) {
+        static const int axis_of[6] = {2, 2, 0, 0, 1, 1}; /* the face each point is over */
+        int axis = axis_of[i];
+        float want = i % 2 ? -1.0f : 1.0f;
+        for (int k = 0; k < 3; k++)
+            CHECK(nrm[3 * i + k] == (k == axis ? want : 0.0f), "cube face %d: normal %g %g %g",
+                  i, nrm[3 * i], nrm[3 * i + 1], nrm[3 * i + 2]);
+    }
+    sdf_filter_options f = {0};
+    CHECK(sdf_query_filtered(cube, &p[0][0], 6, NULL, &f, &r, NULL) == SDF_EINVAL,
+          "the filtered field has no normal output");
+    sdf_mesh_release(cube);
+}
+
 static const check_case cases[] = {
+    {"normals", test_normals},
     {"fandisk", test_fandisk},
     {"knot1", test_knot1},
     {"cow", test_cow},

@@ -357,7 +357,8 @@ static void test_lattice_queries(const char *file)
         g[pass] = malloc(3 * count * sizeof(float)), c[pass] = malloc(3 * count * sizeof(float));
         w[pass] = malloc(3 * count * sizeof(float));
         sdf_query_options qo = {.threads = 2};
-        sdf_query_result res = {f[pass], g[pass], c[pass], t[pass], w[pass], 0};
+        sdf_query_result res = {.distance = f[pass], .gradient = g[pass], .closest = c[pass],
+                                .triangle = t[pass], .barycentric = w[pass]};
         CHECK(sdf_query(mesh, pass ? reversed : p, count, &qo, &res) == 0, "%s: query", file);
     }
     for (size_t q = 0; q < count / 2; q++) { /* back to lattice order */

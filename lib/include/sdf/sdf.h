@@ -247,8 +247,15 @@ typedef struct sdf_query_result {
                             surface, the closest feature's pseudonormal */
     float *closest;      /* [3n] closest point on the mesh */
     uint32_t *triangle;  /* [n] id of the triangle holding the closest point */
-    float *barycentric;  /* [3n] weights of that triangle's vertices 0, 1, 2 at the point */
+    float *barycentric;  /* [3n] weights (w0, w1, w2) of that triangle's vertices 0, 1, 2 at
+                            the closest point: c = w0 v0 + w1 v1 + w2 v2, summing to 1. Open3D's
+                            primitive_uvs are (u, v) = (w1, w2); libigl's barycentric
+                            coordinates of c in (v0, v1, v2) are (w0, w1, w2) */
     size_t bad_index;    /* out: the first bad point when SDF_ENONFINITE is returned */
+    float *normal;       /* [3n] that triangle's unit normal, (v1 - v0) x (v2 - v0)
+                            normalized, with the mesh's orientation (outward on closed meshes,
+                            which are reoriented if inside out); Open3D's primitive_normals.
+                            (0, 0, 0) for a degenerate triangle. sdf_query only */
 } sdf_query_result;
 
 /* Answer `count` point queries. `points` holds xyz float triples `point_stride` bytes apart.
