@@ -346,9 +346,10 @@ void sdfd_cache_baked_listed(sdfd_cache *c, const char *name, int rc)
     sdfd_cached *e = sdfd_resident_find(&c->r, SDFD_ITEM_VOLUME, name, 0);
     sdfd_lookup *waiting = NULL;
     if (e) { /* claimed since sdfd_cache_keep_baked */
-        e->resident = !rc;
-        if (!rc)
-            sdfd_resident_enforce_budget(&c->r, e);
+        if (rc) /* an older version in memory is stale now: the store holds the new one */
+            sdfd_resident_drop(&c->r, e);
+        else
+            e->resident = 1, sdfd_resident_enforce_budget(&c->r, e);
         waiting = sdfd_resident_unclaim(&c->r, e);
     }
     pthread_mutex_unlock(&c->r.lock);

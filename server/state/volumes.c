@@ -468,8 +468,28 @@ static int keep_surface(job *j, const sdfd_stored_volume *stored, sdf_diag *diag
                            j->req.options.query.threads, diag->message, sizeof diag->message);
 }
 
-/* The job's end: its volume listed, its slot and bytes freed, its final status recorded. */
-static void finish(job *j, int canceled, sdfd_stored_volume *stored, int rc, sdf_diag *diag)
+/* The kept volume listed in memory (its reserved bytes become the volume's), then the keep
+ * hook's `listed`: before anything else runs (a surface's extraction), so the store's claim
+ * on the name is held no longer than this. Takes `stored` over; 0 or SDF_ELIMIT with diag
+ * set. */
+static int list_kept(job *j, sdfd_stored_volume *stored, sdf_diag *diag)
+{
+    sdfd_volumes *v = j->owner;
+    pthread_mutex_lock(&v->lock);
+    v->reserved -= j->reserved;
+    j->reserved = 0;
+    int put = put_locked(v, stored);
+    pthread_mutex_unlock(&v->lock);
+    if (v->hooks.listed)
+        v->hooks.listed(v->hooks.user, j->status.volume, put);
+    if (put)
+        snprintf(diag->message, sizeof diag->message,
+                 "the volume made no longer fits --max-volumes / --max-volume-bytes");
+    return put;
+}
+
+/* The job's end: its slot and bytes freed, its final status recorded. */
+static void finish(job *j, int canceled, int rc, sdf_diag *diag)
 {
     sdfd_volumes *v = j->owner;
     pthread_mutex_lock(&v->lock);
@@ -477,12 +497,6 @@ static void finish(job *j, int canceled, sdfd_stored_volume *stored, int rc, sdf
         v->running--;
     v->reserved -= j->reserved;
     j->reserved = 0;
-    int put = stored ? put_locked(v, stored) : 0; /* listed even when its surface failed */
-    if (put && !rc) {
-        rc = put;
-        snprintf(diag->message, sizeof diag->message,
-                 "the volume made no longer fits --max-volumes / --max-volume-bytes");
-    }
     j->status.state = !rc ? SDFD_JOB_DONE : rc == SDF_ECANCELED ? SDFD_JOB_CANCELED : SDFD_JOB_FAILED;
     if (j->status.state == SDFD_JOB_FAILED) {
         j->status.error = rc;
@@ -499,8 +513,6 @@ static void finish(job *j, int canceled, sdfd_stored_volume *stored, int rc, sdf
     snapshot(j, &final);
     pthread_cond_broadcast(&v->slot_free);
     pthread_mutex_unlock(&v->lock);
-    if (stored && v->hooks.listed)
-        v->hooks.listed(v->hooks.user, j->status.volume, put);
     if (v->hooks.ended)
         v->hooks.ended(v->hooks.user, &final, j->token);
     pthread_mutex_lock(&v->lock);
@@ -524,8 +536,13 @@ static void *run_job(void *arg)
         rc = work(j, &volume, &diag);
     }
     sdfd_stored_volume *stored = rc ? NULL : keep(j, volume, &rc, &diag);
-    if (stored && j->req.surface[0])
-        rc = keep_surface(j, stored, &diag);
+    if (stored) { /* listed even when its surface fails next */
+        sdfd_volume_retain(stored);
+        rc = list_kept(j, stored, &diag);
+        if (!rc && j->req.surface[0])
+            rc = keep_surface(j, stored, &diag);
+        sdfd_volume_release(stored);
+    }
     sdf_mesh_release(j->mesh);
     sdf_mesh_release(j->req.smoothing_mesh);
     j->mesh = j->req.smoothing_mesh = NULL;
@@ -534,7 +551,7 @@ static void *run_job(void *arg)
     j->source = NULL;
     pthread_mutex_unlock(&j->owner->lock);
     sdfd_volume_release(source);
-    finish(j, canceled, stored, rc, &diag);
+    finish(j, canceled, rc, &diag);
     sdfd_log("info", j->status.kind == SDFD_JOB_OPS ? "ops_finished" : "bake_finished",
              "job %s (%s): %s after %.3f s", j->status.id, kind,
              sdfd_job_state_name(j->status.state), j->status.seconds);

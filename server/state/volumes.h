@@ -170,8 +170,8 @@ typedef struct sdfd_volumes_hooks {
     void *user;
     /* A job finished: keep `s` (0), or refuse (err set: the job fails with it). */
     int (*keep)(void *user, const sdfd_stored_volume *s, char *err, size_t cap);
-    /* After each keep that returned 0: the volume is listed in memory (rc 0) or is not (over
-     * the limits). Nothing that keep kept is listed before this. */
+    /* After each keep that returned 0, at once (before a surface is extracted): the volume
+     * is listed in memory (rc 0) or is not (over the limits). */
     void (*listed)(void *user, const char *name, int rc);
     /* A job was accepted (before it can start); returns a token handed to ended. */
     int (*started)(void *user, const sdfd_job_status *s);
