@@ -22,6 +22,7 @@ typedef struct arrays {
     uint32_t *f;    /* 3 per face */
     double *raw_f;  /* JSON faces as read, checked once the vertices are known */
     size_t nv, nf, cap_v, cap_f;
+    size_t max_faces;
 } arrays;
 
 static int fail(char *err, size_t cap, int rc, const char *fmt, ...)
@@ -35,7 +36,7 @@ static int fail(char *err, size_t cap, int rc, const char *fmt, ...)
 
 sdfd_mesh_body sdfd_mesh_body_kind(const char *format, const char *body, size_t len)
 {
-    if (format)
+    if (format && strcasecmp(format, "auto"))
         return !strcasecmp(format, "json") ? SDFD_MESH_BODY_JSON
                : !strcasecmp(format, "npz") ? SDFD_MESH_BODY_NPZ : SDFD_MESH_BODY_FILE;
     if (sdfd_npz_sniff(body, len))
@@ -130,6 +131,9 @@ static int rows(json *j, arrays *a, int faces)
     do {
         double r[3];
         size_t *n = faces ? &a->nf : &a->nv;
+        if (faces && a->nf == a->max_faces)
+            return fail(j->err, j->cap, SDF_ELIMIT, "more than the limit of %zu triangles",
+                        a->max_faces);
         int rc = row(j, key, *n, r);
         if (rc)
             return rc;
@@ -252,6 +256,9 @@ static double int_at(const unsigned char *p, const sdf_npy_info *info)
  * mesh with up to ~1.6 vertices per triangle (closed meshes have ~0.5), so a small archive
  * that inflates past any mesh the server takes is refused before it is inflated. */
 #define NPZ_BYTES_PER_TRIANGLE 64
+/* ... and at most this many times the body's bytes: arrays of a mesh deflate by a few times,
+ * not the ~1000 a run of zeros does, so a small body cannot make the server fill gigabytes. */
+#define NPZ_MAX_RATIO 32
 
 static int parse_npz(const char *body, size_t len, size_t max_triangles, arrays *a, char *err,
                      size_t cap)
@@ -261,7 +268,10 @@ static int parse_npz(const char *body, size_t len, size_t max_triangles, arrays 
     const unsigned char *vd, *fd;
     size_t most = max_triangles > (SIZE_MAX >> 21) / NPZ_BYTES_PER_TRIANGLE
                       ? SIZE_MAX >> 20 : NPZ_BYTES_PER_TRIANGLE * max_triangles + (1u << 20);
-    int rc = sdfd_npz_read(body, len, most, &z, err, cap);
+    if (len < (SIZE_MAX >> 21) / NPZ_MAX_RATIO && NPZ_MAX_RATIO * len + (1u << 20) < most)
+        most = NPZ_MAX_RATIO * len + (1u << 20);
+    static const char *const wanted[] = {"vertices", "faces", NULL};
+    int rc = sdfd_npz_read(body, len, wanted, most, &z, err, cap);
     if (!rc)
         rc = member(&z, "vertices", 1, &vi, &vd, err, cap);
     if (!rc)
@@ -305,7 +315,7 @@ int sdfd_mesh_arrays_to_ply(sdfd_mesh_body kind, const char *body, size_t len,
                             size_t max_triangles, void **ply, size_t *ply_len, char *err,
                             size_t cap)
 {
-    arrays a = {0};
+    arrays a = {.max_faces = max_triangles};
     *ply = NULL, *ply_len = 0;
     int rc = kind == SDFD_MESH_BODY_NPZ ? parse_npz(body, len, max_triangles, &a, err, cap)
                                         : parse_json(body, len, &a, err, cap);

@@ -165,8 +165,17 @@ static int inflate_member(const unsigned char *in, const entry *e, unsigned char
     return 0;
 }
 
-static int add_member(const unsigned char *z, size_t len, const entry *e, size_t *budget,
-                      sdfd_npz_member *m, char *err, size_t cap)
+static int is_wanted(const char *name, const char *const *wanted)
+{
+    for (size_t i = 0; wanted && wanted[i]; i++)
+        if (!strcmp(name, wanted[i]))
+            return 1;
+    return !wanted;
+}
+
+static int add_member(const unsigned char *z, size_t len, const entry *e,
+                      const char *const *wanted, size_t *budget, sdfd_npz_member *m, char *err,
+                      size_t cap)
 {
     if (e->flags & 1)
         return fail(err, cap, SDF_EFORMAT, "encrypted members are not read");
@@ -179,6 +188,8 @@ static int add_member(const unsigned char *z, size_t len, const entry *e, size_t
     if (n > SDFD_NPZ_MAX_NAME)
         return fail(err, cap, SDF_ELIMIT, "a member's name is over %d bytes", SDFD_NPZ_MAX_NAME);
     memcpy(m->name, e->name, n), m->name[n] = '\0';
+    if (!is_wanted(m->name, wanted))
+        return 0; /* listed, never read */
     const unsigned char *stored = NULL;
     int rc = member_bytes(z, len, e, &stored, err, cap);
     if (rc)
@@ -203,8 +214,8 @@ static int add_member(const unsigned char *z, size_t len, const entry *e, size_t
     return 0;
 }
 
-int sdfd_npz_read(const void *data, size_t len, size_t max_bytes, sdfd_npz *out, char *err,
-                  size_t cap)
+int sdfd_npz_read(const void *data, size_t len, const char *const *wanted, size_t max_bytes,
+                  sdfd_npz *out, char *err, size_t cap)
 {
     memset(out, 0, sizeof *out);
     const unsigned char *z = data;
@@ -218,7 +229,7 @@ int sdfd_npz_read(const void *data, size_t len, size_t max_bytes, sdfd_npz *out,
     for (uint64_t i = 0; !rc && i < entries; i++) {
         entry e = {0};
         if (!(rc = read_entry(z, &p, end, &e, err, cap)))
-            rc = add_member(z, len, &e, &budget, &out->members[out->count++], err, cap);
+            rc = add_member(z, len, &e, wanted, &budget, &out->members[out->count++], err, cap);
     }
     for (size_t i = 0; !rc && i < out->count; i++)
         for (size_t k = 0; k < i; k++)
@@ -231,7 +242,7 @@ int sdfd_npz_read(const void *data, size_t len, size_t max_bytes, sdfd_npz *out,
 const sdfd_npz_member *sdfd_npz_find(const sdfd_npz *z, const char *name)
 {
     for (size_t i = 0; i < z->count; i++)
-        if (!strcmp(z->members[i].name, name))
+        if (!strcmp(z->members[i].name, name) && z->members[i].data)
             return &z->members[i];
     return NULL;
 }

@@ -30,12 +30,13 @@ typedef struct sdfd_npz {
 /* Does `data` start like a zip file ("PK\3\4")? */
 int sdfd_npz_sniff(const void *data, size_t len);
 
-/* Read the archive's members (they point into `data`, which must outlive *out, or into
- * inflated copies). 0, or an SDF_E* code with err set (SDF_EFORMAT: not an npz sdfd can
+/* Read the archive's members named in `wanted` (NULL-terminated, ".npy" left off; NULL: all),
+ * pointing into `data` (which must outlive *out) or into inflated copies; the others are
+ * listed with no data and never inflated. 0, or an SDF_E* code with err set (SDF_EFORMAT: not an npz sdfd can
  * read; SDF_ETRUNC: cut short; SDF_ELIMIT: over max_bytes or SDFD_NPZ_MAX_MEMBERS;
  * SDF_ENOMEM). *out is always safe to free. */
-int sdfd_npz_read(const void *data, size_t len, size_t max_bytes, sdfd_npz *out, char *err,
-                  size_t cap);
+int sdfd_npz_read(const void *data, size_t len, const char *const *wanted, size_t max_bytes,
+                  sdfd_npz *out, char *err, size_t cap);
 
 /* The member named `name` (".npy" left off), or NULL. */
 const sdfd_npz_member *sdfd_npz_find(const sdfd_npz *z, const char *name);

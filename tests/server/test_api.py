@@ -516,6 +516,19 @@ class MeshArrays(unittest.TestCase):
                 got, err = put(port, "bad", body, "application/octet-stream")
                 self.assertEqual(got, status, (message, err))
                 self.assertIn(message, err["message"])
+            # format=auto sniffs arrays too.
+            got, rep = put(port, "auto", json.dumps(tri), "application/json", "?format=auto")
+            self.assertEqual((got, rep["triangles"]), (201, 1), rep)
+            request_delete = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+            request_delete.request("DELETE", "/v1/meshes/auto")
+            self.assertEqual(request_delete.getresponse().status, 204)
+            request_delete.close()
+            # A small npz that would inflate past 32 times its size is refused before inflating.
+            bomb = npz_bytes(True, vertices=v, faces=np.zeros((2000000, 3), np.int64))
+            self.assertLess(len(bomb), 48000000 // 32)
+            got, err = put(port, "bad", bomb, "application/octet-stream")
+            self.assertEqual((got, err["code"]), (413, "ELIMIT"), err)
+            self.assertIn("more than the server reads", err["message"])
             # A damaged deflated member: its CRC-32 or its inflation says so.
             good = bytearray(npz_bytes(True, vertices=v, faces=np.array([[0, 1, 2]] * 50)))
             at = bytes(good).index(b"faces.npy") + len("faces.npy") + 20 + 8  # in its data
