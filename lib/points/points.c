@@ -119,7 +119,8 @@ static float pseudonormal_side(const float p[3], const sdf__hit *hit, const floa
     return s < 0 ? -1.0f : 1.0f;
 }
 
-/* Within this many surface_epsilon of a closed mesh, the sign by rays is the pseudonormal's:
+/* Within this many surface_epsilon (4 float epsilons of the mesh's extent each) of a closed
+ * mesh that does not intersect itself, the sign by rays is the pseudonormal's:
  * rays from so close cross the surface within rounding of the closest point, where a shared
  * edge under it counts twice or not at all for every direction at once (the unit cube one
  * float step under its top face's diagonal). The pseudonormal test is exact there. */
@@ -127,7 +128,9 @@ static float pseudonormal_side(const float p[3], const sdf__hit *hit, const floa
 
 static int ray_near(const sdf_mesh *m, double d)
 {
-    return m->report.closed && d < RAY_NEAR * (double)m->surface_epsilon;
+    /* as for auto: pseudonormals decide only on closed meshes that do not cross themselves */
+    return m->report.closed && !m->report.self_intersecting &&
+           d < RAY_NEAR * (double)m->surface_epsilon;
 }
 
 /* -1 inside, +1 outside (or unsigned). `winding`: the point's winding number when it was

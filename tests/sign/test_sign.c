@@ -370,7 +370,7 @@ static void test_near_features(void)
     sdf_mesh *m = load_data_mesh("fandisk.off");
     if (!m)
         return;
-    size_t nt = m->report.triangles, n = 0, cap = 2 * 4 * 3 * nt;
+    size_t nt = m->report.triangles, n = 0, cap = 3 * 2 * 2 * 3 * nt;
     float *p = malloc(3 * cap * sizeof *p), *d[N_METHODS];
     for (size_t t = 0; t < nt; t++) {
         const uint32_t *tri = m->triangles + 3 * t;
@@ -389,7 +389,8 @@ static void test_near_features(void)
                         *y = m->positions + 3 * tri[(corner + 1) % 3];
             for (int at = 0; at < 2; at++)         /* the vertex, then the edge's midpoint */
                 for (int dir = -1; dir <= 1; dir += 2) /* inward, outward */
-                    for (int ulps = 1; ulps <= 4; ulps *= 4, n++)
+                    /* 1 and 32 steps: within the rays' fallback (points.c); 1024: past it */
+                    for (int ulps = 1; ulps <= 1024; ulps *= 32, n++)
                         for (int i = 0; i < 3; i++) {
                             float q = at ? 0.5f * (x[i] + y[i]) : x[i];
                             float step = ulps * (nextafterf(fabsf(q) + 1e-30f, INFINITY) -
@@ -412,6 +413,13 @@ static void test_near_features(void)
         CHECK(disagree[k] == 0, "fandisk, %s: %zu of %zu points a few float steps from an edge "
               "or vertex disagree with the pseudonormal's sign", sdf_sign_name(METHODS[k]),
               disagree[k], n);
+    /* The pseudonormal's sign itself, on every 97th point, against the exact solid angles. */
+    size_t checked = 0, wrong = 0;
+    for (size_t i = 0; i < n; i += 97)
+        if (fabsf(d[1][i]) > on_face)
+            checked++, wrong += (ref_winding(m, p + 3 * i) > 0.5) != (d[1][i] < 0);
+    CHECK(checked > 1000 && wrong == 0, "fandisk: the pseudonormal's sign is not the exact "
+          "winding number's on %zu of %zu points", wrong, checked);
     for (size_t k = 0; k < N_METHODS; k++)
         free(d[k]);
     free(p);
