@@ -150,8 +150,8 @@ class Replicas(unittest.TestCase):
         # The same bake again: the same bytes from another job; both replicas (each holding the
         # first in memory) describe the second.
         again = cb.bake("part", resolution=16, volume="part16")
-        cb.wait(again, timeout=60)
-        jobs = lambda: [request(s.ports["http"], "GET", "/v1/volumes/part16")[1]["job"]
+        self.assertEqual(cb.wait(again, timeout=60)["state"], "done")
+        jobs = lambda: [(request(s.ports["http"], "GET", "/v1/volumes/part16")[1] or {}).get("job")
                         for s in (a, b)]
         wait_until(lambda: jobs() == [again["id"]] * 2, VISIBLE * 10)
         self.assertEqual(jobs(), [again["id"]] * 2)

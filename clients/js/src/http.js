@@ -217,7 +217,9 @@ export class Client {
    * flat numbers) and `faces` ([i, j, k] triples or flat indices from 0). */
   async putMeshArrays(name, { vertices, faces }, { signal } = {}) {
     const rows = (a, what) => {
-      const flat = Array.isArray(a?.[0]) ? a.flat() : Array.from(a ?? []);
+      if (Array.isArray(a?.[0])) /* rows as given: the server names a ragged one */
+        return a.map((r) => Array.from(r, Number));
+      const flat = Array.from(a ?? []);
       if (flat.length % 3)
         throw new TypeError(`${what} must be triples, not ${flat.length} numbers`);
       const out = [];

@@ -166,9 +166,9 @@ class Client:
                              f"{v.shape} and {f.shape}")
         if not np.issubdtype(f.dtype, np.integer):
             raise ValueError(f"faces must be integers, not {f.dtype}")
-        buf = io.BytesIO()
-        np.savez(buf, vertices=v.astype(np.float64 if v.dtype == np.float64 else np.float32),
-                 faces=f)
+        buf = io.BytesIO()  # little-endian, as the server reads them
+        np.savez(buf, vertices=v.astype("<f8" if v.dtype == np.float64 else "<f4"),
+                 faces=f.astype(f.dtype.newbyteorder("<")))
         return _object(self._request("PUT", f"/v1/meshes/{name}?format=npz", buf.getvalue(),
                                      {"Content-Type": "application/octet-stream"})[1])
 
