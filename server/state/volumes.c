@@ -535,6 +535,16 @@ static void *run_job(void *arg)
                  j->status.volume);
         rc = work(j, &volume, &diag);
     }
+    sdf_mesh_release(j->mesh);
+    sdf_mesh_release(j->req.smoothing_mesh);
+    j->mesh = j->req.smoothing_mesh = NULL;
+    /* The source goes before the result is listed: an ops job that replaces its own source
+     * frees the source's bytes then (put_locked keeps a volume's bytes while a job reads it). */
+    pthread_mutex_lock(&j->owner->lock); /* unlist_bytes reads it */
+    sdfd_stored_volume *source = j->source;
+    j->source = NULL;
+    pthread_mutex_unlock(&j->owner->lock);
+    sdfd_volume_release(source);
     sdfd_stored_volume *stored = rc ? NULL : keep(j, volume, &rc, &diag);
     if (stored) { /* listed even when its surface fails next */
         sdfd_volume_retain(stored);
@@ -543,14 +553,6 @@ static void *run_job(void *arg)
             rc = keep_surface(j, stored, &diag);
         sdfd_volume_release(stored);
     }
-    sdf_mesh_release(j->mesh);
-    sdf_mesh_release(j->req.smoothing_mesh);
-    j->mesh = j->req.smoothing_mesh = NULL;
-    pthread_mutex_lock(&j->owner->lock); /* unlist_bytes reads it */
-    sdfd_stored_volume *source = j->source;
-    j->source = NULL;
-    pthread_mutex_unlock(&j->owner->lock);
-    sdfd_volume_release(source);
     finish(j, canceled, rc, &diag);
     sdfd_log("info", j->status.kind == SDFD_JOB_OPS ? "ops_finished" : "bake_finished",
              "job %s (%s): %s after %.3f s", j->status.id, kind,
