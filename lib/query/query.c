@@ -13,6 +13,7 @@
 #include <stdlib.h>
 
 #include "core/workspace.h"
+#include "geom/triangle.h"
 #include "mesh/mesh.h"
 #include "points/points.h"
 #include "scan/scan.h"
@@ -133,13 +134,11 @@ static void triangle_normals(const sdf_mesh *m, const uint32_t *ids, size_t n, f
 {
     for (size_t i = 0; i < n; i++) {
         const uint32_t *t = m->triangles + 3 * (size_t)ids[i];
-        const float *a = m->positions + 3 * t[0], *b = m->positions + 3 * t[1],
-                    *c = m->positions + 3 * t[2];
-        double u[3], v[3], w[3];
-        for (int k = 0; k < 3; k++)
-            u[k] = (double)b[k] - a[k], v[k] = (double)c[k] - a[k];
-        w[0] = u[1] * v[2] - u[2] * v[1], w[1] = u[2] * v[0] - u[0] * v[2];
-        w[2] = u[0] * v[1] - u[1] * v[0];
+        double v[3][3], w[3];
+        for (int c = 0; c < 3; c++)
+            for (int k = 0; k < 3; k++)
+                v[c][k] = m->positions[3 * t[c] + k];
+        sdf__triangle_normal(v[0], v[1], v[2], w);
         double len = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
         for (int k = 0; k < 3; k++)
             normal[3 * i + k] = len > 0 ? (float)(w[k] / len) : 0.0f;
